@@ -1,0 +1,1 @@
+"""jampacked.cli: the `jampacked` command line."""

@@ -1,0 +1,1 @@
+"""jampacked.core: the packing engine (load, approximate, place & grow, fill, certify)."""

@@ -1,0 +1,22 @@
+"""One exception family for everything jampacked reports to a user.
+
+Messages name the file or object, say what is wrong, and how to fix it.
+"""
+
+from __future__ import annotations
+
+
+class JampackedError(Exception):
+    """Base of every error jampacked raises on purpose."""
+
+
+class MeshError(JampackedError):
+    """A mesh file cannot be read, or its geometry is unusable (open, inverted, empty...)."""
+
+
+class InputError(JampackedError):
+    """Bad arguments: shares, sizes, clearance, unknown file formats, bad packing files."""
+
+
+class PackingError(JampackedError):
+    """The packing itself cannot be done (e.g. no object fits the container)."""

@@ -1,0 +1,1 @@
+"""jampacked.export: packings to watertight, printable meshes."""
