@@ -1,0 +1,61 @@
+"""The container: its mesh in the container frame, a signed distance grid, interior samples.
+
+Container frame: the file's coordinates times `frame_from_file` (a uniform scale when
+`--container-size` is given), container units (millimetres for printing).
+"""
+
+from __future__ import annotations
+
+from dataclasses import dataclass
+
+import numpy as np
+
+from .distance import DistanceGrid, distance_grid
+
+#: grid cells across the container's largest extent are capped to keep memory and time sane
+MAX_CELLS_PER_AXIS = 220
+
+
+@dataclass(frozen=True)
+class Container:
+    """Container mesh (container frame) with its signed distance grid (positive inside)."""
+
+    vertices: np.ndarray  # (V,3)
+    faces: np.ndarray  # (F,3)
+    volume: float
+    grid: DistanceGrid
+
+    @property
+    def bounds(self) -> np.ndarray:
+        """(2,3) axis-aligned bounds."""
+        return np.stack([self.vertices.min(axis=0), self.vertices.max(axis=0)])
+
+
+def build_container(vertices: np.ndarray, faces: np.ndarray, volume: float,
+                    spacing: float) -> Container:
+    """Distance grid of the container at about `spacing` (coarsened if too many cells)."""
+    vertices = np.ascontiguousarray(vertices, np.float64)
+    extent = float(np.ptp(vertices, axis=0).max())
+    spacing = max(float(spacing), extent / MAX_CELLS_PER_AXIS)
+    grid = distance_grid(vertices, faces, spacing, pad=2 * spacing, band=4)
+    return Container(vertices, np.ascontiguousarray(faces, np.int64), float(volume), grid)
+
+
+def interior_points(container: Container, spacing: float, min_depth: float,
+                    rng: np.random.Generator | None = None) -> np.ndarray:
+    """Points of a regular lattice (spacing, container units) at least `min_depth` inside.
+
+    The lattice is offset by a random fraction of a cell when `rng` is given. Returns (M,3).
+    """
+    lo, hi = container.bounds
+    off = rng.random(3) * spacing if rng is not None else np.full(3, 0.5 * spacing)
+    axes = [np.arange(lo[a] + off[a], hi[a], spacing) for a in range(3)]
+    if any(len(a) == 0 for a in axes):
+        return np.zeros((0, 3))
+    g = np.meshgrid(*axes, indexing="ij")
+    pts = np.stack([x.ravel() for x in g], axis=1)
+    from .kernels import sample_grid_many
+
+    depth = sample_grid_many(container.grid.values, container.grid.origin,
+                             container.grid.spacing, pts)
+    return pts[depth >= min_depth]

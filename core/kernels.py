@@ -1,0 +1,523 @@
+"""numba kernels: grid sampling, contacts (sphere-sphere, point-grid, wall) and the solver.
+
+Frames: object k's local frame maps to the container frame by x -> R(q_k) * s_k * x + p_k.
+All lengths are container units. Signed distance grids are positive inside.
+
+Flat type table (T types), built by `solver.TypeTable`:
+- radius (T,) bounding radius about the local origin
+- sph_off (T+1,), sph_c (S,3), sph_r (S,): inner spheres of type t are rows sph_off[t]:sph_off[t+1]
+- pt_off (T+1,), pts (P,3): surface points
+- g_off (T+1,), g_vals (G,) flattened C-order grids, g_shape (T,3), g_origin (T,3), g_h (T,)
+Container grid: c_vals (nx,ny,nz), c_origin (3,), c_h.
+Penetration below `tol` (container units) is ignored.
+"""
+
+from __future__ import annotations
+
+import numpy as np
+from numba import njit
+
+
+@njit(cache=True)
+def quat_to_rot(q):
+    """(4,) unit quaternion w,x,y,z -> (3,3) rotation matrix."""
+    w, x, y, z = q[0], q[1], q[2], q[3]
+    r = np.empty((3, 3))
+    r[0, 0] = 1 - 2 * (y * y + z * z)
+    r[0, 1] = 2 * (x * y - w * z)
+    r[0, 2] = 2 * (x * z + w * y)
+    r[1, 0] = 2 * (x * y + w * z)
+    r[1, 1] = 1 - 2 * (x * x + z * z)
+    r[1, 2] = 2 * (y * z - w * x)
+    r[2, 0] = 2 * (x * z - w * y)
+    r[2, 1] = 2 * (y * z + w * x)
+    r[2, 2] = 1 - 2 * (x * x + y * y)
+    return r
+
+
+@njit(cache=True)
+def trilinear(vals, off, nx, ny, nz, ox, oy, oz, h, px, py, pz):
+    """Trilinear value and gradient of a flat C-order grid at (px,py,pz).
+
+    Outside the grid box the value continues as (value at the clamped point) minus the
+    distance to the box, so it keeps decreasing away from the box (outside = negative).
+    Returns (d, gx, gy, gz).
+    """
+    fx = (px - ox) / h
+    fy = (py - oy) / h
+    fz = (pz - oz) / h
+    cx = min(max(fx, 0.0), nx - 1.0)
+    cy = min(max(fy, 0.0), ny - 1.0)
+    cz = min(max(fz, 0.0), nz - 1.0)
+    i = min(int(cx), nx - 2)
+    j = min(int(cy), ny - 2)
+    k = min(int(cz), nz - 2)
+    tx = cx - i
+    ty = cy - j
+    tz = cz - k
+    b = off + (i * ny + j) * nz + k
+    c000 = vals[b]
+    c001 = vals[b + 1]
+    c010 = vals[b + nz]
+    c011 = vals[b + nz + 1]
+    c100 = vals[b + ny * nz]
+    c101 = vals[b + ny * nz + 1]
+    c110 = vals[b + ny * nz + nz]
+    c111 = vals[b + ny * nz + nz + 1]
+    c00 = c000 + (c001 - c000) * tz
+    c01 = c010 + (c011 - c010) * tz
+    c10 = c100 + (c101 - c100) * tz
+    c11 = c110 + (c111 - c110) * tz
+    c0 = c00 + (c01 - c00) * ty
+    c1 = c10 + (c11 - c10) * ty
+    d = c0 + (c1 - c0) * tx
+    gx = (c1 - c0) / h
+    gy = ((c01 - c00) * (1.0 - tx) + (c11 - c10) * tx) / h
+    z0 = (c001 - c000) + ((c011 - c010) - (c001 - c000)) * ty
+    z1 = (c101 - c100) + ((c111 - c110) - (c101 - c100)) * ty
+    gz = (z0 + (z1 - z0) * tx) / h
+    ex = (fx - cx) * h
+    ey = (fy - cy) * h
+    ez = (fz - cz) * h
+    e = np.sqrt(ex * ex + ey * ey + ez * ez)
+    if e > 0.0:
+        d -= e
+        gx = -ex / e
+        gy = -ey / e
+        gz = -ez / e
+    return d, gx, gy, gz
+
+
+@njit(cache=True)
+def sample_grid_many(vals3, origin, h, pts):
+    """Trilinear samples of a 3D grid at points (M,3) -> (M,) (see `trilinear`)."""
+    nx, ny, nz = vals3.shape
+    flat = vals3.ravel()
+    out = np.empty(pts.shape[0])
+    for m in range(pts.shape[0]):
+        d, _, _, _ = trilinear(flat, 0, nx, ny, nz, origin[0], origin[1], origin[2], h,
+                               pts[m, 0], pts[m, 1], pts[m, 2])
+        out[m] = d
+    return out
+
+
+@njit(cache=True)
+def sample_type_grid(g_vals, g_off, g_shape, g_origin, g_h, t, px, py, pz):
+    """Signed distance (local units, positive inside) and gradient of type t's grid."""
+    return trilinear(g_vals, g_off[t], g_shape[t, 0], g_shape[t, 1], g_shape[t, 2],
+                     g_origin[t, 0], g_origin[t, 1], g_origin[t, 2], g_h[t], px, py, pz)
+
+
+@njit(cache=True)
+def _points_in_other(a, b, R_a, R_b, typ, pos, scale, radius, pt_off, pts, g_off, g_vals,
+                     g_shape, g_origin, g_h, delta, tol, F, Tq):
+    """Surface points of object a against the distance grid of object b.
+
+    Adds forces (pushing a's points out of b) to F[a], reactions to F[b], torques to Tq.
+    Returns the largest penetration depth (container units).
+    """
+    ta = typ[a]
+    tb = typ[b]
+    sa = scale[a]
+    sb = scale[b]
+    reach = radius[tb] * sb + delta
+    worst = 0.0
+    for m in range(pt_off[ta], pt_off[ta + 1]):
+        wx = (R_a[0, 0] * pts[m, 0] + R_a[0, 1] * pts[m, 1] + R_a[0, 2] * pts[m, 2]) * sa
+        wy = (R_a[1, 0] * pts[m, 0] + R_a[1, 1] * pts[m, 1] + R_a[1, 2] * pts[m, 2]) * sa
+        wz = (R_a[2, 0] * pts[m, 0] + R_a[2, 1] * pts[m, 1] + R_a[2, 2] * pts[m, 2]) * sa
+        rx = wx + pos[a, 0] - pos[b, 0]
+        ry = wy + pos[a, 1] - pos[b, 1]
+        rz = wz + pos[a, 2] - pos[b, 2]
+        if rx * rx + ry * ry + rz * rz > reach * reach:
+            continue
+        # into b's local frame: R_b^T r / s_b
+        qx = (R_b[0, 0] * rx + R_b[1, 0] * ry + R_b[2, 0] * rz) / sb
+        qy = (R_b[0, 1] * rx + R_b[1, 1] * ry + R_b[2, 1] * rz) / sb
+        qz = (R_b[0, 2] * rx + R_b[1, 2] * ry + R_b[2, 2] * rz) / sb
+        d, gx, gy, gz = sample_type_grid(g_vals, g_off, g_shape, g_origin, g_h, tb, qx, qy, qz)
+        pen = d * sb + delta
+        if pen <= tol:
+            continue
+        # outward normal of b in the container frame: -R_b grad
+        nx = -(R_b[0, 0] * gx + R_b[0, 1] * gy + R_b[0, 2] * gz)
+        ny = -(R_b[1, 0] * gx + R_b[1, 1] * gy + R_b[1, 2] * gz)
+        nz = -(R_b[2, 0] * gx + R_b[2, 1] * gy + R_b[2, 2] * gz)
+        nn = np.sqrt(nx * nx + ny * ny + nz * nz)
+        if nn < 1e-12:
+            nx = pos[a, 0] - pos[b, 0]
+            ny = pos[a, 1] - pos[b, 1]
+            nz = pos[a, 2] - pos[b, 2]
+            nn = np.sqrt(nx * nx + ny * ny + nz * nz) + 1e-300
+        nx /= nn
+        ny /= nn
+        nz /= nn
+        F[a, 0] += pen * nx
+        F[a, 1] += pen * ny
+        F[a, 2] += pen * nz
+        F[b, 0] -= pen * nx
+        F[b, 1] -= pen * ny
+        F[b, 2] -= pen * nz
+        # torque about a's centre from its point, about b's centre from the reaction
+        Tq[a, 0] += wy * pen * nz - wz * pen * ny
+        Tq[a, 1] += wz * pen * nx - wx * pen * nz
+        Tq[a, 2] += wx * pen * ny - wy * pen * nx
+        Tq[b, 0] -= ry * pen * nz - rz * pen * ny
+        Tq[b, 1] -= rz * pen * nx - rx * pen * nz
+        Tq[b, 2] -= rx * pen * ny - ry * pen * nx
+        if pen > worst:
+            worst = pen
+    return worst
+
+
+@njit(cache=True)
+def pair_contact(a, b, typ, pos, quat, scale, margin, clearance, tol, radius, sph_off, sph_c,
+                 sph_r, pt_off, pts, g_off, g_vals, g_shape, g_origin, g_h, F, Tq):
+    """Penetration of objects a and b (inner spheres + surface points), forces accumulated.
+
+    Objects must keep `clearance + margin[a] + margin[b]` apart. Returns the largest
+    penetration depth found (0 if none above tol).
+    """
+    ta = typ[a]
+    tb = typ[b]
+    sa = scale[a]
+    sb = scale[b]
+    delta = clearance + margin[a] + margin[b]
+    R_a = quat_to_rot(quat[a])
+    R_b = quat_to_rot(quat[b])
+    worst = 0.0
+    reach_b = radius[tb] * sb + delta
+    for u in range(sph_off[ta], sph_off[ta + 1]):
+        ux = (R_a[0, 0] * sph_c[u, 0] + R_a[0, 1] * sph_c[u, 1] + R_a[0, 2] * sph_c[u, 2]) * sa
+        uy = (R_a[1, 0] * sph_c[u, 0] + R_a[1, 1] * sph_c[u, 1] + R_a[1, 2] * sph_c[u, 2]) * sa
+        uz = (R_a[2, 0] * sph_c[u, 0] + R_a[2, 1] * sph_c[u, 1] + R_a[2, 2] * sph_c[u, 2]) * sa
+        ra = sph_r[u] * sa
+        cx = ux + pos[a, 0] - pos[b, 0]
+        cy = uy + pos[a, 1] - pos[b, 1]
+        cz = uz + pos[a, 2] - pos[b, 2]
+        lim = ra + reach_b
+        if cx * cx + cy * cy + cz * cz > lim * lim:
+            continue
+        for v in range(sph_off[tb], sph_off[tb + 1]):
+            vx = (R_b[0, 0] * sph_c[v, 0] + R_b[0, 1] * sph_c[v, 1]
+                  + R_b[0, 2] * sph_c[v, 2]) * sb
+            vy = (R_b[1, 0] * sph_c[v, 0] + R_b[1, 1] * sph_c[v, 1]
+                  + R_b[1, 2] * sph_c[v, 2]) * sb
+            vz = (R_b[2, 0] * sph_c[v, 0] + R_b[2, 1] * sph_c[v, 1]
+                  + R_b[2, 2] * sph_c[v, 2]) * sb
+            rb = sph_r[v] * sb
+            dx = cx - vx
+            dy = cy - vy
+            dz = cz - vz
+            dist = np.sqrt(dx * dx + dy * dy + dz * dz)
+            pen = ra + rb + delta - dist
+            if pen <= tol:
+                continue
+            if dist > 1e-12:
+                nx = dx / dist
+                ny = dy / dist
+                nz = dz / dist
+            else:
+                nx = 1.0
+                ny = 0.0
+                nz = 0.0
+            # weight ~ lens volume for shallow overlaps: pen^2 * reduced radius
+            w = pen * pen * (ra * rb / (ra + rb)) / max(ra, rb)
+            F[a, 0] += w * nx
+            F[a, 1] += w * ny
+            F[a, 2] += w * nz
+            F[b, 0] -= w * nx
+            F[b, 1] -= w * ny
+            F[b, 2] -= w * nz
+            Tq[a, 0] += uy * w * nz - uz * w * ny
+            Tq[a, 1] += uz * w * nx - ux * w * nz
+            Tq[a, 2] += ux * w * ny - uy * w * nx
+            Tq[b, 0] -= vy * w * nz - vz * w * ny
+            Tq[b, 1] -= vz * w * nx - vx * w * nz
+            Tq[b, 2] -= vx * w * ny - vy * w * nx
+            if pen > worst:
+                worst = pen
+    p1 = _points_in_other(a, b, R_a, R_b, typ, pos, scale, radius, pt_off, pts, g_off, g_vals,
+                          g_shape, g_origin, g_h, delta, tol, F, Tq)
+    p2 = _points_in_other(b, a, R_b, R_a, typ, pos, scale, radius, pt_off, pts, g_off, g_vals,
+                          g_shape, g_origin, g_h, delta, tol, F, Tq)
+    return max(worst, p1, p2)
+
+
+@njit(cache=True)
+def wall_contact(a, typ, pos, quat, scale, margin, clearance, tol, sph_off, sph_c, sph_r,
+                 pt_off, pts, c_vals, c_shape, c_origin, c_h, F, Tq):
+    """Penetration of object a into the container wall (spheres and surface points)."""
+    t = typ[a]
+    s = scale[a]
+    delta = clearance + margin[a]
+    R = quat_to_rot(quat[a])
+    worst = 0.0
+    nx_, ny_, nz_ = c_shape[0], c_shape[1], c_shape[2]
+    for u in range(sph_off[t], sph_off[t + 1]):
+        ux = (R[0, 0] * sph_c[u, 0] + R[0, 1] * sph_c[u, 1] + R[0, 2] * sph_c[u, 2]) * s
+        uy = (R[1, 0] * sph_c[u, 0] + R[1, 1] * sph_c[u, 1] + R[1, 2] * sph_c[u, 2]) * s
+        uz = (R[2, 0] * sph_c[u, 0] + R[2, 1] * sph_c[u, 1] + R[2, 2] * sph_c[u, 2]) * s
+        d, gx, gy, gz = trilinear(c_vals, 0, nx_, ny_, nz_, c_origin[0], c_origin[1],
+                                  c_origin[2], c_h, ux + pos[a, 0], uy + pos[a, 1],
+                                  uz + pos[a, 2])
+        pen = sph_r[u] * s + delta - d
+        if pen <= tol:
+            continue
+        gn = np.sqrt(gx * gx + gy * gy + gz * gz) + 1e-300
+        w = pen
+        F[a, 0] += w * gx / gn
+        F[a, 1] += w * gy / gn
+        F[a, 2] += w * gz / gn
+        Tq[a, 0] += (uy * gz - uz * gy) * w / gn
+        Tq[a, 1] += (uz * gx - ux * gz) * w / gn
+        Tq[a, 2] += (ux * gy - uy * gx) * w / gn
+        if pen > worst:
+            worst = pen
+    for m in range(pt_off[t], pt_off[t + 1]):
+        wx = (R[0, 0] * pts[m, 0] + R[0, 1] * pts[m, 1] + R[0, 2] * pts[m, 2]) * s
+        wy = (R[1, 0] * pts[m, 0] + R[1, 1] * pts[m, 1] + R[1, 2] * pts[m, 2]) * s
+        wz = (R[2, 0] * pts[m, 0] + R[2, 1] * pts[m, 1] + R[2, 2] * pts[m, 2]) * s
+        d, gx, gy, gz = trilinear(c_vals, 0, nx_, ny_, nz_, c_origin[0], c_origin[1],
+                                  c_origin[2], c_h, wx + pos[a, 0], wy + pos[a, 1],
+                                  wz + pos[a, 2])
+        pen = delta - d
+        if pen <= tol:
+            continue
+        gn = np.sqrt(gx * gx + gy * gy + gz * gz) + 1e-300
+        F[a, 0] += pen * gx / gn
+        F[a, 1] += pen * gy / gn
+        F[a, 2] += pen * gz / gn
+        Tq[a, 0] += (wy * gz - wz * gy) * pen / gn
+        Tq[a, 1] += (wz * gx - wx * gz) * pen / gn
+        Tq[a, 2] += (wx * gy - wy * gx) * pen / gn
+        if pen > worst:
+            worst = pen
+    return worst
+
+
+@njit(cache=True)
+def _rotate_quat(q, ax, ay, az, angle):
+    """q <- rotation(axis, angle) * q, renormalised."""
+    h = 0.5 * angle
+    s = np.sin(h)
+    rw = np.cos(h)
+    rx = ax * s
+    ry = ay * s
+    rz = az * s
+    w = rw * q[0] - rx * q[1] - ry * q[2] - rz * q[3]
+    x = rw * q[1] + rx * q[0] + ry * q[3] - rz * q[2]
+    y = rw * q[2] - rx * q[3] + ry * q[0] + rz * q[1]
+    z = rw * q[3] + rx * q[2] - ry * q[1] + rz * q[0]
+    n = np.sqrt(w * w + x * x + y * y + z * z)
+    q[0] = w / n
+    q[1] = x / n
+    q[2] = y / n
+    q[3] = z / n
+
+
+@njit(cache=True)
+def resolve(focus, typ, pos, quat, scale, alive, margin, vel, clearance, tol, radius,
+            sph_off, sph_c, sph_r, pt_off, pts, g_off, g_vals, g_shape, g_origin, g_h,
+            c_vals, c_origin, c_h, max_iter, k_obj, k_wall, k_rot, damping, rollback):
+    """Penalty-force overlap resolution starting from the objects in `focus`.
+
+    Only objects in contact move: each gets the sum of its contact forces, normalised,
+    scaled by its deepest penetration times the stiffness (k_obj for object contacts, k_wall
+    for the wall), added to its velocity (damped by `damping`, zeroed once free), and a
+    rotation about its torque axis (k_rot). The state before the call is assumed free of
+    overlaps except near `focus`, so only moved objects need re-checking.
+
+    Mutates pos, quat, vel. With `rollback`, a failed call restores every object it moved to
+    its state at the call (the last overlap-free state). Returns (resolved, iterations used).
+    """
+    n = typ.shape[0]
+    moved = np.zeros(n, np.uint8)
+    moved_list = np.empty(n, np.int64)
+    n_moved = 0
+    bpos = np.empty((n, 3))
+    bquat = np.empty((n, 4))
+    bvel = np.empty((n, 3))
+    F = np.zeros((n, 3))
+    Tq = np.zeros((n, 3))
+    pen_obj = np.zeros(n)
+    pen_wall = np.zeros(n)
+    active = np.zeros(n, np.uint8)
+    hit = np.zeros(n, np.uint8)
+    c_shape = np.array(c_vals.shape, np.int64)
+    c_flat = c_vals.ravel()
+    act_list = np.empty(n, np.int64)
+    n_act = 0
+    for f in focus:
+        if alive[f] and not active[f]:
+            active[f] = 1
+            act_list[n_act] = f
+            n_act += 1
+    for it in range(max_iter + 1):
+        hit_list = np.empty(n, np.int64)
+        n_hit = 0
+        for ii in range(n_act):
+            a = act_list[ii]
+            pw = wall_contact(a, typ, pos, quat, scale, margin, clearance, tol, sph_off, sph_c,
+                              sph_r, pt_off, pts, c_flat, c_shape, c_origin, c_h, F, Tq)
+            if pw > 0.0:
+                pen_wall[a] = max(pen_wall[a], pw)
+                if not hit[a]:
+                    hit[a] = 1
+                    hit_list[n_hit] = a
+                    n_hit += 1
+            ra = radius[typ[a]] * scale[a]
+            for b in range(n):
+                if b == a or not alive[b]:
+                    continue
+                if active[b] and b < a:
+                    continue
+                lim = ra + radius[typ[b]] * scale[b] + clearance + margin[a] + margin[b]
+                dx = pos[a, 0] - pos[b, 0]
+                dy = pos[a, 1] - pos[b, 1]
+                dz = pos[a, 2] - pos[b, 2]
+                if dx * dx + dy * dy + dz * dz > lim * lim:
+                    continue
+                p = pair_contact(a, b, typ, pos, quat, scale, margin, clearance, tol, radius,
+                                 sph_off, sph_c, sph_r, pt_off, pts, g_off, g_vals, g_shape,
+                                 g_origin, g_h, F, Tq)
+                if p > 0.0:
+                    pen_obj[a] = max(pen_obj[a], p)
+                    pen_obj[b] = max(pen_obj[b], p)
+                    for c in (a, b):
+                        if not hit[c]:
+                            hit[c] = 1
+                            hit_list[n_hit] = c
+                            n_hit += 1
+        # objects that were active but are free now stop
+        for ii in range(n_act):
+            a = act_list[ii]
+            active[a] = 0
+            if not hit[a]:
+                vel[a, 0] = 0.0
+                vel[a, 1] = 0.0
+                vel[a, 2] = 0.0
+        if n_hit == 0:
+            return True, it
+        if it == max_iter:
+            break
+        n_act = 0
+        for ii in range(n_hit):
+            a = hit_list[ii]
+            if not moved[a]:
+                moved[a] = 1
+                moved_list[n_moved] = a
+                n_moved += 1
+                bpos[a] = pos[a]
+                bquat[a] = quat[a]
+                bvel[a] = vel[a]
+            fn = np.sqrt(F[a, 0] ** 2 + F[a, 1] ** 2 + F[a, 2] ** 2)
+            step = max(k_obj * pen_obj[a], k_wall * pen_wall[a])
+            if fn > 1e-300:
+                for d in range(3):
+                    vel[a, d] = damping * vel[a, d] + step * F[a, d] / fn
+            for d in range(3):
+                pos[a, d] += vel[a, d]
+            tn = np.sqrt(Tq[a, 0] ** 2 + Tq[a, 1] ** 2 + Tq[a, 2] ** 2)
+            if tn > 1e-300 and k_rot > 0.0:
+                ang = k_rot * step / (radius[typ[a]] * scale[a])
+                _rotate_quat(quat[a], Tq[a, 0] / tn, Tq[a, 1] / tn, Tq[a, 2] / tn, ang)
+            F[a, 0] = 0.0
+            F[a, 1] = 0.0
+            F[a, 2] = 0.0
+            Tq[a, 0] = 0.0
+            Tq[a, 1] = 0.0
+            Tq[a, 2] = 0.0
+            pen_obj[a] = 0.0
+            pen_wall[a] = 0.0
+            hit[a] = 0
+            active[a] = 1
+            act_list[n_act] = a
+            n_act += 1
+    if rollback:
+        for ii in range(n_moved):
+            a = moved_list[ii]
+            pos[a] = bpos[a]
+            quat[a] = bquat[a]
+            vel[a] = bvel[a]
+    return False, max_iter
+
+
+@njit(cache=True)
+def max_penetrations(typ, pos, quat, scale, alive, margin, clearance, tol, radius, sph_off,
+                     sph_c, sph_r, pt_off, pts, g_off, g_vals, g_shape, g_origin, g_h, c_vals,
+                     c_origin, c_h):
+    """Deepest object-object and object-wall penetration of every alive object, (N,2)."""
+    n = typ.shape[0]
+    F = np.zeros((n, 3))
+    Tq = np.zeros((n, 3))
+    out = np.zeros((n, 2))
+    c_shape = np.array(c_vals.shape, np.int64)
+    c_flat = c_vals.ravel()
+    for a in range(n):
+        if not alive[a]:
+            continue
+        out[a, 1] = wall_contact(a, typ, pos, quat, scale, margin, clearance, tol, sph_off,
+                                 sph_c, sph_r, pt_off, pts, c_flat, c_shape, c_origin, c_h,
+                                 F, Tq)
+        ra = radius[typ[a]] * scale[a]
+        for b in range(a + 1, n):
+            if not alive[b]:
+                continue
+            lim = ra + radius[typ[b]] * scale[b] + clearance + margin[a] + margin[b]
+            dx = pos[a, 0] - pos[b, 0]
+            dy = pos[a, 1] - pos[b, 1]
+            dz = pos[a, 2] - pos[b, 2]
+            if dx * dx + dy * dy + dz * dz > lim * lim:
+                continue
+            p = pair_contact(a, b, typ, pos, quat, scale, margin, clearance, tol, radius,
+                             sph_off, sph_c, sph_r, pt_off, pts, g_off, g_vals, g_shape,
+                             g_origin, g_h, F, Tq)
+            out[a, 0] = max(out[a, 0], p)
+            out[b, 0] = max(out[b, 0], p)
+    return out
+
+
+@njit(cache=True)
+def free_distance(px, py, pz, typ, pos, quat, scale, alive, radius, g_off, g_vals, g_shape,
+                  g_origin, g_h, c_vals, c_origin, c_h):
+    """Distance from a point to the nearest alive object's surface or the container wall.
+
+    Negative if the point is inside an object or outside the container.
+    """
+    nx_, ny_, nz_ = c_vals.shape
+    best, _, _, _ = trilinear(c_vals.ravel(), 0, nx_, ny_, nz_, c_origin[0], c_origin[1],
+                              c_origin[2], c_h, px, py, pz)
+    for b in range(typ.shape[0]):
+        if not alive[b]:
+            continue
+        rx = px - pos[b, 0]
+        ry = py - pos[b, 1]
+        rz = pz - pos[b, 2]
+        dc = np.sqrt(rx * rx + ry * ry + rz * rz)
+        rb = radius[typ[b]] * scale[b]
+        if dc - rb >= best:
+            continue
+        R = quat_to_rot(quat[b])
+        sb = scale[b]
+        qx = (R[0, 0] * rx + R[1, 0] * ry + R[2, 0] * rz) / sb
+        qy = (R[0, 1] * rx + R[1, 1] * ry + R[2, 1] * rz) / sb
+        qz = (R[0, 2] * rx + R[1, 2] * ry + R[2, 2] * rz) / sb
+        d, _, _, _ = sample_type_grid(g_vals, g_off, g_shape, g_origin, g_h, typ[b], qx, qy, qz)
+        d = -d * sb
+        d = max(d, dc - rb)
+        if d < best:
+            best = d
+    return best
+
+
+@njit(cache=True)
+def free_distances(points, typ, pos, quat, scale, alive, radius, g_off, g_vals, g_shape,
+                   g_origin, g_h, c_vals, c_origin, c_h):
+    """`free_distance` for many points (M,3) -> (M,)."""
+    out = np.empty(points.shape[0])
+    for m in range(points.shape[0]):
+        out[m] = free_distance(points[m, 0], points[m, 1], points[m, 2], typ, pos, quat, scale,
+                               alive, radius, g_off, g_vals, g_shape, g_origin, g_h, c_vals,
+                               c_origin, c_h)
+    return out

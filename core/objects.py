@@ -1,0 +1,184 @@
+"""Object types: a mesh in its local frame plus the approximations the solver collides.
+
+Local frame: the file's coordinates scaled by `type_scale` and moved so the volume centroid
+is the origin (container units). Each type carries
+- an inner sphere packing (the paper's approximation, for penetration volumes),
+- a signed distance grid of the mesh (for surface points of other objects, which the inner
+  spheres miss at corners and edges),
+- surface points (mesh vertices plus points along long edges, thinned by farthest-point
+  sampling), tested against other objects' grids and the container's grid.
+Everything derived is cached on disk, keyed by the mesh geometry and the parameters.
+"""
+
+from __future__ import annotations
+
+import hashlib
+import os
+from dataclasses import dataclass
+from pathlib import Path
+
+import numpy as np
+
+from .distance import DistanceGrid, distance_grid
+from .spheres import inner_spheres
+
+#: per fidelity: (sphere count, distance grid cells across the largest extent, surface points)
+FIDELITY = {
+    "low": (24, 28, 96),
+    "medium": (64, 40, 192),
+    "high": (160, 64, 384),
+}
+_CACHE_VERSION = "1"
+
+
+@dataclass(frozen=True)
+class ObjectType:
+    """One object type, ready for the solver. All arrays in the local frame, container units."""
+
+    name: str
+    path: str | None
+    sha256: str | None
+    share: float
+    local_from_file: np.ndarray  # (4,4)
+    vertices: np.ndarray  # (V,3)
+    faces: np.ndarray  # (F,3)
+    volume: float
+    radius: float  # max |vertex|: bounding sphere about the origin
+    grid: DistanceGrid
+    sphere_centres: np.ndarray  # (S,3)
+    sphere_radii: np.ndarray  # (S,)
+    surface_points: np.ndarray  # (P,3)
+    max_edge: float
+
+    @property
+    def equivalent_radius(self) -> float:
+        """f(V) = (3V/4pi)^(1/3): radius of the sphere of equal volume."""
+        return float((3.0 * self.volume / (4.0 * np.pi)) ** (1.0 / 3.0))
+
+
+def cache_dir() -> Path:
+    """Where derived approximations are cached ($JAMPACKED_CACHE or the user cache dir)."""
+    env = os.environ.get("JAMPACKED_CACHE")
+    if env:
+        return Path(env)
+    base = os.environ.get("XDG_CACHE_HOME") or os.path.join(os.path.expanduser("~"), ".cache")
+    return Path(base) / "jampacked"
+
+
+def _farthest_points(points: np.ndarray, count: int) -> np.ndarray:
+    """Farthest point sampling: `count` well spread rows of points (N,3), deterministic."""
+    if len(points) <= count:
+        return points
+    chosen = [0]
+    d = ((points - points[0]) ** 2).sum(axis=1)
+    for _ in range(count - 1):
+        k = int(np.argmax(d))
+        chosen.append(k)
+        np.minimum(d, ((points - points[k]) ** 2).sum(axis=1), out=d)
+    return points[np.asarray(chosen)]
+
+
+def surface_samples(vertices: np.ndarray, faces: np.ndarray, count: int) -> np.ndarray:
+    """Mesh vertices plus points along long edges, thinned to `count` spread points (P,3)."""
+    edges = np.sort(faces[:, [0, 1, 1, 2, 2, 0]].reshape(-1, 2), axis=1)
+    edges = np.unique(edges, axis=0)
+    a = vertices[edges[:, 0]]
+    b = vertices[edges[:, 1]]
+    length = np.linalg.norm(b - a, axis=1)
+    extent = float(np.ptp(vertices, axis=0).max())
+    step = extent / 16.0
+    extra = []
+    for n in range(2, 16):
+        sel = (length > (n - 1) * step) & (length <= n * step)
+        if not sel.any():
+            continue
+        t = (np.arange(1, n) / n)[None, :, None]
+        extra.append((a[sel][:, None, :] * (1 - t) + b[sel][:, None, :] * t).reshape(-1, 3))
+    sel = length > 15 * step
+    if sel.any():
+        t = (np.arange(1, 16) / 16)[None, :, None]
+        extra.append((a[sel][:, None, :] * (1 - t) + b[sel][:, None, :] * t).reshape(-1, 3))
+    pts = np.concatenate([vertices] + extra) if extra else vertices
+    # Vertices first: corners are where inner spheres miss most; FPS starts from the
+    # vertex farthest from the centroid.
+    start = int(np.argmax((pts ** 2).sum(axis=1)))
+    pts = np.roll(pts, -start, axis=0)
+    return np.ascontiguousarray(_farthest_points(pts, count))
+
+
+def _geometry_key(vertices: np.ndarray, faces: np.ndarray, params: tuple) -> str:
+    h = hashlib.sha256()
+    h.update(_CACHE_VERSION.encode())
+    h.update(np.ascontiguousarray(vertices, np.float64).tobytes())
+    h.update(np.ascontiguousarray(faces, np.int64).tobytes())
+    h.update(repr(params).encode())
+    return h.hexdigest()[:32]
+
+
+def build_type(name: str, vertices_file: np.ndarray, faces: np.ndarray, *, path: str | None,
+               sha256: str | None, share: float, type_scale: float = 1.0,
+               fidelity: str = "medium", use_cache: bool = True) -> ObjectType:
+    """Move a mesh into its local frame and build its approximations.
+
+    vertices_file: (V,3) in file units; type_scale multiplies them into container units.
+    """
+    if fidelity not in FIDELITY:
+        raise ValueError(f"unknown fidelity {fidelity!r}")
+    n_spheres, cells, n_points = FIDELITY[fidelity]
+    v = np.asarray(vertices_file, np.float64) * float(type_scale)
+    faces = np.ascontiguousarray(faces, np.int64)
+    volume, centroid = _volume_centroid(v, faces)
+    v = np.ascontiguousarray(v - centroid)
+    local_from_file = np.eye(4)
+    local_from_file[:3, :3] *= type_scale
+    local_from_file[:3, 3] = -centroid
+    extent = float(np.ptp(v, axis=0).max())
+    spacing = extent / cells
+    key = _geometry_key(v, faces, (n_spheres, cells, n_points))
+    cached = _load_cached(key) if use_cache else None
+    if cached is None:
+        grid = distance_grid(v, faces, spacing, pad=2 * spacing, band=3)
+        centres, radii = inner_spheres(grid, n_spheres)
+        pts = surface_samples(v, faces, n_points)
+        if use_cache:
+            _save_cached(key, grid, centres, radii, pts)
+    else:
+        grid, centres, radii, pts = cached
+    edges = v[faces[:, [1, 2, 0]]] - v[faces]
+    return ObjectType(
+        name=name, path=path, sha256=sha256, share=float(share),
+        local_from_file=local_from_file, vertices=v, faces=faces, volume=float(volume),
+        radius=float(np.sqrt((v ** 2).sum(axis=1)).max()), grid=grid,
+        sphere_centres=centres, sphere_radii=radii, surface_points=pts,
+        max_edge=float(np.linalg.norm(edges, axis=2).max()),
+    )
+
+
+def _volume_centroid(v: np.ndarray, f: np.ndarray) -> tuple[float, np.ndarray]:
+    a, b, c = v[f[:, 0]], v[f[:, 1]], v[f[:, 2]]
+    det = np.einsum("ij,ij->i", a, np.cross(b, c))
+    vol = det.sum() / 6.0
+    cen = ((a + b + c) * det[:, None]).sum(axis=0) / (24.0 * vol)
+    return float(vol), cen
+
+
+def _load_cached(key: str):
+    p = cache_dir() / f"type-{key}.npz"
+    try:
+        with np.load(p) as z:
+            grid = DistanceGrid(z["values"], z["origin"], float(z["spacing"]))
+            return grid, z["centres"], z["radii"], z["points"]
+    except (OSError, KeyError, ValueError):
+        return None
+
+
+def _save_cached(key: str, grid: DistanceGrid, centres, radii, points) -> None:
+    d = cache_dir()
+    try:
+        d.mkdir(parents=True, exist_ok=True)
+        tmp = d / f"type-{key}.{os.getpid()}.tmp.npz"
+        np.savez_compressed(tmp, values=grid.values, origin=grid.origin,
+                            spacing=grid.spacing, centres=centres, radii=radii, points=points)
+        os.replace(tmp, d / f"type-{key}.npz")
+    except OSError:
+        pass  # a cache that cannot be written only costs time

@@ -1,0 +1,211 @@
+"""The two phases of the method: place & grow (phase 1), fill cavities (phase 2).
+
+Both work on a `Solver` (container frame, container units) and stop early when the
+deadline passes or `should_cancel()` says so; an object caught mid-growth is removed, so the
+state left behind only holds full-size objects and objects never grown (removed by the caller).
+"""
+
+from __future__ import annotations
+
+import time
+from collections.abc import Callable
+from dataclasses import dataclass, field
+
+import numpy as np
+
+from .container import interior_points
+from .solver import Solver
+
+START_SCALE = 0.05
+GROWTH_STEPS = 30
+
+
+def random_quaternions(rng: np.random.Generator, n: int) -> np.ndarray:
+    """(n,4) uniformly distributed unit quaternions w,x,y,z (Shoemake)."""
+    u1, u2, u3 = rng.random((3, n))
+    a = np.sqrt(1 - u1)
+    b = np.sqrt(u1)
+    q = np.stack([a * np.sin(2 * np.pi * u2), a * np.cos(2 * np.pi * u2),
+                  b * np.sin(2 * np.pi * u3), b * np.cos(2 * np.pi * u3)], axis=1)
+    q[q[:, 0] < 0] *= -1
+    return q
+
+
+def equivalent_radius(volume: np.ndarray | float) -> np.ndarray | float:
+    """f(V) = (3V / 4pi)^(1/3)."""
+    return np.cbrt(3.0 * np.asarray(volume) / (4.0 * np.pi))
+
+
+@dataclass
+class PhaseStats:
+    """What a phase did: tries, successes, removals, wall time (s)."""
+
+    inserted: int = 0
+    grown: int = 0
+    failed: int = 0
+    seconds: float = 0.0
+    stopped: str = ""  # "", "deadline" or "cancelled"
+    extra: dict = field(default_factory=dict)
+
+
+class Stop:
+    """Deadline and cancel checks shared by the phases."""
+
+    def __init__(self, deadline: float | None, should_cancel: Callable[[], bool] | None):
+        self.deadline = deadline
+        self.should_cancel = should_cancel
+        self.reason = ""
+
+    def __call__(self) -> bool:
+        if self.reason:
+            return True
+        if self.should_cancel is not None and self.should_cancel():
+            self.reason = "cancelled"
+        elif self.deadline is not None and time.perf_counter() > self.deadline:
+            self.reason = "deadline"
+        return bool(self.reason)
+
+
+def grow(solver: Solver, k: int, start: float, iters: int, stop: Stop) -> bool:
+    """Grow object k from `start` to scale 1 in steps of 1/GROWTH_STEPS, resolving overlaps.
+
+    On failure (or stop) object k is removed and every other object is back in its last
+    overlap-free state. Returns True if k reached full size.
+    """
+    s = solver.s
+    scale = start
+    focus = np.array([k], np.int64)
+    while scale < 1.0:
+        if stop():
+            s.alive[k] = 0
+            return False
+        scale = min(1.0, scale + 1.0 / GROWTH_STEPS)
+        s.scale[k] = scale
+        if not solver.resolve(focus, iters, rollback=True):
+            s.alive[k] = 0
+            return False
+    return True
+
+
+def phase1(solver: Solver, shares: np.ndarray, spacing: float, rng: np.random.Generator,
+           stop: Stop, *, iters: int = 30, margin: np.ndarray,
+           progress: Callable[[float, str], None] | None = None) -> PhaseStats:
+    """Place one shrunken object per interior lattice point and grow them one at a time.
+
+    spacing: lattice spacing (container units). shares: (T,) target shares by count.
+    margin: (T,) per-type safety margin (container units).
+    The next object to grow is the first ungrown one of the largest type that is below its
+    target share (or, when none is, of the type furthest below it).
+    """
+    t0 = time.perf_counter()
+    st = PhaseStats()
+    table = solver.t
+    n_types = len(shares)
+    min_depth = START_SCALE * table.radius.max() + solver.p.clearance + margin.max()
+    pts = interior_points(solver.c, spacing, min_depth, rng)
+    rng.shuffle(pts)
+    types = rng.choice(n_types, size=len(pts), p=shares)
+    quats = random_quaternions(rng, len(pts))
+    ungrown: list[list[int]] = [[] for _ in range(n_types)]
+    for p, t, q in zip(pts, types, quats, strict=True):
+        k = solver.s.add(int(t), p, q, START_SCALE, float(margin[t]))
+        ungrown[t].append(k)
+    st.inserted = len(pts)
+    # tiny objects near each other or the wall: settle them before growing anything
+    solver.resolve(solver.s.alive_indices(), 50, rollback=False)
+    counts = np.zeros(n_types)
+    head = [0] * n_types
+    order_by_volume = np.argsort(-table.volume)
+    total = len(pts)
+    done = 0
+    while True:
+        if stop():
+            break
+        left = [t for t in range(n_types) if head[t] < len(ungrown[t])]
+        if not left:
+            break
+        g = counts.sum()
+        below = [t for t in order_by_volume if t in left and counts[t] < shares[t] * max(g, 1)]
+        if below:
+            t = int(below[0])
+        else:
+            t = int(min(left, key=lambda u: counts[u] / max(shares[u], 1e-12)))
+        k = ungrown[t][head[t]]
+        head[t] += 1
+        done += 1
+        if not solver.s.alive[k]:
+            continue
+        if grow(solver, k, solver.s.scale[k], iters, stop):
+            counts[t] += 1
+            st.grown += 1
+        else:
+            st.failed += 1
+        if progress is not None and done % 8 == 0:
+            progress(done / max(total, 1), f"phase 1: {st.grown} grown")
+    # objects never grown (stopped early) do not belong in the result
+    for t in range(n_types):
+        for k in ungrown[t][head[t]:]:
+            solver.s.alive[k] = 0
+    st.stopped = stop.reason
+    st.seconds = time.perf_counter() - t0
+    return st
+
+
+def phase2(solver: Solver, shares: np.ndarray, spacing: float, rng: np.random.Generator,
+           stop: Stop, *, iters: int = 80, margin: np.ndarray, retries: int = 2,
+           progress: Callable[[float, str], None] | None = None) -> PhaseStats:
+    """Fill cavities: at lattice points far enough from every object and the wall, insert
+    the largest type whose equivalent radius f(V) is below that distance and grow it; on
+    failure try up to `retries` random smaller types.
+    """
+    t0 = time.perf_counter()
+    st = PhaseStats()
+    table = solver.t
+    f = equivalent_radius(table.volume)
+    vbar = float(np.exp(np.sum(shares * np.log(table.volume))))
+    threshold = 0.5 * (float(equivalent_radius(vbar)) + float(f.min()))
+    pts = interior_points(solver.c, spacing, threshold, rng)
+    if len(pts) == 0:
+        st.seconds = time.perf_counter() - t0
+        return st
+    d = solver.free_distances(pts)
+    keep = d >= threshold
+    pts, d = pts[keep], d[keep]
+    order = np.argsort(-d, kind="stable")
+    pts = pts[order]
+    by_size = np.argsort(-f)
+    clear = solver.p.clearance
+    for n_done, p in enumerate(pts):
+        if stop():
+            break
+        dist = float(solver.free_distances(p[None])[0])
+        if dist < threshold:
+            continue
+        fits = [int(t) for t in by_size if f[t] < dist]
+        if not fits:
+            continue
+        tries = [fits[0]]
+        smaller = fits[1:]
+        if smaller:
+            tries += list(rng.choice(smaller, size=min(retries, len(smaller)), replace=False))
+        for t in tries:
+            q = random_quaternions(rng, 1)[0]
+            # steps below the free radius are collision free: start growing there
+            room = (dist - clear - 2 * margin[t]) / table.radius[t]
+            start = float(np.clip(room, START_SCALE, 1.0))
+            k = solver.s.add(t, p, q, start, float(margin[t]))
+            st.inserted += 1
+            if not solver.resolve(np.array([k], np.int64), iters, rollback=True):
+                solver.s.alive[k] = 0
+                st.failed += 1
+                continue
+            if start >= 1.0 or grow(solver, k, start, iters, stop):
+                st.grown += 1
+                break
+            st.failed += 1
+        if progress is not None and n_done % 8 == 0:
+            progress(n_done / len(pts), f"phase 2: {st.grown} added")
+    st.stopped = stop.reason
+    st.seconds = time.perf_counter() - t0
+    st.extra = {"candidates": int(len(pts)), "threshold": threshold}
+    return st

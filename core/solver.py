@@ -1,0 +1,134 @@
+"""Overlap resolution over a growing set of objects: state arrays plus the numba solver.
+
+`PackState` holds every object ever inserted (alive or removed) in flat arrays so the numba
+kernels can read them directly; `TypeTable` flattens the object types. Frames and units:
+container frame, container units.
+"""
+
+from __future__ import annotations
+
+from dataclasses import dataclass
+
+import numpy as np
+
+from . import kernels
+from .container import Container
+from .objects import ObjectType
+
+
+class TypeTable:
+    """Object types flattened into the arrays the kernels read (see kernels' module doc)."""
+
+    def __init__(self, types: list[ObjectType]):
+        self.types = types
+        self.radius = np.array([t.radius for t in types], np.float64)
+        self.volume = np.array([t.volume for t in types], np.float64)
+        self.sph_off = np.cumsum([0] + [len(t.sphere_radii) for t in types]).astype(np.int64)
+        self.sph_c = np.ascontiguousarray(np.concatenate([t.sphere_centres for t in types]))
+        self.sph_r = np.ascontiguousarray(np.concatenate([t.sphere_radii for t in types]))
+        self.pt_off = np.cumsum([0] + [len(t.surface_points) for t in types]).astype(np.int64)
+        self.pts = np.ascontiguousarray(np.concatenate([t.surface_points for t in types]))
+        self.g_off = np.cumsum([0] + [t.grid.values.size for t in types]).astype(np.int64)
+        self.g_vals = np.ascontiguousarray(
+            np.concatenate([t.grid.values.ravel() for t in types]), np.float64)
+        self.g_shape = np.array([t.grid.values.shape for t in types], np.int64)
+        self.g_origin = np.array([t.grid.origin for t in types], np.float64)
+        self.g_h = np.array([t.grid.spacing for t in types], np.float64)
+
+
+@dataclass
+class SolverParams:
+    """Solver constants. Lengths in container units."""
+
+    clearance: float = 0.0
+    tol: float = 1e-6  # penetration ignored below this
+    k_obj: float = 0.6  # step per iteration / deepest object-object penetration
+    k_wall: float = 1.05  # step per iteration / deepest wall penetration
+    k_rot: float = 0.3  # rotation per iteration, as arc length at the bounding radius
+    damping: float = 0.5  # velocity kept from one iteration to the next
+
+
+class PackState:
+    """Objects placed so far: type, position, rotation (w,x,y,z), scale, alive, margin."""
+
+    def __init__(self, capacity: int = 256):
+        self.n = 0
+        self.typ = np.zeros(capacity, np.int64)
+        self.pos = np.zeros((capacity, 3))
+        self.quat = np.zeros((capacity, 4))
+        self.quat[:, 0] = 1.0
+        self.scale = np.ones(capacity)
+        self.alive = np.zeros(capacity, np.uint8)
+        self.margin = np.zeros(capacity)
+        self.vel = np.zeros((capacity, 3))
+
+    def _grow(self) -> None:
+        cap = 2 * len(self.typ)
+        for name in ("typ", "pos", "quat", "scale", "alive", "margin", "vel"):
+            old = getattr(self, name)
+            new = np.zeros((cap,) + old.shape[1:], old.dtype)
+            new[: len(old)] = old
+            setattr(self, name, new)
+
+    def add(self, t: int, pos: np.ndarray, quat: np.ndarray, scale: float,
+            margin: float) -> int:
+        if self.n == len(self.typ):
+            self._grow()
+        k = self.n
+        self.typ[k] = t
+        self.pos[k] = pos
+        self.quat[k] = quat
+        self.scale[k] = scale
+        self.alive[k] = 1
+        self.margin[k] = margin
+        self.vel[k] = 0.0
+        self.n += 1
+        return k
+
+    def view(self):
+        """Arrays trimmed to the objects inserted so far (views, not copies)."""
+        n = self.n
+        return (self.typ[:n], self.pos[:n], self.quat[:n], self.scale[:n], self.alive[:n],
+                self.margin[:n], self.vel[:n])
+
+    def alive_indices(self) -> np.ndarray:
+        return np.flatnonzero(self.alive[: self.n])
+
+
+class Solver:
+    """Binds a container, the type table and the state to the numba kernels."""
+
+    def __init__(self, container: Container, table: TypeTable, state: PackState,
+                 params: SolverParams):
+        self.c = container
+        self.t = table
+        self.s = state
+        self.p = params
+
+    def resolve(self, focus: np.ndarray, max_iter: int, rollback: bool = True) -> bool:
+        """Resolve overlaps around `focus` (object indices); False if still overlapping."""
+        typ, pos, quat, scale, alive, margin, vel = self.s.view()
+        t, c, p = self.t, self.c.grid, self.p
+        ok, _ = kernels.resolve(
+            np.asarray(focus, np.int64), typ, pos, quat, scale, alive, margin, vel,
+            p.clearance, p.tol, t.radius, t.sph_off, t.sph_c, t.sph_r, t.pt_off, t.pts,
+            t.g_off, t.g_vals, t.g_shape, t.g_origin, t.g_h, c.values, c.origin, c.spacing,
+            int(max_iter), p.k_obj, p.k_wall, p.k_rot, p.damping, rollback)
+        return bool(ok)
+
+    def penetrations(self) -> np.ndarray:
+        """(n,2) deepest object and wall penetration of each inserted object (0 if removed)."""
+        typ, pos, quat, scale, alive, margin, _ = self.s.view()
+        t, c, p = self.t, self.c.grid, self.p
+        return kernels.max_penetrations(
+            typ, pos, quat, scale, alive, margin, p.clearance, p.tol, t.radius, t.sph_off,
+            t.sph_c, t.sph_r, t.pt_off, t.pts, t.g_off, t.g_vals, t.g_shape, t.g_origin,
+            t.g_h, c.values, c.origin, c.spacing)
+
+    def free_distances(self, points: np.ndarray) -> np.ndarray:
+        """Distance from each point (M,3) to the nearest object or the wall (M,)."""
+        typ, pos, quat, scale, alive, _, _ = self.s.view()
+        t, c = self.t, self.c.grid
+        return kernels.free_distances(
+            np.ascontiguousarray(points, np.float64), typ, pos, quat, scale, alive, t.radius,
+            t.g_off, t.g_vals, t.g_shape, t.g_origin, t.g_h, c.values, c.origin, c.spacing)

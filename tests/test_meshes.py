@@ -1,0 +1,447 @@
+"""Tests for jampacked.core.meshes: loading, checks, repairs, volumes."""
+
+from __future__ import annotations
+
+import hashlib
+import logging
+from pathlib import Path
+
+import manifold3d
+import numpy as np
+import pytest
+import trimesh
+
+from jampacked.core.errors import InputError, MeshError
+from jampacked.core.meshes import (
+    MeshData,
+    box_mesh,
+    file_sha256,
+    load_mesh,
+    mesh_volume_centroid,
+    parse_box_spec,
+)
+
+SHARED = Path(__file__).resolve().parents[2] / "shared" / "meshes"
+
+
+def shared(relative: str) -> Path:
+    """Path of a shared test mesh; skip the test if shared/ is not beside the checkout."""
+    if not SHARED.is_dir():
+        pytest.skip(f"shared test meshes not found at {SHARED} (shared/ beside the checkout)")
+    path = SHARED / relative
+    if not path.exists():
+        pytest.skip(f"shared test mesh {relative} not found under {SHARED}")
+    return path
+
+
+def shared_glob(pattern: str) -> list[str]:
+    if not SHARED.is_dir():
+        return []
+    return sorted(str(p.relative_to(SHARED)) for p in SHARED.glob(pattern))
+
+
+def assert_closed_oriented(mesh: MeshData) -> None:
+    """Independent check: each undirected edge twice, each directed edge once."""
+    f = mesh.faces
+    assert f.dtype == np.int64 and f.ndim == 2 and f.shape[1] == 3
+    assert mesh.vertices.dtype == np.float64 and mesh.vertices.shape[1] == 3
+    directed = f[:, [0, 1, 1, 2, 2, 0]].reshape(-1, 2)
+    _, dcounts = np.unique(directed, axis=0, return_counts=True)
+    _, ucounts = np.unique(np.sort(directed, axis=1), axis=0, return_counts=True)
+    assert np.all(ucounts == 2), "every edge is used by exactly two faces"
+    assert np.all(dcounts == 1), "every directed edge is used once (consistent winding)"
+    assert len(np.unique(f)) == len(mesh.vertices), "no unreferenced vertices"
+    assert mesh.volume > 0
+    m = manifold3d.Manifold(
+        manifold3d.Mesh(
+            vert_properties=mesh.vertices.astype(np.float32),
+            tri_verts=mesh.faces.astype(np.uint32),
+        )
+    )
+    assert m.status() == manifold3d.Error.NoError
+
+
+def write_obj(path: Path, vertices, faces) -> Path:
+    lines = [f"v {x!r} {y!r} {z!r}" for x, y, z in np.asarray(vertices, float)]
+    lines += ["f " + " ".join(str(int(i) + 1) for i in face) for face in faces]
+    path.write_text("\n".join(lines) + "\n")
+    return path
+
+
+def unit_box() -> tuple[np.ndarray, np.ndarray]:
+    box = box_mesh((2.0, 3.0, 4.0))
+    return np.array(box.vertices), np.array(box.faces)
+
+
+# ------------------------------------------------------------------------------------------
+# the broken shared files
+
+
+def test_bunny_with_holes_is_open():
+    path = shared("broken/bunny_with_holes.obj")
+    with pytest.raises(MeshError) as info:
+        load_mesh(path)
+    msg = str(info.value)
+    assert "bunny_with_holes.obj" in msg
+    assert "not closed" in msg and "open boundary edges" in msg and "5 holes" in msg
+    assert "Fix:" in msg
+
+
+def test_pear_five_bodies_slivers_removed(caplog):
+    path = shared("broken/pear_five_bodies.ply")
+    with caplog.at_level(logging.WARNING, logger="jampacked.core.meshes"):
+        mesh = load_mesh(path)
+    assert_closed_oriented(mesh)
+    text = " ".join(mesh.warnings)
+    assert "pear_five_bodies.ply" in text
+    assert "sliver" in text and "degenerate" in text
+    assert all("pear_five_bodies.ply" in w for w in mesh.warnings)
+    # the same warnings went through logging
+    logged = [r.getMessage() for r in caplog.records]
+    assert all(w in logged for w in mesh.warnings)
+    # same solid as the cleaned copy of the pear
+    clean = load_mesh(shared("fruit/ycb/016_pear.ply"))
+    assert clean.warnings == ()
+    assert len(mesh.faces) == len(clean.faces)
+    assert mesh.volume == pytest.approx(clean.volume, rel=1e-9)
+
+
+def test_polytope_malformed_face():
+    path = shared("broken/polytope_malformed_face.obj")
+    with pytest.raises(MeshError) as info:
+        load_mesh(path)
+    msg = str(info.value)
+    assert "polytope_malformed_face.obj" in msg
+    assert "malformed polygon" in msg and "line 17" in msg and "vertex 12 twice" in msg
+
+
+def test_polytope_internal_faces():
+    # trimesh's OBJ reader fails on the comments on face lines: the tolerant reader reads it,
+    # then the internal faces are found.
+    path = shared("broken/polytope_internal_faces.obj")
+    with pytest.raises(MeshError) as info:
+        load_mesh(path)
+    msg = str(info.value)
+    assert "polytope_internal_faces.obj" in msg
+    assert "non-manifold edges" in msg and "internal faces" in msg
+    assert "cannot be read" not in msg
+
+
+def test_vase_thin_wall():
+    path = shared("broken/vase_thin_wall_shell.stl")
+    mesh = load_mesh(path, role="object")
+    assert_closed_oriented(mesh)
+    with pytest.raises(MeshError) as info:
+        load_mesh(path, role="container")
+    msg = str(info.value)
+    assert "vase_thin_wall_shell.stl" in msg
+    assert "thin wall" in msg and "cavity" in msg and "inside surface" in msg
+
+
+# ------------------------------------------------------------------------------------------
+# the good shared files
+
+
+@pytest.mark.parametrize("relative", shared_glob("containers/*") or ["containers/"])
+def test_shared_containers(relative):
+    mesh = load_mesh(shared(relative), role="container")
+    assert_closed_oriented(mesh)
+    assert mesh.warnings == ()
+
+
+@pytest.mark.parametrize(
+    "relative",
+    shared_glob("fruit/ycb_lowpoly/*.obj")
+    + ["fruit/ycb/014_lemon.ply", "fruit/ycb/016_pear.ply"]
+    + shared_glob("polyhedra/*/*.obj"),
+)
+def test_shared_objects(relative, caplog):
+    with caplog.at_level(logging.WARNING):
+        mesh = load_mesh(shared(relative))
+    assert_closed_oriented(mesh)
+    assert mesh.warnings == ()
+    # the lowpoly OBJ files name missing .mtl files: that stays quiet
+    assert [r for r in caplog.records if r.levelno >= logging.WARNING] == []
+
+
+def test_blender_uv_seams_merged():
+    path = shared("fruit/ycb_lowpoly/011_banana.obj")
+    raw = trimesh.load(path, force="mesh", process=False)
+    mesh = load_mesh(path)
+    assert len(mesh.vertices) < len(raw.vertices)  # split at UV seams in the file
+    assert len(mesh.faces) == len(raw.faces)
+
+
+def test_sha256_and_metadata():
+    path = shared("polyhedra/convex5/polytope1.obj")
+    mesh = load_mesh(str(path))
+    digest = hashlib.sha256(path.read_bytes()).hexdigest()
+    assert mesh.sha256 == digest == file_sha256(path)
+    assert mesh.path == str(path)
+    assert not mesh.vertices.flags.writeable and not mesh.faces.flags.writeable
+    assert np.allclose(mesh.extents, mesh.vertices.max(0) - mesh.vertices.min(0))
+
+
+@pytest.mark.parametrize(
+    "relative",
+    [
+        "containers/bunny.obj",
+        "fruit/ycb_lowpoly/014_lemon.obj",
+        "polyhedra/nonconvex10/polytope3.obj",
+    ],
+)
+def test_volume_centroid_against_trimesh(relative):
+    mesh = load_mesh(shared(relative))
+    tm = trimesh.Trimesh(np.array(mesh.vertices), np.array(mesh.faces), process=False)
+    volume, centroid = mesh_volume_centroid(mesh.vertices, mesh.faces)
+    assert volume == pytest.approx(tm.volume, rel=1e-9)
+    assert mesh.volume == pytest.approx(volume, rel=1e-12)
+    scale = np.linalg.norm(mesh.extents)
+    assert np.allclose(centroid, tm.center_mass, atol=1e-9 * scale)
+    assert np.allclose(mesh.centroid, centroid)
+
+
+# ------------------------------------------------------------------------------------------
+# meshes broken on purpose
+
+
+def test_clean_box_file(tmp_path):
+    v, f = unit_box()
+    mesh = load_mesh(write_obj(tmp_path / "box.obj", v, f))
+    assert_closed_oriented(mesh)
+    assert mesh.volume == pytest.approx(24.0)
+    assert mesh.warnings == ()
+
+
+def test_hole_is_an_error(tmp_path):
+    v, f = unit_box()
+    path = write_obj(tmp_path / "holed.obj", v, f[1:])
+    with pytest.raises(MeshError) as info:
+        load_mesh(path)
+    msg = str(info.value)
+    assert "holed.obj" in msg and "not closed" in msg
+    assert "3 open boundary edges" in msg and "1 hole" in msg
+
+
+def test_flipped_face_is_repaired(tmp_path):
+    v, f = unit_box()
+    f[5] = f[5][::-1]
+    mesh = load_mesh(write_obj(tmp_path / "flipped.obj", v, f))
+    assert_closed_oriented(mesh)
+    assert mesh.volume == pytest.approx(24.0)
+    assert len(mesh.warnings) == 1
+    assert "flipped.obj" in mesh.warnings[0] and "flipped 1 face" in mesh.warnings[0]
+
+
+def test_inverted_mesh_is_repaired(tmp_path):
+    v, f = unit_box()
+    mesh = load_mesh(write_obj(tmp_path / "inverted.obj", v, f[:, ::-1]))
+    assert_closed_oriented(mesh)
+    assert mesh.volume == pytest.approx(24.0)
+    assert len(mesh.warnings) == 1 and "inside out" in mesh.warnings[0]
+    assert "inverted.obj" in mesh.warnings[0]
+
+
+def test_duplicate_face_is_repaired(tmp_path):
+    v, f = unit_box()
+    mesh = load_mesh(write_obj(tmp_path / "dup.obj", v, np.vstack([f, f[3:4]])))
+    assert_closed_oriented(mesh)
+    assert len(mesh.faces) == 12
+    assert len(mesh.warnings) == 1 and "duplicate face" in mesh.warnings[0]
+
+
+def test_duplicate_vertices_merged_silently(tmp_path):
+    v, f = unit_box()
+    soup = v[f].reshape(-1, 3)  # every face has its own three vertices, like STL
+    soup[::2] += 1e-13  # and some are off by far less than the merge tolerance
+    faces = np.arange(len(soup)).reshape(-1, 3)
+    mesh = load_mesh(write_obj(tmp_path / "soup.obj", soup, faces))
+    assert_closed_oriented(mesh)
+    assert len(mesh.vertices) == 8
+    assert mesh.warnings == ()
+    trimesh.Trimesh(soup, faces, process=False).export(tmp_path / "soup.stl")
+    stl = load_mesh(tmp_path / "soup.stl")
+    assert len(stl.vertices) == 8 and stl.warnings == ()
+
+
+def test_degenerate_faces_are_repaired(tmp_path):
+    v, f = unit_box()
+    # a triangle with a repeated vertex
+    with_repeat = np.vstack([f, [[0, 0, 1]]])
+    mesh = load_mesh(write_obj(tmp_path / "repeat.obj", v, with_repeat))
+    assert_closed_oriented(mesh)
+    assert len(mesh.warnings) == 1 and "degenerate" in mesh.warnings[0]
+    # a needle: a T-junction closed by a zero-area face
+    a, b, c_face = f[0]
+    c = len(v)
+    v2 = np.vstack([v, 0.5 * (v[a] + v[b])])
+    split = [[a, c, c_face], [c, b, c_face]]
+    needle = [[a, b, c]]
+    faces = np.vstack([split, f[1:], needle])
+    mesh = load_mesh(write_obj(tmp_path / "needle.obj", v2, faces))
+    assert_closed_oriented(mesh)
+    assert mesh.volume == pytest.approx(24.0)
+    assert len(mesh.warnings) == 1 and "1 degenerate face" in mesh.warnings[0]
+
+
+def test_sliver_bodies_are_removed(tmp_path):
+    v, f = unit_box()
+    # a closed but flat piece (zero volume) beside the box, and a tiny stray triangle
+    flat_v = np.array([[5, 0, 0], [6, 0, 0], [6, 1, 0], [5, 1, 0]], float)
+    flat_f = np.array([[0, 1, 2], [0, 2, 3], [1, 0, 3], [1, 3, 2]]) + len(v)
+    speck_v = np.array([[9, 9, 9], [9 + 1e-5, 9, 9], [9, 9 + 1e-5, 9]])
+    speck_f = np.array([[0, 1, 2]]) + len(v) + 4
+    vertices = np.vstack([v, flat_v, speck_v])
+    faces = np.vstack([f, flat_f, speck_f])
+    mesh = load_mesh(write_obj(tmp_path / "specks.obj", vertices, faces))
+    assert_closed_oriented(mesh)
+    assert len(mesh.vertices) == 8 and mesh.volume == pytest.approx(24.0)
+    assert len(mesh.warnings) == 1
+    assert "specks.obj" in mesh.warnings[0] and "2 zero-volume sliver bodies" in mesh.warnings[0]
+
+
+def test_two_bodies_is_an_error(tmp_path):
+    v, f = unit_box()
+    vertices = np.vstack([v, v + [10.0, 0, 0]])
+    faces = np.vstack([f, f + len(v)])
+    path = write_obj(tmp_path / "two.obj", vertices, faces)
+    for role in ("object", "container"):
+        with pytest.raises(MeshError) as info:
+            load_mesh(path, role=role)
+        assert "two.obj" in str(info.value) and "2 separate bodies" in str(info.value)
+    # a hollow solid: an inner surface nested inside the outer one
+    nested = np.vstack([v, 0.5 * v])
+    faces = np.vstack([f, f[:, ::-1] + len(v)])
+    with pytest.raises(MeshError) as info:
+        load_mesh(write_obj(tmp_path / "hollow.obj", nested, faces), role="container")
+    assert "2 separate bodies" in str(info.value) and "inside another" in str(info.value)
+
+
+def test_non_orientable_is_an_error(tmp_path):
+    # the 6-vertex real projective plane: closed, every edge used twice, no consistent winding
+    faces = np.array(
+        [[0, 1, 2], [0, 2, 3], [0, 3, 4], [0, 4, 5], [0, 5, 1],
+         [1, 2, 4], [2, 3, 5], [3, 4, 1], [4, 5, 2], [5, 1, 3]]
+    )
+    _, counts = np.unique(np.sort(faces[:, [0, 1, 1, 2, 2, 0]].reshape(-1, 2), 1), axis=0,
+                          return_counts=True)
+    assert np.all(counts == 2)
+    vertices = np.random.default_rng(0).normal(size=(6, 3))
+    with pytest.raises(MeshError) as info:
+        load_mesh(write_obj(tmp_path / "rp2.obj", vertices, faces))
+    assert "rp2.obj" in str(info.value) and "cannot be made consistent" in str(info.value)
+
+
+def test_zero_volume_is_an_error(tmp_path):
+    # a flat square, closed: top and bottom triangulated along different diagonals
+    vertices = [[0, 0, 0], [1, 0, 0], [1, 1, 0], [0, 1, 0]]
+    faces = [[0, 1, 2], [0, 2, 3], [1, 0, 3], [1, 3, 2]]
+    with pytest.raises(MeshError) as info:
+        load_mesh(write_obj(tmp_path / "flat.obj", vertices, faces))
+    assert "flat.obj" in str(info.value) and "zero volume" in str(info.value)
+
+
+def test_thin_walled_cup_container(tmp_path):
+    outer = manifold3d.Manifold.cylinder(50.0, 20.0, 20.0, 64)
+    inner = manifold3d.Manifold.cylinder(50.0, 18.0, 18.0, 64).translate((0.0, 0.0, 2.0))
+    cup = (outer - inner).to_mesh()
+    path = tmp_path / "cup.stl"
+    trimesh.Trimesh(np.asarray(cup.vert_properties)[:, :3], np.asarray(cup.tri_verts),
+                    process=False).export(path)
+    assert load_mesh(path, role="object").volume > 0
+    with pytest.raises(MeshError) as info:
+        load_mesh(path, role="container")
+    assert "cup.stl" in str(info.value) and "thin wall" in str(info.value)
+    # a solid cylinder is a fine container
+    solid = outer.to_mesh()
+    path = tmp_path / "can.stl"
+    trimesh.Trimesh(np.asarray(solid.vert_properties)[:, :3], np.asarray(solid.tri_verts),
+                    process=False).export(path)
+    assert_closed_oriented(load_mesh(path, role="container"))
+
+
+def test_obj_comments_on_face_lines(tmp_path):
+    v, f = unit_box()
+    path = tmp_path / "commented.obj"
+    lines = [f"v {x} {y} {z}  # corner" for x, y, z in v]
+    lines += [f"f {a + 1} {b + 1} {c + 1} # face" for a, b, c in f]
+    path.write_text("# header\n" + "\n".join(lines) + "\n")
+    mesh = load_mesh(path)
+    assert_closed_oriented(mesh)
+    assert mesh.volume == pytest.approx(24.0)
+
+
+# ------------------------------------------------------------------------------------------
+# files that cannot be read, bad arguments
+
+
+def test_missing_file(tmp_path):
+    with pytest.raises(MeshError, match=r"nothere\.stl' does not exist"):
+        load_mesh(tmp_path / "nothere.stl")
+
+
+def test_unknown_extension(tmp_path):
+    path = tmp_path / "mesh.foo"
+    path.write_text("solid\n")
+    with pytest.raises(MeshError) as info:
+        load_mesh(path)
+    assert "mesh.foo" in str(info.value) and "unknown file type" in str(info.value)
+
+
+def test_empty_and_garbage_files(tmp_path):
+    empty = tmp_path / "empty.stl"
+    empty.write_bytes(b"")
+    with pytest.raises(MeshError, match=r"empty\.stl.*empty file"):
+        load_mesh(empty)
+    garbage = tmp_path / "garbage.ply"
+    garbage.write_bytes(b"this is not a ply file\n\x00\x01\x02")
+    with pytest.raises(MeshError, match=r"garbage\.ply"):
+        load_mesh(garbage)
+    points = tmp_path / "points.obj"
+    points.write_text("v 0 0 0\nv 1 0 0\nv 0 1 0\n")
+    with pytest.raises(MeshError, match=r"points\.obj.*no triangles"):
+        load_mesh(points)
+
+
+def test_bad_role():
+    with pytest.raises(InputError, match="role"):
+        load_mesh("whatever.stl", role="bucket")
+
+
+# ------------------------------------------------------------------------------------------
+# boxes and volumes
+
+
+def test_parse_box_spec():
+    assert parse_box_spec("box:43.4338x41.8435x45.0059") == (43.4338, 41.8435, 45.0059)
+    assert parse_box_spec("BOX: 1 x 2 x 3") == (1.0, 2.0, 3.0)
+    assert parse_box_spec("containers/box.stl") is None
+    assert parse_box_spec("boxes.obj") is None
+    for bad in ("box:", "box:1x2", "box:1x2x3x4", "box:axbxc", "box:1x0x3", "box:1x-2x3",
+                "box:1xinfx3"):
+        with pytest.raises(InputError, match="box"):
+            parse_box_spec(bad)
+
+
+def test_box_mesh():
+    box = box_mesh((43.4338, 41.8435, 45.0059))
+    assert len(box.faces) == 12 and len(box.vertices) == 8
+    assert box.path is None and box.sha256 is None and box.warnings == ()
+    assert box.volume == pytest.approx(43.4338 * 41.8435 * 45.0059, rel=1e-12)
+    volume, centroid = mesh_volume_centroid(box.vertices, box.faces)
+    assert volume == pytest.approx(box.volume, rel=1e-12)
+    assert np.allclose(centroid, 0.0) and np.allclose(box.centroid, 0.0)
+    assert np.allclose(box.extents, (43.4338, 41.8435, 45.0059))
+    assert_closed_oriented(box)
+    with pytest.raises(InputError):
+        box_mesh((1.0, 0.0, 1.0))
+
+
+def test_volume_centroid_offset_and_inverted():
+    box = box_mesh((1.0, 2.0, 3.0))
+    shifted = np.asarray(box.vertices) + [1e3, -5.0, 7.0]
+    volume, centroid = mesh_volume_centroid(shifted, box.faces)
+    assert volume == pytest.approx(6.0, rel=1e-12)
+    assert np.allclose(centroid, [1e3, -5.0, 7.0])
+    volume, _ = mesh_volume_centroid(box.vertices, np.asarray(box.faces)[:, ::-1])
+    assert volume == pytest.approx(-6.0, rel=1e-12)

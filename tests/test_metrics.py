@@ -1,0 +1,150 @@
+"""Metrics against hand-computed cases (DESIGN.md, Definitions)."""
+
+from __future__ import annotations
+
+import json
+
+import numpy as np
+import pytest
+from jampacked.core.errors import InputError
+from jampacked.core.metrics import compute_metrics, density, nni, tvd, type_shares
+
+
+def lattice(k: int, spacing: float, origin: float = 0.0) -> np.ndarray:
+    """(k^3, 3) points of a cubic lattice with the given spacing."""
+    g = origin + spacing * (np.arange(k) + 0.5)
+    return np.stack(np.meshgrid(g, g, g, indexing="ij"), axis=-1).reshape(-1, 3)
+
+
+def test_density():
+    assert density(np.array([1.0, 2.0, 3.0]), 12.0) == pytest.approx(0.5)
+    assert density(np.zeros(0), 12.0) == 0.0
+    with pytest.raises(InputError):
+        density(np.array([1.0]), 0.0)
+
+
+def test_type_shares():
+    np.testing.assert_allclose(type_shares(np.array([0, 0, 0, 1]), 3), [0.75, 0.25, 0.0])
+    np.testing.assert_array_equal(type_shares(np.zeros(0, dtype=int), 2), [0.0, 0.0])
+    with pytest.raises(InputError):
+        type_shares(np.array([0, 3]), 3)
+
+
+def test_tvd_known_counts():
+    # p = [3/4, 1/4, 0], q = [2, 1, 1] / 4 -> 0.5 * (0.25 + 0 + 0.25) = 0.25
+    assert tvd(np.array([0, 0, 1, 0]), np.array([2.0, 1.0, 1.0])) == pytest.approx(0.25)
+    # exact mix
+    assert tvd(np.array([0, 1, 1, 0]), np.array([0.5, 0.5])) == pytest.approx(0.0)
+    # all of the wrong type: p = [0, 1], q = [1, 0] -> 1
+    assert tvd(np.array([1, 1]), np.array([1.0, 0.0])) == pytest.approx(1.0)
+
+
+def test_tvd_empty_is_half():
+    assert tvd(np.zeros(0, dtype=int), np.array([0.4, 0.3, 0.3])) == pytest.approx(0.5)
+
+
+def test_tvd_bad_shares():
+    with pytest.raises(InputError):
+        tvd(np.array([0]), np.array([0.0, 0.0]))
+    with pytest.raises(InputError):
+        tvd(np.array([0]), np.array([1.0, -0.5]))
+
+
+def test_nni_regular_lattice():
+    # 4^3 points, spacing 2.5, in a cube of side 10: every nearest neighbour is at 2.5 and
+    # (V / n)^(1/3) = (1000 / 64)^(1/3) = 2.5, so R = 2.5 / (0.55396 * 2.5) = 1 / 0.55396.
+    pts = lattice(4, 2.5)
+    out = nni(pts, np.zeros(64, dtype=int), 1, 1000.0)
+    assert out["per_type"][0] == pytest.approx(1.0 / 0.55396, rel=1e-12)
+    assert out["mean"] == pytest.approx(1.0 / 0.55396, rel=1e-12)
+    assert out["mean"] > 1.8  # regular
+
+
+def test_nni_lattice_in_larger_container():
+    # same lattice counted in 8x the volume: (V / n)^(1/3) doubles, R halves
+    out = nni(lattice(4, 2.5), np.zeros(64, dtype=int), 1, 8000.0)
+    assert out["per_type"][0] == pytest.approx(0.5 / 0.55396, rel=1e-12)
+
+
+def test_nni_clump_is_far_below_one():
+    rng = np.random.default_rng(0)
+    pts = 5.0 + 0.01 * rng.random((20, 3))
+    out = nni(pts, np.zeros(20, dtype=int), 1, 1000.0)
+    assert out["per_type"][0] < 0.05
+
+
+def test_nni_random_is_near_one():
+    rng = np.random.default_rng(1)
+    pts = rng.random((3000, 3))
+    out = nni(pts, np.zeros(3000, dtype=int), 1, 1.0)
+    assert 0.95 < out["mean"] < 1.12  # boundary effects push it slightly above 1
+
+
+def test_nni_excludes_single_and_weights_by_count():
+    # type 0: 2^3 lattice, spacing 1 -> nn 1, (1000 / 8)^(1/3) = 5 -> R0 = 1 / (0.55396 * 5)
+    # type 1: 3^3 lattice, spacing 2 -> nn 2, (1000 / 27)^(1/3) = 10/3 -> R1 = 0.6 / 0.55396
+    # type 2: one object -> excluded; type 3: none -> excluded
+    p0 = lattice(2, 1.0)
+    p1 = lattice(3, 2.0, origin=3.0)
+    p2 = np.array([[9.0, 9.0, 9.0]])
+    pts = np.concatenate([p0, p1, p2])
+    idx = np.concatenate([np.zeros(8, int), np.ones(27, int), [2]])
+    out = nni(pts, idx, 4, 1000.0)
+    r0 = 1.0 / (0.55396 * 5.0)
+    r1 = 0.6 / 0.55396
+    assert out["per_type"][0] == pytest.approx(r0, rel=1e-12)
+    assert out["per_type"][1] == pytest.approx(r1, rel=1e-12)
+    assert out["per_type"][2] is None
+    assert out["per_type"][3] is None
+    assert out["mean"] == pytest.approx((8 * r0 + 27 * r1) / 35, rel=1e-12)
+
+
+def test_nni_none_when_no_type_has_two():
+    out = nni(np.array([[0.0, 0, 0], [1.0, 1, 1]]), np.array([0, 1]), 2, 10.0)
+    assert out == {"per_type": [None, None], "mean": None}
+    out = nni(np.zeros((0, 3)), np.zeros(0, dtype=int), 2, 10.0)
+    assert out == {"per_type": [None, None], "mean": None}
+
+
+def test_nni_shape_mismatch():
+    with pytest.raises(InputError):
+        nni(np.zeros((3, 2)), np.zeros(3, dtype=int), 1, 1.0)
+
+
+def test_compute_metrics():
+    pts = np.concatenate([lattice(2, 1.0), [[9.0, 9.0, 9.0]]])
+    idx = np.array([0] * 8 + [1])
+    out = compute_metrics(idx, pts, np.array([2.0, 10.0]), np.array([3.0, 1.0]), 100.0)
+    assert out["count"] == 9
+    assert out["count_per_type"] == [8, 1]
+    assert out["density"] == pytest.approx((8 * 2.0 + 10.0) / 100.0)
+    # p = [8/9, 1/9], q = [3/4, 1/4] -> 0.5 * 2 * (8/9 - 3/4)
+    assert out["tvd"] == pytest.approx(8 / 9 - 3 / 4)
+    assert out["shares"] == pytest.approx([8 / 9, 1 / 9])
+    r0 = 1.0 / (0.55396 * (100.0 / 8) ** (1 / 3))
+    assert out["nni_per_type"][0] == pytest.approx(r0)
+    assert out["nni_per_type"][1] is None
+    assert out["nni_mean"] == pytest.approx(r0)
+    # plain JSON types only
+    assert json.loads(json.dumps(out, allow_nan=False)) == out
+    for key in ("count", "density", "tvd", "nni_mean"):
+        assert type(out[key]) in (int, float)
+    assert all(type(c) is int for c in out["count_per_type"])
+    assert all(type(s) is float for s in out["shares"])
+
+
+def test_compute_metrics_empty():
+    out = compute_metrics(
+        np.zeros(0, dtype=int), np.zeros((0, 3)), np.array([1.0, 2.0]), np.array([1, 1]), 5.0
+    )
+    assert out["count"] == 0
+    assert out["count_per_type"] == [0, 0]
+    assert out["density"] == 0.0
+    assert out["tvd"] == pytest.approx(0.5)
+    assert out["nni_mean"] is None
+    assert out["shares"] == [0.0, 0.0]
+
+
+def test_compute_metrics_volume_count_mismatch():
+    with pytest.raises(InputError):
+        compute_metrics(np.array([0]), np.zeros((1, 3)), np.array([1.0]), np.array([1, 1]), 5.0)

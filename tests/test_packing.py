@@ -1,0 +1,384 @@
+"""Packing result type, its JSON file and the rotation helpers."""
+
+from __future__ import annotations
+
+import json
+import os
+import re
+
+import numpy as np
+import pytest
+from jampacked.core import packing as pk
+from jampacked.core.errors import InputError
+from jampacked.core.packing import (
+    Packing,
+    TypeRecord,
+    file_sha256,
+    load_packing,
+    matrix_to_quat,
+    placement_matrices,
+    quat_to_matrix,
+    save_packing,
+    to_jsonable,
+    verify_sources,
+)
+
+
+def random_quats(rng: np.random.Generator, n: int) -> np.ndarray:
+    q = rng.normal(size=(n, 4))
+    return q / np.linalg.norm(q, axis=1, keepdims=True)
+
+
+def translation(t) -> np.ndarray:
+    m = np.eye(4)
+    m[:3, 3] = t
+    return m
+
+
+@pytest.fixture
+def scene(tmp_path):
+    """Mesh files under tmp/meshes, output folder tmp/out, and a packing of 5 objects."""
+    meshes = tmp_path / "meshes"
+    meshes.mkdir()
+    (tmp_path / "out").mkdir()
+    files = {}
+    for name in ("container.stl", "apple.obj", "lemon.obj"):
+        f = meshes / name
+        f.write_bytes(f"solid {name}\n".encode())
+        files[name] = str(f)
+    rng = np.random.default_rng(7)
+    n = 5
+    local_a = translation([-1.0, -2.0, -3.0])
+    local_b = np.diag([2.0, 2.0, 2.0, 1.0]) @ translation([0.5, 0.25, -0.125])
+    packing = Packing(
+        container_path=files["container.stl"],
+        container_sha256=file_sha256(files["container.stl"]),
+        frame_from_file=np.diag([10.0, 10.0, 10.0, 1.0]),
+        container_volume=1234.5678901234567,
+        types=[
+            TypeRecord("apple", files["apple.obj"], file_sha256(files["apple.obj"]), 0.6,
+                       local_a, 1.0 / 3.0),
+            TypeRecord("lemon", files["lemon.obj"], file_sha256(files["lemon.obj"]), 0.4,
+                       local_b, 0.1 + 0.2),
+        ],
+        type_index=np.array([0, 1, 1, 0, 1]),
+        rotations=random_quats(rng, n),
+        translations=rng.normal(size=(n, 3)) * 17.3,
+        scales=np.ones(n),
+        params={"grid": np.int64(12), "stiffness": np.float32(0.5), "shares": np.array([0.6, 0.4]),
+                "name": "default", "flags": (True, np.bool_(False)), "bad": float("nan"),
+                "text": "[ 1, 2 ]\n[\n3 ]"},
+        seed=42,
+        metrics={"density": np.float64(0.61234567890123456), "nni_per_type": [1.1, None]},
+        timings={"phase1": 1.25},
+        certificate={"worst_overlap": np.float64(3e-7), "pairs": np.array([[0, 1], [2, 3]])},
+    )
+    return tmp_path, files, packing
+
+
+# --------------------------------------------------------------------------- rotations
+
+
+def test_quat_matrix_round_trip_random():
+    rng = np.random.default_rng(0)
+    q = random_quats(rng, 2000)
+    r = quat_to_matrix(q)
+    np.testing.assert_allclose(r @ r.transpose(0, 2, 1), np.broadcast_to(np.eye(3), r.shape),
+                               atol=1e-12)
+    np.testing.assert_allclose(np.linalg.det(r), 1.0, atol=1e-12)
+    q2 = matrix_to_quat(r)
+    assert np.all(q2[:, 0] >= 0)
+    np.testing.assert_allclose(np.linalg.norm(q2, axis=1), 1.0, atol=1e-14)
+    np.testing.assert_allclose(q2, q * np.sign(q[:, :1]), atol=1e-12)
+    np.testing.assert_allclose(quat_to_matrix(q2), r, atol=1e-12)
+
+
+def test_quat_matrix_edge_cases():
+    s = np.sqrt(0.5)
+    q = np.array([
+        [1, 0, 0, 0],  # identity
+        [0, 1, 0, 0], [0, 0, 1, 0], [0, 0, 0, 1],  # 180 degrees about x, y, z
+        [0, s, s, 0], [0, 0, s, -s],  # 180 degrees about diagonals
+        [s, 0, 0, s],  # 90 degrees about z
+        [1e-9, 1, 0, 0],  # almost 180 degrees
+    ], dtype=float)
+    q /= np.linalg.norm(q, axis=1, keepdims=True)
+    r = quat_to_matrix(q)
+    np.testing.assert_allclose(r[6], [[0, -1, 0], [1, 0, 0], [0, 0, 1]], atol=1e-15)
+    q2 = matrix_to_quat(r)
+    np.testing.assert_allclose(quat_to_matrix(q2), r, atol=1e-12)
+    np.testing.assert_allclose(np.abs(np.sum(q2 * q, axis=1)), 1.0, atol=1e-12)
+
+
+def test_placement_matrices():
+    q = np.array([[np.sqrt(0.5), 0, 0, np.sqrt(0.5)]])
+    m = placement_matrices(q, np.array([[1.0, 2.0, 3.0]]), np.array([2.0]))
+    expected = np.array([[0, -2, 0, 1], [2, 0, 0, 2], [0, 0, 2, 3], [0, 0, 0, 1]], float)
+    np.testing.assert_allclose(m[0], expected, atol=1e-15)
+    assert placement_matrices(np.zeros((0, 4)), np.zeros((0, 3)), np.zeros(0)).shape == (0, 4, 4)
+
+
+# --------------------------------------------------------------------------- conventions
+
+
+def test_vertex_convention_tiny_example(tmp_path):
+    # A type whose volume centroid sits at (1, 2, 3) in its file; the vertex one unit along x
+    # from it, placed with 90 degrees about z at (10, 0, 5), lands one unit along +y from there.
+    local = translation([-1.0, -2.0, -3.0])
+    p = Packing(
+        container_path="box:20x20x20", container_sha256=None,
+        frame_from_file=translation([10.0, 10.0, 10.0]), container_volume=8000.0,
+        types=[TypeRecord("t", None, None, 1.0, local, 1.0)],
+        type_index=np.array([0]),
+        rotations=np.array([[np.sqrt(0.5), 0.0, 0.0, np.sqrt(0.5)]]),
+        translations=np.array([[10.0, 0.0, 5.0]]), scales=np.ones(1),
+    )
+    v_file = np.array([2.0, 2.0, 3.0, 1.0])
+    for q in (p, _round_trip(p, tmp_path / "p.json")):
+        m = q.matrices()[0]
+        np.testing.assert_allclose(m @ q.types[0].local_from_file @ v_file, [10, 1, 5, 1],
+                                   atol=1e-12)
+        # container vertex at its file origin -> container frame (10, 10, 10)
+        np.testing.assert_allclose(q.frame_from_file @ [0, 0, 0, 1], [10, 10, 10, 1])
+    doc = json.loads((tmp_path / "p.json").read_text())
+    m = np.array(doc["placements"][0]["matrix"])
+    lf = np.array(doc["types"][0]["local_from_file"])
+    np.testing.assert_allclose(m @ lf @ v_file, [10, 1, 5, 1], atol=1e-12)
+    assert doc["container"]["path"] == "box:20x20x20"
+    assert doc["types"][0]["path"] is None
+
+
+def _round_trip(p: Packing, path) -> Packing:
+    save_packing(p, path)
+    return load_packing(path)
+
+
+# --------------------------------------------------------------------------- save / load
+
+
+def test_round_trip_preserves_everything(scene):
+    tmp, files, p = scene
+    out = tmp / "out" / "packing.json"
+    save_packing(p, out)
+    doc = json.loads(out.read_text())
+
+    assert doc["format"] == "jampacked.packing" and doc["version"] == 1
+    assert set(doc) >= {"format", "version", "container", "types", "placements", "params",
+                        "seed", "metrics", "timings", "certificate"}
+    assert set(doc["container"]) >= {"path", "sha256", "frame_from_file", "volume"}
+    assert set(doc["types"][0]) >= {"name", "path", "sha256", "share", "local_from_file",
+                                    "volume"}
+    assert set(doc["placements"][0]) >= {"type", "matrix", "rotation", "translation", "scale"}
+    # relative POSIX paths in the file
+    assert doc["container"]["path"] == "../meshes/container.stl"
+    assert [t["path"] for t in doc["types"]] == ["../meshes/apple.obj", "../meshes/lemon.obj"]
+    # numpy values became plain JSON
+    assert doc["params"]["grid"] == 12 and doc["params"]["shares"] == [0.6, 0.4]
+    assert doc["params"]["flags"] == [True, False] and doc["params"]["bad"] is None
+    assert doc["certificate"]["pairs"] == [[0, 1], [2, 3]]
+    assert doc["params"]["text"] == "[ 1, 2 ]\n[\n3 ]"
+    assert re.search(r'"rotation": \[-?\d', out.read_text())  # number lists on one line
+    np.testing.assert_allclose(np.array([pl["matrix"] for pl in doc["placements"]]),
+                               p.matrices(), rtol=0, atol=1e-12)
+
+    q = load_packing(out)
+    # absolute paths on load
+    assert q.container_path == files["container.stl"]
+    assert [t.path for t in q.types] == [files["apple.obj"], files["lemon.obj"]]
+    assert all(os.path.isabs(t.path) for t in q.types)
+    assert q.container_sha256 == p.container_sha256
+    assert q.container_volume == p.container_volume  # full float precision
+    np.testing.assert_array_equal(q.frame_from_file, p.frame_from_file)
+    for a, b in zip(q.types, p.types, strict=True):
+        assert (a.name, a.sha256, a.share, a.volume) == (b.name, b.sha256, b.share, b.volume)
+        np.testing.assert_array_equal(a.local_from_file, b.local_from_file)
+    assert q.n == p.n == 5
+    assert q.type_index.dtype == np.int64
+    np.testing.assert_array_equal(q.type_index, p.type_index)
+    np.testing.assert_array_equal(q.rotations, p.rotations)
+    np.testing.assert_array_equal(q.translations, p.translations)
+    np.testing.assert_array_equal(q.scales, p.scales)
+    np.testing.assert_allclose(q.matrices(), p.matrices(), rtol=0, atol=1e-12)
+    assert q.seed == 42
+    assert q.params == to_jsonable(p.params)
+    assert q.metrics["density"] == 0.61234567890123456
+    assert q.timings == {"phase1": 1.25}
+    assert q.certificate == {"worst_overlap": 3e-7, "pairs": [[0, 1], [2, 3]]}
+    assert verify_sources(q) == []
+
+    # saving what was loaded writes the same file
+    out2 = tmp / "out" / "again.json"
+    save_packing(q, out2)
+    assert out2.read_text() == out.read_text()
+
+
+def test_empty_packing_round_trip(tmp_path):
+    p = Packing("box:1x2x3", None, np.eye(4), 6.0, [TypeRecord("a", None, None, 1.0,
+                np.eye(4), 0.5)], np.zeros(0, int), np.zeros((0, 4)), np.zeros((0, 3)),
+                np.zeros(0))
+    q = _round_trip(p, tmp_path / "e.json")
+    assert q.n == 0 and q.rotations.shape == (0, 4) and q.translations.shape == (0, 3)
+    assert q.container_path == "box:1x2x3"
+
+
+def test_atomic_write_leaves_no_temp_files(scene, monkeypatch):
+    tmp, _, p = scene
+    out_dir = tmp / "out"
+    out = out_dir / "p.json"
+    save_packing(p, out)
+    save_packing(p, out)  # overwrite an existing packing
+    assert sorted(os.listdir(out_dir)) == ["p.json"]
+    before = out.read_bytes()
+
+    # a value that cannot be written: nothing changes, nothing left behind
+    p.params["oops"] = object()
+    with pytest.raises(InputError, match="params.oops"):
+        save_packing(p, out)
+    del p.params["oops"]
+    assert out.read_bytes() == before
+
+    # a failure at the last step: the old file stays whole and the temp file is removed
+    def broken_replace(src, dst):
+        raise OSError("disk full")
+
+    p.seed = 43
+    monkeypatch.setattr(pk.os, "replace", broken_replace)
+    with pytest.raises(OSError):
+        save_packing(p, out)
+    assert sorted(os.listdir(out_dir)) == ["p.json"]
+    assert out.read_bytes() == before
+
+
+def test_save_into_missing_folder(scene):
+    tmp, _, p = scene
+    with pytest.raises(InputError, match="does not exist"):
+        save_packing(p, tmp / "nope" / "p.json")
+
+
+@pytest.mark.parametrize("target", ["container.stl", "apple.obj", "lemon.obj"])
+def test_refuses_to_overwrite_inputs(scene, target):
+    tmp, files, p = scene
+    before = open(files[target], "rb").read()
+    with pytest.raises(InputError, match="refusing"):
+        save_packing(p, files[target])
+    # also through another spelling of the same path and through a symlink
+    with pytest.raises(InputError, match="refusing"):
+        save_packing(p, tmp / "out" / ".." / "meshes" / target)
+    link = tmp / "out" / "link.json"
+    link.symlink_to(files[target])
+    with pytest.raises(InputError, match="refusing"):
+        save_packing(p, link)
+    assert open(files[target], "rb").read() == before
+    assert sorted(os.listdir(tmp / "out")) == ["link.json"]
+
+
+# --------------------------------------------------------------------------- bad files
+
+
+@pytest.fixture
+def saved(scene):
+    tmp, _, p = scene
+    out = tmp / "out" / "p.json"
+    save_packing(p, out)
+    return out, json.loads(out.read_text())
+
+
+def _write(path, doc) -> None:
+    path.write_text(json.dumps(doc))
+
+
+def _bad(path, doc, match: str) -> None:
+    _write(path, doc)
+    with pytest.raises(InputError, match=match) as err:
+        load_packing(path)
+    assert str(path) in str(err.value)
+
+
+def test_wrong_format(saved):
+    out, doc = saved
+    _bad(out, dict(doc, format="something.else"), "not a jampacked packing")
+    _bad(out, [1, 2, 3], "not a jampacked packing")
+
+
+def test_newer_version(saved):
+    out, doc = saved
+    _bad(out, dict(doc, version=2), "newer jampacked")
+    _bad(out, dict(doc, version="1"), "version must be an integer")
+
+
+@pytest.mark.parametrize(
+    "remove",
+    [("version",), ("container",), ("types",), ("placements",), ("seed",), ("params",),
+     ("metrics",), ("timings",), ("certificate",), ("container", "frame_from_file"),
+     ("container", "path"), ("types", 0, "volume"), ("types", 1, "local_from_file"),
+     ("placements", 2, "rotation"), ("placements", 0, "type"), ("placements", 4, "matrix")],
+)
+def test_missing_field(saved, remove):
+    out, doc = saved
+    obj = doc
+    for key in remove[:-1]:
+        obj = obj[key]
+    del obj[remove[-1]]
+    _bad(out, doc, f"missing field .*{remove[-1]}")
+
+
+def test_bad_matrix_shape(saved):
+    out, doc = saved
+    good = json.loads(json.dumps(doc))
+    doc["container"]["frame_from_file"] = np.eye(3).tolist()
+    _bad(out, doc, r"container\.frame_from_file must be a 4x4")
+    doc = json.loads(json.dumps(good))
+    doc["types"][1]["local_from_file"][2] = [1.0, 2.0, 3.0]
+    _bad(out, doc, r"types\[1\]\.local_from_file must be a 4x4")
+    doc = json.loads(json.dumps(good))
+    doc["placements"][3]["matrix"] = [[1.0] * 4] * 4 + [[0.0] * 4]
+    _bad(out, doc, r"placements\[3\]\.matrix must be a 4x4")
+    doc = json.loads(json.dumps(good))
+    doc["placements"][0]["rotation"] = [1.0, 0.0, 0.0]
+    _bad(out, doc, r"placements\[0\]\.rotation must be a list of 4")
+
+
+def test_matrix_disagreeing_with_placement(saved):
+    out, doc = saved
+    doc["placements"][1]["matrix"][0][3] += 1.0
+    _bad(out, doc, r"placements\[1\]\.matrix does not match")
+
+
+def test_type_index_out_of_range(saved):
+    out, doc = saved
+    doc["placements"][2]["type"] = 2
+    _bad(out, doc, r"placements\[2\]\.type is 2 but the file lists 2 types")
+    doc["placements"][2]["type"] = -1
+    _bad(out, doc, "type is -1")
+
+
+def test_not_json_and_missing_file(tmp_path):
+    f = tmp_path / "broken.json"
+    f.write_text('{"format": "jampacked.packing", "version": 1, "contai')
+    with pytest.raises(InputError, match="not valid JSON") as err:
+        load_packing(f)
+    assert str(f) in str(err.value)
+    with pytest.raises(InputError, match="cannot read packing file"):
+        load_packing(tmp_path / "absent.json")
+
+
+# --------------------------------------------------------------------------- sources
+
+
+def test_verify_sources(scene):
+    tmp, files, p = scene
+    out = tmp / "out" / "p.json"
+    save_packing(p, out)
+    q = load_packing(out)
+    assert verify_sources(q) == []
+    with open(files["apple.obj"], "ab") as f:
+        f.write(b"edited\n")
+    os.remove(files["container.stl"])
+    problems = verify_sources(q)
+    assert len(problems) == 2
+    assert "container" in problems[0] and "missing" in problems[0]
+    assert "apple" in problems[1] and "changed" in problems[1]
+    # a spec container and a type without a file are not problems
+    q.container_path = "box:1x1x1"
+    q.types[0].path = None
+    assert verify_sources(q) == []
