@@ -152,19 +152,22 @@ def _points_in_other(a, b, R_a, R_b, typ, pos, scale, radius, pt_off, pts, g_off
         nx /= nn
         ny /= nn
         nz /= nn
-        F[a, 0] += pen * nx
-        F[a, 1] += pen * ny
-        F[a, 2] += pen * nz
-        F[b, 0] -= pen * nx
-        F[b, 1] -= pen * ny
-        F[b, 2] -= pen * nz
+        f = pen * pen  # F holds sum(w * pen * n) with weight w = pen; F[:, 3] sums w
+        F[a, 0] += f * nx
+        F[a, 1] += f * ny
+        F[a, 2] += f * nz
+        F[a, 3] += pen
+        F[b, 0] -= f * nx
+        F[b, 1] -= f * ny
+        F[b, 2] -= f * nz
+        F[b, 3] += pen
         # torque about a's centre from its point, about b's centre from the reaction
-        Tq[a, 0] += wy * pen * nz - wz * pen * ny
-        Tq[a, 1] += wz * pen * nx - wx * pen * nz
-        Tq[a, 2] += wx * pen * ny - wy * pen * nx
-        Tq[b, 0] -= ry * pen * nz - rz * pen * ny
-        Tq[b, 1] -= rz * pen * nx - rx * pen * nz
-        Tq[b, 2] -= rx * pen * ny - ry * pen * nx
+        Tq[a, 0] += wy * f * nz - wz * f * ny
+        Tq[a, 1] += wz * f * nx - wx * f * nz
+        Tq[a, 2] += wx * f * ny - wy * f * nx
+        Tq[b, 0] -= ry * f * nz - rz * f * ny
+        Tq[b, 1] -= rz * f * nx - rx * f * nz
+        Tq[b, 2] -= rx * f * ny - ry * f * nx
         if pen > worst:
             worst = pen
     return worst
@@ -187,25 +190,48 @@ def pair_contact(a, b, typ, pos, quat, scale, margin, clearance, tol, radius, sp
     R_b = quat_to_rot(quat[b])
     worst = 0.0
     reach_b = radius[tb] * sb + delta
+    reach_a = radius[ta] * sa + delta
+    # b's spheres relative to b's centre, and a's relative to b's centre, each transformed
+    # once per pair (not once per sphere pair)
+    nb = 0
+    vb = np.empty((sph_off[tb + 1] - sph_off[tb], 4))
+    bx = pos[b, 0] - pos[a, 0]
+    by = pos[b, 1] - pos[a, 1]
+    bz = pos[b, 2] - pos[a, 2]
+    for v in range(sph_off[tb], sph_off[tb + 1]):
+        vx = (R_b[0, 0] * sph_c[v, 0] + R_b[0, 1] * sph_c[v, 1] + R_b[0, 2] * sph_c[v, 2]) * sb
+        vy = (R_b[1, 0] * sph_c[v, 0] + R_b[1, 1] * sph_c[v, 1] + R_b[1, 2] * sph_c[v, 2]) * sb
+        vz = (R_b[2, 0] * sph_c[v, 0] + R_b[2, 1] * sph_c[v, 1] + R_b[2, 2] * sph_c[v, 2]) * sb
+        rb = sph_r[v] * sb
+        lim = rb + reach_a
+        ex = vx + bx
+        ey = vy + by
+        ez = vz + bz
+        if ex * ex + ey * ey + ez * ez > lim * lim:
+            continue  # this sphere of b is out of a's reach
+        vb[nb, 0] = vx
+        vb[nb, 1] = vy
+        vb[nb, 2] = vz
+        vb[nb, 3] = rb
+        nb += 1
     for u in range(sph_off[ta], sph_off[ta + 1]):
+        if nb == 0:
+            break
         ux = (R_a[0, 0] * sph_c[u, 0] + R_a[0, 1] * sph_c[u, 1] + R_a[0, 2] * sph_c[u, 2]) * sa
         uy = (R_a[1, 0] * sph_c[u, 0] + R_a[1, 1] * sph_c[u, 1] + R_a[1, 2] * sph_c[u, 2]) * sa
         uz = (R_a[2, 0] * sph_c[u, 0] + R_a[2, 1] * sph_c[u, 1] + R_a[2, 2] * sph_c[u, 2]) * sa
         ra = sph_r[u] * sa
-        cx = ux + pos[a, 0] - pos[b, 0]
-        cy = uy + pos[a, 1] - pos[b, 1]
-        cz = uz + pos[a, 2] - pos[b, 2]
+        cx = ux - bx
+        cy = uy - by
+        cz = uz - bz
         lim = ra + reach_b
         if cx * cx + cy * cy + cz * cz > lim * lim:
             continue
-        for v in range(sph_off[tb], sph_off[tb + 1]):
-            vx = (R_b[0, 0] * sph_c[v, 0] + R_b[0, 1] * sph_c[v, 1]
-                  + R_b[0, 2] * sph_c[v, 2]) * sb
-            vy = (R_b[1, 0] * sph_c[v, 0] + R_b[1, 1] * sph_c[v, 1]
-                  + R_b[1, 2] * sph_c[v, 2]) * sb
-            vz = (R_b[2, 0] * sph_c[v, 0] + R_b[2, 1] * sph_c[v, 1]
-                  + R_b[2, 2] * sph_c[v, 2]) * sb
-            rb = sph_r[v] * sb
+        for m in range(nb):
+            vx = vb[m, 0]
+            vy = vb[m, 1]
+            vz = vb[m, 2]
+            rb = vb[m, 3]
             dx = cx - vx
             dy = cy - vy
             dz = cz - vz
@@ -221,14 +247,15 @@ def pair_contact(a, b, typ, pos, quat, scale, margin, clearance, tol, radius, sp
                 nx = 1.0
                 ny = 0.0
                 nz = 0.0
-            # weight ~ lens volume for shallow overlaps: pen^2 * reduced radius
-            w = pen * pen * (ra * rb / (ra + rb)) / max(ra, rb)
+            w = pen * pen
             F[a, 0] += w * nx
             F[a, 1] += w * ny
             F[a, 2] += w * nz
+            F[a, 3] += pen
             F[b, 0] -= w * nx
             F[b, 1] -= w * ny
             F[b, 2] -= w * nz
+            F[b, 3] += pen
             Tq[a, 0] += uy * w * nz - uz * w * ny
             Tq[a, 1] += uz * w * nx - ux * w * nz
             Tq[a, 2] += ux * w * ny - uy * w * nx
@@ -265,10 +292,11 @@ def wall_contact(a, typ, pos, quat, scale, margin, clearance, tol, sph_off, sph_
         if pen <= tol:
             continue
         gn = np.sqrt(gx * gx + gy * gy + gz * gz) + 1e-300
-        w = pen
+        w = pen * pen
         F[a, 0] += w * gx / gn
         F[a, 1] += w * gy / gn
         F[a, 2] += w * gz / gn
+        F[a, 3] += pen
         Tq[a, 0] += (uy * gz - uz * gy) * w / gn
         Tq[a, 1] += (uz * gx - ux * gz) * w / gn
         Tq[a, 2] += (ux * gy - uy * gx) * w / gn
@@ -285,12 +313,14 @@ def wall_contact(a, typ, pos, quat, scale, margin, clearance, tol, sph_off, sph_
         if pen <= tol:
             continue
         gn = np.sqrt(gx * gx + gy * gy + gz * gz) + 1e-300
-        F[a, 0] += pen * gx / gn
-        F[a, 1] += pen * gy / gn
-        F[a, 2] += pen * gz / gn
-        Tq[a, 0] += (wy * gz - wz * gy) * pen / gn
-        Tq[a, 1] += (wz * gx - wx * gz) * pen / gn
-        Tq[a, 2] += (wx * gy - wy * gx) * pen / gn
+        w = pen * pen
+        F[a, 0] += w * gx / gn
+        F[a, 1] += w * gy / gn
+        F[a, 2] += w * gz / gn
+        F[a, 3] += pen
+        Tq[a, 0] += (wy * gz - wz * gy) * w / gn
+        Tq[a, 1] += (wz * gx - wx * gz) * w / gn
+        Tq[a, 2] += (wx * gy - wy * gx) * w / gn
         if pen > worst:
             worst = pen
     return worst
@@ -319,7 +349,7 @@ def _rotate_quat(q, ax, ay, az, angle):
 @njit(cache=True)
 def resolve(focus, typ, pos, quat, scale, alive, margin, vel, clearance, tol, radius,
             sph_off, sph_c, sph_r, pt_off, pts, g_off, g_vals, g_shape, g_origin, g_h,
-            c_vals, c_origin, c_h, max_iter, k_obj, k_wall, k_rot, damping, rollback):
+            c_vals, c_origin, c_h, max_iter, k_obj, k_wall, k_rot, damping, rollback, mode):
     """Penalty-force overlap resolution starting from the objects in `focus`.
 
     Only objects in contact move: each gets the sum of its contact forces, normalised,
@@ -327,6 +357,9 @@ def resolve(focus, typ, pos, quat, scale, alive, margin, vel, clearance, tol, ra
     for the wall), added to its velocity (damped by `damping`, zeroed once free), and a
     rotation about its torque axis (k_rot). The state before the call is assumed free of
     overlaps except near `focus`, so only moved objects need re-checking.
+
+    mode 0 moves by the normalised force times stiffness times the deepest penetration (the
+    paper); mode 1 by the penetration-weighted mean push vector times stiffness.
 
     Mutates pos, quat, vel. With `rollback`, a failed call restores every object it moved to
     its state at the call (the last overlap-free state). Returns (resolved, iterations used).
@@ -338,7 +371,7 @@ def resolve(focus, typ, pos, quat, scale, alive, margin, vel, clearance, tol, ra
     bpos = np.empty((n, 3))
     bquat = np.empty((n, 4))
     bvel = np.empty((n, 3))
-    F = np.zeros((n, 3))
+    F = np.zeros((n, 4))
     Tq = np.zeros((n, 3))
     pen_obj = np.zeros(n)
     pen_wall = np.zeros(n)
@@ -413,9 +446,14 @@ def resolve(focus, typ, pos, quat, scale, alive, margin, vel, clearance, tol, ra
                 bvel[a] = vel[a]
             fn = np.sqrt(F[a, 0] ** 2 + F[a, 1] ** 2 + F[a, 2] ** 2)
             step = max(k_obj * pen_obj[a], k_wall * pen_wall[a])
-            if fn > 1e-300:
+            if mode == 0:  # the paper: normalised force times stiffness * deepest penetration
+                if fn > 1e-300:
+                    for d in range(3):
+                        vel[a, d] = damping * vel[a, d] + step * F[a, d] / fn
+            else:  # penetration-weighted mean of the contacts' push vectors
+                k = k_wall if pen_wall[a] > pen_obj[a] else k_obj
                 for d in range(3):
-                    vel[a, d] = damping * vel[a, d] + step * F[a, d] / fn
+                    vel[a, d] = damping * vel[a, d] + k * F[a, d] / F[a, 3]
             for d in range(3):
                 pos[a, d] += vel[a, d]
             tn = np.sqrt(Tq[a, 0] ** 2 + Tq[a, 1] ** 2 + Tq[a, 2] ** 2)
@@ -425,6 +463,7 @@ def resolve(focus, typ, pos, quat, scale, alive, margin, vel, clearance, tol, ra
             F[a, 0] = 0.0
             F[a, 1] = 0.0
             F[a, 2] = 0.0
+            F[a, 3] = 0.0
             Tq[a, 0] = 0.0
             Tq[a, 1] = 0.0
             Tq[a, 2] = 0.0
@@ -449,7 +488,7 @@ def max_penetrations(typ, pos, quat, scale, alive, margin, clearance, tol, radiu
                      c_origin, c_h):
     """Deepest object-object and object-wall penetration of every alive object, (N,2)."""
     n = typ.shape[0]
-    F = np.zeros((n, 3))
+    F = np.zeros((n, 4))
     Tq = np.zeros((n, 3))
     out = np.zeros((n, 2))
     c_shape = np.array(c_vals.shape, np.int64)

@@ -46,6 +46,7 @@ class SolverParams:
     k_wall: float = 1.05  # step per iteration / deepest wall penetration
     k_rot: float = 0.3  # rotation per iteration, as arc length at the bounding radius
     damping: float = 0.5  # velocity kept from one iteration to the next
+    mode: int = 0  # 0: normalised force (paper), 1: weighted mean push vector
 
 
 class PackState:
@@ -104,16 +105,20 @@ class Solver:
         self.t = table
         self.s = state
         self.p = params
+        self.calls = 0
+        self.iterations = 0
 
     def resolve(self, focus: np.ndarray, max_iter: int, rollback: bool = True) -> bool:
         """Resolve overlaps around `focus` (object indices); False if still overlapping."""
         typ, pos, quat, scale, alive, margin, vel = self.s.view()
         t, c, p = self.t, self.c.grid, self.p
-        ok, _ = kernels.resolve(
+        ok, its = kernels.resolve(
             np.asarray(focus, np.int64), typ, pos, quat, scale, alive, margin, vel,
             p.clearance, p.tol, t.radius, t.sph_off, t.sph_c, t.sph_r, t.pt_off, t.pts,
             t.g_off, t.g_vals, t.g_shape, t.g_origin, t.g_h, c.values, c.origin, c.spacing,
-            int(max_iter), p.k_obj, p.k_wall, p.k_rot, p.damping, rollback)
+            int(max_iter), p.k_obj, p.k_wall, p.k_rot, p.damping, rollback, p.mode)
+        self.calls += 1
+        self.iterations += int(its)
         return bool(ok)
 
     def penetrations(self) -> np.ndarray:

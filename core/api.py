@@ -1,0 +1,292 @@
+"""`pack()`: the one call every front end uses.
+
+container + object types + target shares -> a certified `Packing` (container frame, container
+units). Steps: load and check meshes, build approximations, phase 1 (place & grow), phase 2
+(fill cavities), certify on the real meshes and repair or remove what fails, metrics.
+"""
+
+from __future__ import annotations
+
+import os
+import time
+from collections.abc import Callable, Sequence
+from dataclasses import asdict, dataclass
+from pathlib import Path
+
+import numpy as np
+
+from .certify import DEFAULT_TOL, Certifier
+from .container import Container, build_container
+from .errors import InputError, PackingError
+from .meshes import MeshData, box_mesh, load_mesh, parse_box_spec
+from .metrics import compute_metrics
+from .objects import FIDELITY, ObjectType, build_type
+from .packing import Packing, TypeRecord, matrix_to_quat, placement_matrices, quat_to_matrix
+from .phases import Stop, equivalent_radius, phase1, phase2
+from .solver import PackState, Solver, SolverParams, TypeTable
+
+Progress = Callable[[float, str], None]
+MeshSource = str | os.PathLike | MeshData
+
+#: container grid spacing = smallest type's equivalent radius / this, per fidelity
+_CONTAINER_CELLS_PER_RADIUS = {"low": 3.0, "medium": 4.0, "high": 6.0}
+
+
+@dataclass
+class PackParams:
+    """Method constants (the paper's defaults). Lengths are relative to object sizes."""
+
+    phase1_density: float = 0.5  # lattice spacing = (mean type volume / this)^(1/3)
+    phase1_iterations: int = 30  # solver iterations per growth step (paper: 25-30)
+    phase2_spacing: float = 0.5  # phase 2 lattice spacing, fraction of phase 1's
+    phase2_iterations: int = 80  # per growth step (paper: 55-150)
+    phase2_retries: int = 2  # random smaller types tried after a failure
+    safety: float = 0.5  # contact margin per object, in cells of its distance grid
+    repair_rounds: int = 3  # certify -> push apart rounds before removing offenders
+    k_obj: float = 1.0
+    k_wall: float = 1.05
+    k_rot: float = 0.3
+    damping: float = 0.5
+
+
+def _load(source: MeshSource, role: str) -> MeshData:
+    if isinstance(source, MeshData):
+        return source
+    text = os.fspath(source)
+    if role == "container":
+        box = parse_box_spec(text)
+        if box is not None:
+            return box_mesh(box)
+    return load_mesh(text, role=role)
+
+
+def _normalise_shares(shares: Sequence[float] | None, n: int) -> np.ndarray:
+    if n == 0:
+        raise InputError("no object types given: pass at least one object mesh "
+                         "(CLI: --type FILE[=SHARE]).")
+    if shares is None:
+        return np.full(n, 1.0 / n)
+    q = np.asarray(shares, np.float64)
+    if q.shape != (n,):
+        raise InputError(f"{len(q)} shares given for {n} object types: give one share per type.")
+    if not np.all(np.isfinite(q)) or np.any(q < 0) or q.sum() <= 0:
+        raise InputError(f"shares must be non-negative numbers with a positive sum, got "
+                         f"{q.tolist()}.")
+    return q / q.sum()
+
+
+def auto_fidelity(n_types: int, expected_objects: float) -> str:
+    """Fidelity chosen from the scene: fewer spheres when there are many objects."""
+    if expected_objects > 2500:
+        return "low"
+    return "medium"
+
+
+def pack(container: MeshSource, types: Sequence[MeshSource],
+         shares: Sequence[float] | None = None, *, seed: int = 0, clearance: float = 0.0,
+         fidelity: str = "auto", time_budget: float | None = None,
+         progress: Progress | None = None, should_cancel: Callable[[], bool] | None = None,
+         container_size: float | None = None, type_scale: float = 1.0,
+         names: Sequence[str] | None = None, params: PackParams | None = None,
+         use_cache: bool = True) -> Packing:
+    """Pack object types into a container; returns a certified packing.
+
+    container: mesh file path, "box:AxBxC" (a box centred at the origin) or MeshData.
+    types: mesh file paths or MeshData, one per object type; shares: target shares by count
+    (normalised; default uniform). container_size: scale the container so its largest
+    bounding-box extent is this (container units, e.g. mm); type_scale multiplies the object
+    files' coordinates. clearance: minimum gap between objects and to the wall (container
+    units). time_budget (s) bounds placement; certification runs after it. progress(fraction,
+    message) and should_cancel() are polled; cancel or the budget returns the best certified
+    packing so far. Raises JampackedError subclasses on bad input.
+    """
+    t_start = time.perf_counter()
+    params = params or PackParams()
+    report = progress or (lambda f, m: None)
+    if clearance < 0 or not np.isfinite(clearance):
+        raise InputError(f"clearance must be >= 0 (container units), got {clearance}.")
+    if type_scale <= 0 or not np.isfinite(type_scale):
+        raise InputError(f"type scale must be > 0, got {type_scale}.")
+    if fidelity not in ("auto", *FIDELITY):
+        raise InputError(f"fidelity must be auto, low, medium or high, got {fidelity!r}.")
+    q = _normalise_shares(shares, len(types))
+    if names is not None and len(names) != len(types):
+        raise InputError(f"{len(names)} names given for {len(types)} object types.")
+
+    # --- load
+    report(0.0, "loading meshes")
+    cmesh = _load(container, "container")
+    frame_from_file = np.eye(4)
+    if container_size is not None:
+        if container_size <= 0 or not np.isfinite(container_size):
+            raise InputError(f"container size must be > 0, got {container_size}.")
+        frame_from_file[:3, :3] *= container_size / float(cmesh.extents.max())
+    s_c = frame_from_file[0, 0]
+    c_vertices = cmesh.vertices * s_c
+    c_volume = cmesh.volume * s_c ** 3
+    meshes = [_load(t, "object") for t in types]
+    t_load = time.perf_counter()
+
+    # --- approximate
+    volumes = np.array([m.volume for m in meshes]) * type_scale ** 3
+    vbar = float(np.exp(np.sum(q * np.log(volumes))))
+    expected = 0.5 * c_volume / float(np.sum(q * volumes))
+    fid = auto_fidelity(len(types), expected) if fidelity == "auto" else fidelity
+    report(0.02, f"approximating {len(types)} object types ({fid} fidelity)")
+    objtypes: list[ObjectType] = []
+    for i, m in enumerate(meshes):
+        name = names[i] if names is not None else (
+            Path(m.path).stem if m.path else f"type{i}")
+        objtypes.append(build_type(name, m.vertices, m.faces, path=m.path, sha256=m.sha256,
+                                   share=float(q[i]), type_scale=type_scale, fidelity=fid,
+                                   use_cache=use_cache))
+    f_min = float(equivalent_radius(volumes.min()))
+    spacing = f_min / _CONTAINER_CELLS_PER_RADIUS[fid]
+    cont: Container = build_container(c_vertices, cmesh.faces, c_volume, spacing)
+    depth = float(cont.grid.values.max())
+    if depth <= f_min * 0.5 + clearance:
+        raise PackingError(
+            f"no object fits: the container's deepest interior point is {depth:.4g} units "
+            f"from its wall, the smallest object's equivalent radius is {f_min:.4g}"
+            f"{f' plus clearance {clearance:g}' if clearance else ''}. Scale the container "
+            "up (--container-size) or the objects down (--type-scale).")
+    t_approx = time.perf_counter()
+
+    # --- phases
+    table = TypeTable(objtypes)
+    state = PackState()
+    solver = Solver(cont, table, state, SolverParams(
+        clearance=clearance, tol=1e-6 * f_min, k_obj=params.k_obj, k_wall=params.k_wall,
+        k_rot=params.k_rot, damping=params.damping))
+    margin = np.array([params.safety * t.grid.spacing for t in objtypes])
+    rng = np.random.default_rng(seed)
+    deadline = None if time_budget is None else t_start + float(time_budget)
+    stop = Stop(deadline, should_cancel)
+    s1 = (float(np.sum(q * volumes)) / params.phase1_density) ** (1 / 3)
+    st1 = phase1(solver, q, s1, rng, stop, iters=params.phase1_iterations, margin=margin,
+                 progress=lambda f, m: report(0.05 + 0.55 * f, m))
+    after1 = _snapshot_metrics(state, table, q, c_volume)
+    t_p1 = time.perf_counter()
+    st2 = phase2(solver, q, s1 * params.phase2_spacing, rng, stop,
+                 iters=params.phase2_iterations, margin=margin, retries=params.phase2_retries,
+                 progress=lambda f, m: report(0.6 + 0.3 * f, m))
+    after2 = _snapshot_metrics(state, table, q, c_volume)
+    t_p2 = time.perf_counter()
+
+    # --- certify (never skipped, also after cancel)
+    report(0.9, "certifying on the real meshes")
+    state.alive[: state.n] &= (state.scale[: state.n] >= 1.0).astype(np.uint8)
+    certifier = Certifier(cont, [t.vertices for t in objtypes], [t.faces for t in objtypes],
+                          table.volume, np.array([t.max_edge for t in objtypes]))
+    cert, repair = _certify_and_repair(solver, certifier, clearance, params)
+    t_cert = time.perf_counter()
+
+    idx = state.alive_indices()
+    typ = state.typ[idx].copy()
+    pos = state.pos[idx].copy()
+    quat = state.quat[idx].copy()
+    quat = matrix_to_quat(quat_to_matrix(quat))  # canonical sign (w >= 0), unit length
+    metrics = compute_metrics(typ, pos, table.volume, q, c_volume)
+    metrics.update({"after_phase1": after1, "after_phase2": after2})
+    timings = {
+        "load": t_load - t_start, "approximate": t_approx - t_load, "phase1": t_p1 - t_approx,
+        "phase2": t_p2 - t_p1, "certify": t_cert - t_p2, "total": t_cert - t_start,
+    }
+    all_params = asdict(params)
+    all_params.update({
+        "clearance": clearance, "fidelity": fid, "fidelity_requested": fidelity,
+        "time_budget": time_budget, "container_size": container_size,
+        "type_scale": type_scale, "container_grid_spacing": cont.grid.spacing,
+        "phase1_spacing": s1, "stopped": stop.reason or None,
+        "spheres_per_type": [int(len(t.sphere_radii)) for t in objtypes],
+        "surface_points_per_type": [int(len(t.surface_points)) for t in objtypes],
+        "phase1": asdict(st1), "phase2": asdict(st2), "repair": repair,
+        "warnings": [w for m in [cmesh, *meshes] for w in m.warnings],
+    })
+    report(1.0, f"done: {len(idx)} objects, density {metrics['density']:.1%}")
+    return Packing(
+        container_path=_source_name(container, cmesh), container_sha256=cmesh.sha256,
+        frame_from_file=frame_from_file, container_volume=c_volume,
+        types=[TypeRecord(name=t.name, path=t.path, sha256=t.sha256, share=t.share,
+                          local_from_file=t.local_from_file, volume=t.volume)
+               for t in objtypes],
+        type_index=typ, rotations=quat, translations=pos, scales=np.ones(len(idx)),
+        params=all_params, seed=int(seed), metrics=metrics, timings=timings,
+        certificate=cert,
+    )
+
+
+def _source_name(source: MeshSource, mesh: MeshData) -> str:
+    if mesh.path:
+        return str(Path(mesh.path).resolve())
+    if isinstance(source, MeshData):
+        return "<in memory>"
+    return os.fspath(source)
+
+
+def _snapshot_metrics(state: PackState, table: TypeTable, q: np.ndarray,
+                      c_volume: float) -> dict:
+    idx = np.flatnonzero(state.alive[: state.n] & (state.scale[: state.n] >= 1.0))
+    m = compute_metrics(state.typ[idx], state.pos[idx], table.volume, q, c_volume)
+    return {k: m[k] for k in ("count", "density", "tvd", "nni_mean")}
+
+
+def _certify_and_repair(solver: Solver, certifier: Certifier, clearance: float,
+                        params: PackParams) -> tuple[dict, dict]:
+    """Certify; push failing objects apart (bigger margin, solver) and re-check; remove
+    what still fails. Returns (final certificate dict, repair statistics)."""
+    s = solver.s
+    stats = {"rounds": 0, "moved": 0, "removed": 0, "first": None}
+    subset = None
+    for rnd in range(params.repair_rounds + 1):
+        idx = s.alive_indices()
+        mats = placement_matrices(s.quat[idx], s.pos[idx], s.scale[idx])
+        rep = certifier.certify(s.typ[idx], mats, clearance, DEFAULT_TOL,
+                                subset=None if subset is None else np.flatnonzero(
+                                    np.isin(idx, subset)))
+        if stats["first"] is None:
+            stats["first"] = rep.as_dict()
+        bad = idx[sorted(rep.bad_objects())]
+        if len(bad) == 0:
+            break
+        if rnd == params.repair_rounds:
+            stats["removed"] += _remove_offenders(solver, idx, rep)
+            break
+        stats["rounds"] += 1
+        before_pos = s.pos[: s.n].copy()
+        before_q = s.quat[: s.n].copy()
+        for k in bad:
+            s.margin[k] = 2.0 * s.margin[k] + 0.02 * solver.t.radius[s.typ[k]]
+        ok = solver.resolve(bad, 300, rollback=True)
+        if not ok:
+            continue  # nothing moved; the next round (or removal) deals with them
+        moved = np.flatnonzero(np.any(s.pos[: s.n] != before_pos, axis=1)
+                               | np.any(s.quat[: s.n] != before_q, axis=1))
+        stats["moved"] += int(len(moved))
+        subset = np.union1d(moved, bad)
+    while True:  # removal only removes violations; loop in case a check was trusted wrongly
+        idx = s.alive_indices()
+        mats = placement_matrices(s.quat[idx], s.pos[idx], s.scale[idx])
+        final = certifier.certify(s.typ[idx], mats, clearance, DEFAULT_TOL)
+        if final.certified:
+            return final.as_dict(), stats
+        _remove_offenders(solver, idx, final)
+        stats["removed_after_final"] = stats.get("removed_after_final", 0) + 1
+
+
+def _remove_offenders(solver: Solver, idx: np.ndarray, rep) -> int:
+    """Remove the smaller object of each failing pair and each object through the wall."""
+    s = solver.s
+    removed = 0
+    for i, j in rep.bad_pairs:
+        a, b = idx[i], idx[j]
+        if s.alive[a] and s.alive[b]:
+            va = solver.t.volume[s.typ[a]]
+            vb = solver.t.volume[s.typ[b]]
+            s.alive[b if vb <= va else a] = 0
+            removed += 1
+    for i in rep.bad_wall:
+        if s.alive[idx[i]]:
+            s.alive[idx[i]] = 0
+            removed += 1
+    return removed

@@ -1,0 +1,275 @@
+"""The `jampacked` command line, end to end on a small scene (box, two convex polyhedra)."""
+
+from __future__ import annotations
+
+import contextlib
+import io
+import json
+import os
+import signal
+import subprocess
+import sys
+from pathlib import Path
+
+import numpy as np
+import pytest
+
+from jampacked.cli import main as cli
+from jampacked.cli.main import main, parse_type_arg, resolve_shares
+from jampacked.cli.preview import write_preview
+from jampacked.core.errors import InputError
+from jampacked.core.metrics import compute_metrics
+from jampacked.core.packing import load_packing
+
+#: shared/ beside the checkout (as in test_meshes.py)
+SHARED = Path(__file__).resolve().parents[2] / "shared" / "meshes"
+P1 = SHARED / "polyhedra" / "convex5" / "polytope1.obj"
+P3 = SHARED / "polyhedra" / "convex5" / "polytope3.obj"
+needs_meshes = pytest.mark.skipif(not (P1.is_file() and P3.is_file()),
+                                  reason=f"shared test meshes not found under {SHARED}")
+
+SMALL = ["--fidelity", "low", "--time-budget", "4", "--seed", "1"]
+
+
+def run(argv: list[str]) -> tuple[int, str, str]:
+    """main(argv) with stdout and stderr captured (usable in module-scoped fixtures)."""
+    out, err = io.StringIO(), io.StringIO()
+    with contextlib.redirect_stdout(out), contextlib.redirect_stderr(err):
+        rc = main(argv)
+    return rc, out.getvalue(), err.getvalue()
+
+
+@pytest.fixture(scope="module")
+def packed(tmp_path_factory):
+    """One small pack with a preview: (folder, json path, png path, rc, stdout, stderr)."""
+    if not (P1.is_file() and P3.is_file()):
+        pytest.skip(f"shared test meshes not found under {SHARED}")
+    d = tmp_path_factory.mktemp("cli")
+    out, png = d / "packing.json", d / "preview.png"
+    rc, so, se = run(["pack", "box:30x30x30", "--type", f"{P1}=40%", "--type", str(P3),
+                      *SMALL, "-o", str(out), "--preview", str(png)])
+    return d, out, png, rc, so, se
+
+
+# --------------------------------------------------------------------------- pack
+
+
+def test_pack_writes_certified_packing(packed):
+    _, out, _, rc, _, se = packed
+    assert rc == 0, se
+    p = load_packing(out)
+    assert p.n > 0
+    assert p.certificate["certified"] is True
+    assert p.certificate["worst_overlap"] <= p.certificate["tol"]
+    assert p.container_path == "box:30x30x30"
+    assert [t.name for t in p.types] == ["polytope1", "polytope3"]
+    assert [t.share for t in p.types] == pytest.approx([0.4, 0.6])
+    assert p.params["fidelity"] == "low" and p.seed == 1
+
+
+def test_metrics_recomputed_from_json_match(packed):
+    out = packed[1]
+    p = load_packing(out)
+    again = compute_metrics(p.type_index, p.translations, [t.volume for t in p.types],
+                            [t.share for t in p.types], p.container_volume)
+    for key in ("count", "count_per_type", "density", "tvd", "shares", "nni_mean"):
+        assert again[key] == pytest.approx(p.metrics[key], rel=1e-9), key
+    for a, b in zip(again["nni_per_type"], p.metrics["nni_per_type"], strict=True):
+        assert (a is None and b is None) or a == pytest.approx(b, rel=1e-9)
+
+
+def test_pack_prints_summary(packed):
+    _, out, png, _, so, _ = packed
+    for word in ("polytope1", "polytope3", "density", "TVD", "NNI", "certified",
+                 "worst overlap", "worst wall violation", "repair", "place & grow", "total"):
+        assert word in so, word
+    assert str(out) in so and str(png) in so
+
+
+def test_preview_is_a_png_with_content(packed):
+    png = packed[2]
+    import matplotlib.image as mpimg
+
+    assert png.read_bytes()[:8] == b"\x89PNG\r\n\x1a\n"
+    img = mpimg.imread(png)
+    assert img.ndim == 3 and img.shape[0] > 200 and img.shape[1] > 600
+    rgb = np.rint(img[..., :3] * 255).astype(np.int64)
+    packed_rgb = (rgb[..., 0] << 16) | (rgb[..., 1] << 8) | rgb[..., 2]
+    assert len(np.unique(packed_rgb)) > 20  # panels, outlines, filled objects, text
+    # the two types' fills (tab10 blue and orange) are present
+    for colour in ((31, 119, 180), (255, 127, 14)):
+        assert np.any(np.all(np.abs(rgb - colour) <= 2, axis=-1)), colour
+    assert not list(png.parent.glob(".preview.png.*"))  # no temp file left behind
+
+
+def test_write_preview_rejects_bad_heights(packed, tmp_path):
+    p = load_packing(packed[1])
+    with pytest.raises(InputError, match="between 0 and 1"):
+        write_preview(p, tmp_path / "x.png", heights=(0.5, 1.5))
+    with pytest.raises(InputError, match="does not exist"):
+        write_preview(p, tmp_path / "missing" / "x.png")
+
+
+def test_info_prints_summary_and_checks_sources(packed, capsys):
+    out = packed[1]
+    assert main(["info", str(out)]) == 0
+    so = capsys.readouterr().out
+    assert "polytope1" in so and "density" in so and "certified" in so
+    assert "sources: all 2 mesh files present and unchanged" in so
+
+
+def test_info_reports_changed_source(packed, capsys):
+    d, out, *_ = packed
+    doc = json.loads(out.read_text())
+    doc["types"][0]["sha256"] = "0" * 64
+    edited = d / "edited.json"
+    edited.write_text(json.dumps(doc))
+    assert main(["info", str(edited)]) == 1
+    err = capsys.readouterr().err
+    assert "polytope1" in err and "changed" in err
+
+
+@needs_meshes
+def test_ctrl_c_saves_best_certified_packing(tmp_path, monkeypatch, capsys):
+    """The first Ctrl-C makes should_cancel() true; the packing so far is certified and saved."""
+    real_pack = cli.pack
+    seen = {}
+
+    def interrupted_pack(*args, should_cancel, **kwargs):
+        assert not should_cancel()
+        signal.raise_signal(signal.SIGINT)  # what Ctrl-C does
+        seen["cancel"] = should_cancel()
+        return real_pack(*args, should_cancel=should_cancel, **kwargs)
+
+    monkeypatch.setattr(cli, "pack", interrupted_pack)
+    out = tmp_path / "p.json"
+    rc = main(["pack", "box:30x30x30", "--type", str(P1), *SMALL, "-q", "-o", str(out)])
+    assert seen["cancel"] is True
+    assert rc == 130
+    assert "interrupted" in capsys.readouterr().err
+    p = load_packing(out)
+    assert p.params["stopped"] == "cancelled" and p.certificate["certified"] is True
+    assert signal.getsignal(signal.SIGINT) is signal.default_int_handler  # restored
+
+
+# --------------------------------------------------------------------------- bad input
+
+
+@pytest.fixture
+def not_a_mesh(tmp_path):
+    f = tmp_path / "notes.txt"
+    f.write_text("this is not a mesh\n")
+    return f
+
+
+@needs_meshes
+@pytest.mark.parametrize(
+    "argv, code, words",
+    [
+        (["box:30x30x30", "--type", "no_such_file.obj"], 2, ["no_such_file.obj", "not exist"]),
+        (["no_such_container.stl", "--type", str(P1)], 2, ["no_such_container.stl"]),
+        (["box:30x30x30", "--type", f"{P1}=lots"], 2, ["share", "lots"]),
+        (["box:30x30x30", "--type", f"{P1}=-0.2"], 2, ["share", "-0.2"]),
+        (["box:30x30x30", "--type", f"{P1}=70%", "--type", f"{P3}=0.5", "--type", str(P1)], 2,
+         ["120%"]),
+        (["box:0x1x1", "--type", str(P1)], 2, ["box:0x1x1"]),
+        (["box:30x30", "--type", str(P1)], 2, ["box:30x30"]),
+        (["box:30x30x30"], 2, ["--type"]),
+        (["NOTAMESH", "--type", str(P1)], 1, ["notes.txt", "file type"]),
+        (["box:30x30x30", "--type", "NOTAMESH"], 1, ["notes.txt", "file type"]),
+        (["box:3x3x3", "--type", str(P1)], 1, ["no object fits"]),
+    ],
+)
+def test_bad_input_exits_with_message(argv, code, words, tmp_path, not_a_mesh, capsys):
+    argv = [str(not_a_mesh) if a == "NOTAMESH" else a for a in argv]
+    rc = main(["pack", *argv, *SMALL, "-q", "-o", str(tmp_path / "p.json")])
+    err = capsys.readouterr().err
+    assert rc == code, err
+    assert err.startswith("error: ") and err.count("\n") == 1, err  # one line, no traceback
+    for w in words:
+        assert w in err, (w, err)
+    assert not (tmp_path / "p.json").exists()
+
+
+@needs_meshes
+def test_missing_output_folder(tmp_path, capsys):
+    out = tmp_path / "nope" / "p.json"
+    assert main(["pack", "box:30x30x30", "--type", str(P1), "-o", str(out)]) == 2
+    assert "does not exist" in capsys.readouterr().err
+
+
+@needs_meshes
+def test_bad_numbers_are_usage_errors(tmp_path, capsys):
+    rc = main(["pack", "box:30x30x30", "--type", str(P1), "--clearance", "-1",
+               "-o", str(tmp_path / "p.json")])
+    assert rc == 2 and "--clearance" in capsys.readouterr().err
+
+
+def test_info_on_a_non_packing(not_a_mesh, capsys):
+    assert main(["info", str(not_a_mesh)]) == 1
+    err = capsys.readouterr().err
+    assert err.startswith("error: ") and "notes.txt" in err
+
+
+def test_debug_shows_traceback(not_a_mesh):
+    with pytest.raises(InputError):
+        main(["--debug", "info", str(not_a_mesh)])
+
+
+# --------------------------------------------------------------------------- parsing, help
+
+
+@pytest.mark.parametrize("text, expected", [
+    ("a.obj", ("a.obj", None)), ("a.obj=0.4", ("a.obj", 0.4)), ("a.obj=40%", ("a.obj", 0.4)),
+    ("a.obj=2", ("a.obj", 2.0)), ("dir/a b.stl=12.5 %", ("dir/a b.stl", 0.125)),
+])
+def test_parse_type_arg(text, expected):
+    path, share = parse_type_arg(text)
+    assert path == expected[0]
+    assert share == (None if expected[1] is None else pytest.approx(expected[1]))
+
+
+def test_resolve_shares():
+    assert resolve_shares([None, None], ["a", "b"]) is None
+    assert resolve_shares([2.0, 1.0], ["a", "b"]) == [2.0, 1.0]
+    assert resolve_shares([0.4, None, None], ["a", "b", "c"]) == pytest.approx([0.4, 0.3, 0.3])
+    with pytest.raises(cli.UsageError, match="100%"):
+        resolve_shares([0.6, 0.4, None], ["a", "b", "c"])
+
+
+@needs_meshes
+def test_default_scene_resolves_bundled_files(tmp_path):
+    args = cli.build_parser().parse_args(["pack", "default", "-o", str(tmp_path / "p.json")])
+    with contextlib.ExitStack() as stack:
+        scene = cli.resolve_scene(args, stack)
+        assert os.path.isfile(scene.container) and scene.container.endswith("spot.obj")
+        assert len(scene.types) == 5 and all(os.path.isfile(t) for t in scene.types)
+    assert scene.names == ["banana", "strawberry", "lemon", "peach", "orange"]
+    assert scene.shares is None
+    assert (scene.container_size, scene.type_scale) == (150.0, 300.0)
+    args = cli.build_parser().parse_args(["pack", "default", "--container-size", "90",
+                                          "--type", str(P1), "-o", str(tmp_path / "p.json")])
+    with contextlib.ExitStack() as stack:
+        scene = cli.resolve_scene(args, stack)
+    assert scene.types == [str(P1)] and scene.names is None
+    assert (scene.container_size, scene.type_scale) == (90.0, 1.0)
+
+
+def test_help(capsys):
+    assert main(["--help"]) == 0
+    text = capsys.readouterr().out
+    assert "pack" in text and "info" in text and "examples:" in text
+    assert main(["pack", "--help"]) == 0
+    text = capsys.readouterr().out
+    for word in ("--type", "SHARE", "--clearance", "container units", "examples:", "mm"):
+        assert word in text, word
+    assert main([]) == 2  # a command is required
+
+
+def test_python_dash_m(tmp_path):
+    env = dict(os.environ)
+    shim = [p for p in sys.path if p and (Path(p) / "jampacked").is_dir()]
+    env["PYTHONPATH"] = os.pathsep.join(shim + [env.get("PYTHONPATH", "")])
+    r = subprocess.run([sys.executable, "-m", "jampacked.cli.main", "--help"], env=env,
+                       capture_output=True, text=True, timeout=120)
+    assert r.returncode == 0 and "jampacked" in r.stdout
