@@ -129,7 +129,6 @@ def pack(container: MeshSource, types: Sequence[MeshSource],
 
     # --- approximate
     volumes = np.array([m.volume for m in meshes]) * type_scale ** 3
-    vbar = float(np.exp(np.sum(q * np.log(volumes))))
     expected = 0.5 * c_volume / float(np.sum(q * volumes))
     fid = auto_fidelity(len(types), expected) if fidelity == "auto" else fidelity
     report(0.02, f"approximating {len(types)} object types ({fid} fidelity)")

@@ -46,8 +46,39 @@ class DistanceGrid:
 
 
 @njit(cache=True)
+def point_segment_distance(p, a, b):
+    """Exact Euclidean distance from point p to segment ab (a == b allowed)."""
+    d0 = b[0] - a[0]
+    d1 = b[1] - a[1]
+    d2 = b[2] - a[2]
+    dd = d0 * d0 + d1 * d1 + d2 * d2
+    t = 0.0
+    if dd > 0.0:
+        t = ((p[0] - a[0]) * d0 + (p[1] - a[1]) * d1 + (p[2] - a[2]) * d2) / dd
+        t = min(max(t, 0.0), 1.0)
+    q0 = a[0] + t * d0 - p[0]
+    q1 = a[1] + t * d1 - p[1]
+    q2 = a[2] + t * d2 - p[2]
+    return np.sqrt(q0 * q0 + q1 * q1 + q2 * q2)
+
+
+@njit(cache=True)
 def point_triangle_distance(p, a, b, c):
-    """Exact Euclidean distance from point p to triangle abc (all (3,) float64)."""
+    """Exact Euclidean distance from point p to triangle abc (all (3,) float64).
+
+    Degenerate (zero-area) triangles fall back to the distance to their edges.
+    """
+    ex0 = (b[1] - a[1]) * (c[2] - a[2]) - (b[2] - a[2]) * (c[1] - a[1])
+    ex1 = (b[2] - a[2]) * (c[0] - a[0]) - (b[0] - a[0]) * (c[2] - a[2])
+    ex2 = (b[0] - a[0]) * (c[1] - a[1]) - (b[1] - a[1]) * (c[0] - a[0])
+    area2 = ex0 * ex0 + ex1 * ex1 + ex2 * ex2
+    l0 = (b[0] - a[0]) ** 2 + (b[1] - a[1]) ** 2 + (b[2] - a[2]) ** 2
+    l1 = (c[0] - b[0]) ** 2 + (c[1] - b[1]) ** 2 + (c[2] - b[2]) ** 2
+    l2 = (a[0] - c[0]) ** 2 + (a[1] - c[1]) ** 2 + (a[2] - c[2]) ** 2
+    lmax = max(l0, l1, l2)
+    if area2 <= 1e-24 * lmax * lmax:
+        return min(point_segment_distance(p, a, b), point_segment_distance(p, b, c),
+                   point_segment_distance(p, c, a))
     ab0 = b[0] - a[0]
     ab1 = b[1] - a[1]
     ab2 = b[2] - a[2]
@@ -196,6 +227,13 @@ def ray_parity(vertices, faces, origin, spacing, shape, axis, jitter_u, jitter_v
                 else:
                     if w0 > 0.0 or w1 > 0.0 or w2 > 0.0:
                         continue
+                # inclusion is decided on the nudged ray, the crossing height on the
+                # triangle's plane at the node itself
+                x = i - jitter_u
+                y = j - jitter_v
+                w0 = (bu - x) * (cv - y) - (bv - y) * (cu - x)
+                w1 = (cu - x) * (av - y) - (cv - y) * (au - x)
+                w2 = (au - x) * (bv - y) - (av - y) * (bu - x)
                 wz = (w0 * aw + w1 * bw + w2 * cw) / area
                 kk = int(np.floor(wz)) + 1  # first node strictly above the crossing
                 if kk < 0:

@@ -160,10 +160,6 @@ def test_point_triangle_distance_simple_values():
         assert point_triangle_distance(np.array(p), a, b, c) == pytest.approx(want, abs=1e-15)
 
 
-@pytest.mark.xfail(strict=True, reason=(
-    "point_triangle_distance on zero-area triangles: a repeated vertex (a == b) raises "
-    "ZeroDivisionError (v = d1/(d1-d3) with d1 == d3 == 0) and exactly collinear vertices "
-    "reach the face branch with va+vb+vc ~ 0 and return wrong distances (up to 0.85 here)"))
 def test_point_triangle_distance_zero_area_triangles():
     rng = np.random.default_rng(7)
     n = 2000
@@ -263,10 +259,6 @@ def test_distance_grid_rotated_box(seed):
     assert (np.sign(vals[clear]) == np.sign(exact[clear])).all()
 
 
-@pytest.mark.xfail(strict=True, reason=(
-    "inside_mask decides the sign at the jittered ray (u+ju, v+jv) but compares the "
-    "crossing height with the unjittered node, so on tilted faces nodes up to ~3e-4 cells "
-    "from the surface get the wrong sign (seed 0: a node 4.7e-5 inside, spacing 0.17)"))
 def test_distance_grid_rotated_box_sign_near_surface():
     g, exact = _rotated_box_grid(0)
     vals = g.values.ravel()

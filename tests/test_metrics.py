@@ -6,6 +6,7 @@ import json
 
 import numpy as np
 import pytest
+
 from jampacked.core.errors import InputError
 from jampacked.core.metrics import compute_metrics, density, nni, tvd, type_shares
 

@@ -8,6 +8,7 @@ import re
 
 import numpy as np
 import pytest
+
 from jampacked.core import packing as pk
 from jampacked.core.errors import InputError
 from jampacked.core.packing import (
