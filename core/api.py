@@ -41,12 +41,16 @@ class PackParams:
     phase2_spacing: float = 0.5  # phase 2 lattice spacing, fraction of phase 1's
     phase2_iterations: int = 80  # per growth step (paper: 55-150)
     phase2_retries: int = 2  # random smaller types tried after a failure
-    safety: float = 0.5  # contact margin per object, in cells of its distance grid
+    safety: float = 0.1  # contact margin per object, in cells of its distance grid
+    wall_safety: float = 0.25  # extra wall distance, in cells of the container grid
     repair_rounds: int = 3  # certify -> push apart rounds before removing offenders
+    repair_margin: float = 0.01  # margin added per repair round, fraction of bounding radius
+    repair_iterations: int = 100
     k_obj: float = 1.0
     k_wall: float = 1.05
-    k_rot: float = 0.3
+    k_rot: float = 1.0
     damping: float = 0.5
+    mode: int = 0
 
 
 def _load(source: MeshSource, role: str) -> MeshData:
@@ -156,7 +160,8 @@ def pack(container: MeshSource, types: Sequence[MeshSource],
     state = PackState()
     solver = Solver(cont, table, state, SolverParams(
         clearance=clearance, tol=1e-6 * f_min, k_obj=params.k_obj, k_wall=params.k_wall,
-        k_rot=params.k_rot, damping=params.damping))
+        k_rot=params.k_rot, damping=params.damping, mode=params.mode,
+        wall_margin=params.wall_safety * cont.grid.spacing))
     margin = np.array([params.safety * t.grid.spacing for t in objtypes])
     rng = np.random.default_rng(seed)
     deadline = None if time_budget is None else t_start + float(time_budget)
@@ -232,11 +237,14 @@ def _snapshot_metrics(state: PackState, table: TypeTable, q: np.ndarray,
 
 def _certify_and_repair(solver: Solver, certifier: Certifier, clearance: float,
                         params: PackParams) -> tuple[dict, dict]:
-    """Certify; push failing objects apart (bigger margin, solver) and re-check; remove
-    what still fails. Returns (final certificate dict, repair statistics)."""
+    """Certify; push failing objects apart one at a time (a bigger margin for that object,
+    then the solver, rolled back if it cannot settle) and re-check what moved; remove what
+    still fails after `repair_rounds`. Returns (final certificate dict, repair statistics).
+    """
     s = solver.s
     stats = {"rounds": 0, "moved": 0, "removed": 0, "first": None}
     subset = None
+    moved_ever: set[int] = set()
     for rnd in range(params.repair_rounds + 1):
         idx = s.alive_indices()
         mats = placement_matrices(s.quat[idx], s.pos[idx], s.scale[idx])
@@ -255,22 +263,23 @@ def _certify_and_repair(solver: Solver, certifier: Certifier, clearance: float,
         before_pos = s.pos[: s.n].copy()
         before_q = s.quat[: s.n].copy()
         for k in bad:
-            s.margin[k] = 2.0 * s.margin[k] + 0.02 * solver.t.radius[s.typ[k]]
-        ok = solver.resolve(bad, 300, rollback=True)
-        if not ok:
-            continue  # nothing moved; the next round (or removal) deals with them
+            old = s.margin[k]
+            s.margin[k] = 2.0 * old + params.repair_margin * solver.t.radius[s.typ[k]]
+            if not solver.resolve(np.array([k], np.int64), params.repair_iterations,
+                                  rollback=True):
+                s.margin[k] = old
         moved = np.flatnonzero(np.any(s.pos[: s.n] != before_pos, axis=1)
                                | np.any(s.quat[: s.n] != before_q, axis=1))
-        stats["moved"] += int(len(moved))
+        moved_ever.update(int(m) for m in moved)
         subset = np.union1d(moved, bad)
+    stats["moved"] = len(moved_ever)
     while True:  # removal only removes violations; loop in case a check was trusted wrongly
         idx = s.alive_indices()
         mats = placement_matrices(s.quat[idx], s.pos[idx], s.scale[idx])
         final = certifier.certify(s.typ[idx], mats, clearance, DEFAULT_TOL)
         if final.certified:
             return final.as_dict(), stats
-        _remove_offenders(solver, idx, final)
-        stats["removed_after_final"] = stats.get("removed_after_final", 0) + 1
+        stats["removed"] += _remove_offenders(solver, idx, final)
 
 
 def _remove_offenders(solver: Solver, idx: np.ndarray, rep) -> int:

@@ -349,7 +349,8 @@ def _rotate_quat(q, ax, ay, az, angle):
 @njit(cache=True)
 def resolve(focus, typ, pos, quat, scale, alive, margin, vel, clearance, tol, radius,
             sph_off, sph_c, sph_r, pt_off, pts, g_off, g_vals, g_shape, g_origin, g_h,
-            c_vals, c_origin, c_h, max_iter, k_obj, k_wall, k_rot, damping, rollback, mode):
+            c_vals, c_origin, c_h, max_iter, k_obj, k_wall, k_rot, damping, rollback, mode,
+            wall_extra):
     """Penalty-force overlap resolution starting from the objects in `focus`.
 
     Only objects in contact move: each gets the sum of its contact forces, normalised,
@@ -358,6 +359,7 @@ def resolve(focus, typ, pos, quat, scale, alive, margin, vel, clearance, tol, ra
     rotation about its torque axis (k_rot). The state before the call is assumed free of
     overlaps except near `focus`, so only moved objects need re-checking.
 
+    wall_extra is added to the wall distance each object must keep (grid error allowance).
     mode 0 moves by the normalised force times stiffness times the deepest penetration (the
     paper); mode 1 by the penetration-weighted mean push vector times stiffness.
 
@@ -391,7 +393,8 @@ def resolve(focus, typ, pos, quat, scale, alive, margin, vel, clearance, tol, ra
         n_hit = 0
         for ii in range(n_act):
             a = act_list[ii]
-            pw = wall_contact(a, typ, pos, quat, scale, margin, clearance, tol, sph_off, sph_c,
+            pw = wall_contact(a, typ, pos, quat, scale, margin, clearance + wall_extra, tol,
+                              sph_off, sph_c,
                               sph_r, pt_off, pts, c_flat, c_shape, c_origin, c_h, F, Tq)
             if pw > 0.0:
                 pen_wall[a] = max(pen_wall[a], pw)
@@ -485,7 +488,7 @@ def resolve(focus, typ, pos, quat, scale, alive, margin, vel, clearance, tol, ra
 @njit(cache=True)
 def max_penetrations(typ, pos, quat, scale, alive, margin, clearance, tol, radius, sph_off,
                      sph_c, sph_r, pt_off, pts, g_off, g_vals, g_shape, g_origin, g_h, c_vals,
-                     c_origin, c_h):
+                     c_origin, c_h, wall_extra):
     """Deepest object-object and object-wall penetration of every alive object, (N,2)."""
     n = typ.shape[0]
     F = np.zeros((n, 4))
@@ -496,7 +499,8 @@ def max_penetrations(typ, pos, quat, scale, alive, margin, clearance, tol, radiu
     for a in range(n):
         if not alive[a]:
             continue
-        out[a, 1] = wall_contact(a, typ, pos, quat, scale, margin, clearance, tol, sph_off,
+        out[a, 1] = wall_contact(a, typ, pos, quat, scale, margin, clearance + wall_extra, tol,
+                                 sph_off,
                                  sph_c, sph_r, pt_off, pts, c_flat, c_shape, c_origin, c_h,
                                  F, Tq)
         ra = radius[typ[a]] * scale[a]

@@ -20,6 +20,14 @@ START_SCALE = 0.05
 GROWTH_STEPS = 30
 
 
+def _density(solver: Solver) -> float:
+    """Volume of the full-size alive objects over the container volume."""
+    s = solver.s
+    n = s.n
+    full = (s.alive[:n] == 1) & (s.scale[:n] >= 1.0)
+    return float(solver.t.volume[s.typ[:n][full]].sum() / solver.c.volume)
+
+
 def random_quaternions(rng: np.random.Generator, n: int) -> np.ndarray:
     """(n,4) uniformly distributed unit quaternions w,x,y,z (Shoemake)."""
     u1, u2, u3 = rng.random((3, n))
@@ -94,8 +102,8 @@ def phase1(solver: Solver, shares: np.ndarray, spacing: float, rng: np.random.Ge
 
     spacing: lattice spacing (container units). shares: (T,) target shares by count.
     margin: (T,) per-type safety margin (container units).
-    The next object to grow is the first ungrown one of the largest type that is below its
-    target share (or, when none is, of the type furthest below it).
+    The next object to grow is the first ungrown one, as the largest type that is below its
+    target share (or, when none is, the type furthest below it).
     """
     t0 = time.perf_counter()
     st = PhaseStats()
@@ -106,45 +114,41 @@ def phase1(solver: Solver, shares: np.ndarray, spacing: float, rng: np.random.Ge
     rng.shuffle(pts)
     types = rng.choice(n_types, size=len(pts), p=shares)
     quats = random_quaternions(rng, len(pts))
-    ungrown: list[list[int]] = [[] for _ in range(n_types)]
+    queue: list[int] = []
     for p, t, q in zip(pts, types, quats, strict=True):
-        k = solver.s.add(int(t), p, q, START_SCALE, float(margin[t]))
-        ungrown[t].append(k)
+        queue.append(solver.s.add(int(t), p, q, START_SCALE, float(margin[t])))
     st.inserted = len(pts)
     # tiny objects near each other or the wall: settle them before growing anything
-    solver.resolve(solver.s.alive_indices(), 50, rollback=False)
+    solver.resolve(np.asarray(queue, np.int64), 50, rollback=False)
     counts = np.zeros(n_types)
-    head = [0] * n_types
     order_by_volume = np.argsort(-table.volume)
-    total = len(pts)
-    done = 0
-    while True:
+    total = len(queue)
+    for done, k in enumerate(queue, start=1):
         if stop():
             break
-        left = [t for t in range(n_types) if head[t] < len(ungrown[t])]
-        if not left:
-            break
-        g = counts.sum()
-        below = [t for t in order_by_volume if t in left and counts[t] < shares[t] * max(g, 1)]
-        if below:
-            t = int(below[0])
-        else:
-            t = int(min(left, key=lambda u: counts[u] / max(shares[u], 1e-12)))
-        k = ungrown[t][head[t]]
-        head[t] += 1
-        done += 1
         if not solver.s.alive[k]:
             continue
+        g = max(counts.sum(), 1.0)
+        below = [int(t) for t in order_by_volume if counts[t] < shares[t] * g]
+        if below:
+            t = below[0]
+        else:
+            t = int(np.argmin(counts / np.maximum(shares, 1e-12)))
+        # the first ungrown object takes the type the mix needs now (the paper draws types
+        # up front; typing on demand keeps the mix when big types fail more often)
+        solver.s.typ[k] = t
+        solver.s.margin[k] = margin[t]
         if grow(solver, k, solver.s.scale[k], iters, stop):
             counts[t] += 1
             st.grown += 1
         else:
             st.failed += 1
-        if progress is not None and done % 8 == 0:
-            progress(done / max(total, 1), f"phase 1: {st.grown} grown")
+        if progress is not None and done % 4 == 0:
+            progress(done / max(total, 1), f"phase 1: {st.grown} placed, density "
+                     f"{_density(solver):.1%}")
     # objects never grown (stopped early) do not belong in the result
-    for t in range(n_types):
-        for k in ungrown[t][head[t]:]:
+    for k in queue:
+        if solver.s.scale[k] < 1.0:
             solver.s.alive[k] = 0
     st.stopped = stop.reason
     st.seconds = time.perf_counter() - t0
@@ -204,7 +208,8 @@ def phase2(solver: Solver, shares: np.ndarray, spacing: float, rng: np.random.Ge
                 break
             st.failed += 1
         if progress is not None and n_done % 8 == 0:
-            progress(n_done / len(pts), f"phase 2: {st.grown} added")
+            progress(n_done / len(pts), f"phase 2: {st.grown} added, density "
+                     f"{_density(solver):.1%}")
     st.stopped = stop.reason
     st.seconds = time.perf_counter() - t0
     st.extra = {"candidates": int(len(pts)), "threshold": threshold}

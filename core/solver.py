@@ -47,6 +47,7 @@ class SolverParams:
     k_rot: float = 0.3  # rotation per iteration, as arc length at the bounding radius
     damping: float = 0.5  # velocity kept from one iteration to the next
     mode: int = 0  # 0: normalised force (paper), 1: weighted mean push vector
+    wall_margin: float = 0.0  # extra distance kept from the wall (container grid error)
 
 
 class PackState:
@@ -116,7 +117,8 @@ class Solver:
             np.asarray(focus, np.int64), typ, pos, quat, scale, alive, margin, vel,
             p.clearance, p.tol, t.radius, t.sph_off, t.sph_c, t.sph_r, t.pt_off, t.pts,
             t.g_off, t.g_vals, t.g_shape, t.g_origin, t.g_h, c.values, c.origin, c.spacing,
-            int(max_iter), p.k_obj, p.k_wall, p.k_rot, p.damping, rollback, p.mode)
+            int(max_iter), p.k_obj, p.k_wall, p.k_rot, p.damping, rollback, p.mode,
+            p.wall_margin)
         self.calls += 1
         self.iterations += int(its)
         return bool(ok)
@@ -128,7 +130,7 @@ class Solver:
         return kernels.max_penetrations(
             typ, pos, quat, scale, alive, margin, p.clearance, p.tol, t.radius, t.sph_off,
             t.sph_c, t.sph_r, t.pt_off, t.pts, t.g_off, t.g_vals, t.g_shape, t.g_origin,
-            t.g_h, c.values, c.origin, c.spacing)
+            t.g_h, c.values, c.origin, c.spacing, p.wall_margin)
 
     def free_distances(self, points: np.ndarray) -> np.ndarray:
         """Distance from each point (M,3) to the nearest object or the wall (M,)."""
