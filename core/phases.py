@@ -157,17 +157,22 @@ def phase1(solver: Solver, shares: np.ndarray, spacing: float, rng: np.random.Ge
 
 def phase2(solver: Solver, shares: np.ndarray, spacing: float, rng: np.random.Generator,
            stop: Stop, *, iters: int = 80, margin: np.ndarray, retries: int = 2,
+           threshold: float | None = None, fit_factor: float = 1.0,
            progress: Callable[[float, str], None] | None = None) -> PhaseStats:
     """Fill cavities: at lattice points far enough from every object and the wall, insert
     the largest type whose equivalent radius f(V) is below that distance and grow it; on
-    failure try up to `retries` random smaller types.
+    failure try up to `retries` random smaller types. The distance threshold is the paper's
+    (f(Vbar) + f(Vmin)) / 2 unless `threshold` (container units) is given; a type fits
+    where fit_factor * f(V) is below the distance (1 in the paper; < 1 lets an object start
+    in a smaller hole and push its neighbours aside as it grows).
     """
     t0 = time.perf_counter()
     st = PhaseStats()
     table = solver.t
     f = equivalent_radius(table.volume)
     vbar = float(np.exp(np.sum(shares * np.log(table.volume))))
-    threshold = 0.5 * (float(equivalent_radius(vbar)) + float(f.min()))
+    if threshold is None:
+        threshold = 0.5 * (float(equivalent_radius(vbar)) + float(f.min()))
     pts = interior_points(solver.c, spacing, threshold, rng)
     if len(pts) == 0:
         st.seconds = time.perf_counter() - t0
@@ -185,7 +190,7 @@ def phase2(solver: Solver, shares: np.ndarray, spacing: float, rng: np.random.Ge
         dist = float(solver.free_distances(p[None])[0])
         if dist < threshold:
             continue
-        fits = [int(t) for t in by_size if f[t] < dist]
+        fits = [int(t) for t in by_size if fit_factor * f[t] < dist]
         if not fits:
             continue
         tries = [fits[0]]

@@ -1,0 +1,161 @@
+"""pack() end to end on small real scenes: invariants an outside checker would verify."""
+
+from __future__ import annotations
+
+import itertools
+from pathlib import Path
+
+import manifold3d as m3
+import numpy as np
+import pytest
+import trimesh
+
+from jampacked.core.api import pack
+from jampacked.core.errors import InputError, MeshError, PackingError
+from jampacked.core.metrics import compute_metrics
+from jampacked.core.packing import load_packing, save_packing
+
+MESHES = Path(__file__).resolve().parents[2] / "shared" / "meshes"
+pytestmark = pytest.mark.skipif(not MESHES.is_dir(), reason="../shared/meshes not present")
+
+POLY = [str(MESHES / "polyhedra" / "convex5" / f"polytope{i}.obj") for i in (1, 3)]
+BOX = "box:34x30x32"
+
+
+@pytest.fixture(scope="module")
+def small():
+    return pack(BOX, POLY, [0.5, 0.5], seed=3, fidelity="low")
+
+
+def _placed_solids(p):
+    """Manifolds of the placed objects, built from the files as an outside checker would."""
+    out = []
+    for k in range(p.n):
+        t = p.types[p.type_index[k]]
+        mesh = trimesh.load(t.path, force="mesh", process=True)
+        m = p.matrices()[k] @ t.local_from_file
+        v = mesh.vertices @ m[:3, :3].T + m[:3, 3]
+        out.append(m3.Manifold(m3.Mesh(vert_properties=v.astype(np.float32),
+                                       tri_verts=mesh.faces.astype(np.uint32))))
+    return out
+
+
+def test_small_scene_is_certified_and_sane(small):
+    p = small
+    assert p.n >= 8
+    assert p.certificate["certified"]
+    assert p.certificate["worst_overlap"] <= 1e-4
+    assert p.certificate["worst_outside"] <= 1e-4
+    assert np.allclose(p.scales, 1.0)
+    assert 0.2 < p.metrics["density"] < 0.75
+    assert np.allclose(np.linalg.norm(p.rotations, axis=1), 1.0)
+
+
+def test_independent_overlap_and_containment_check(small):
+    p = small
+    solids = _placed_solids(p)
+    ext = np.array([34, 30, 32], float)
+    box = m3.Manifold.cube(ext.tolist(), True)
+    for k, s in enumerate(solids):
+        vol = s.volume()
+        assert vol == pytest.approx(p.types[p.type_index[k]].volume, rel=1e-3)
+        assert (s - box).volume() <= 1e-4 * vol + 1e-9
+    for a, b in itertools.combinations(range(len(solids)), 2):
+        inter = (solids[a] ^ solids[b]).volume()
+        assert inter <= 1e-4 * min(solids[a].volume(), solids[b].volume()) + 1e-9
+
+
+def test_metrics_recomputed_from_json_match(small, tmp_path):
+    path = tmp_path / "p.json"
+    save_packing(small, path)
+    p = load_packing(path)
+    vols = np.array([t.volume for t in p.types])
+    m = compute_metrics(p.type_index, p.translations, vols, np.array([t.share for t in p.types]),
+                        p.container_volume)
+    for key in ("count", "density", "tvd", "nni_mean"):
+        assert m[key] == pytest.approx(p.metrics[key], rel=1e-9)
+    # density from the meshes themselves
+    placed = sum(s.volume() for s in _placed_solids(p))
+    assert placed / (34 * 30 * 32) == pytest.approx(p.metrics["density"], rel=2e-3)
+
+
+def test_same_seed_same_packing_and_other_seed_differs(small):
+    again = pack(BOX, POLY, [0.5, 0.5], seed=3, fidelity="low")
+    assert np.array_equal(again.type_index, small.type_index)
+    assert np.array_equal(again.translations, small.translations)
+    assert np.array_equal(again.rotations, small.rotations)
+    other = pack(BOX, POLY, [0.5, 0.5], seed=4, fidelity="low")
+    assert other.n != small.n or not np.allclose(other.translations, small.translations)
+
+
+def test_clearance_is_kept_exactly():
+    c = 0.6
+    p = pack(BOX, POLY, seed=2, fidelity="low", clearance=c)
+    assert p.certificate["certified"]
+    assert p.n >= 4
+    solids = _placed_solids(p)
+    outside = m3.Manifold.cube([60, 60, 60], True) - m3.Manifold.cube([34, 30, 32], True)
+    for s in solids:
+        assert s.min_gap(outside, 2 * c) >= c * (1 - 1e-6)
+    for a, b in itertools.combinations(solids, 2):
+        assert a.min_gap(b, 2 * c) >= c * (1 - 1e-6)
+
+
+def test_cancel_returns_certified_packing():
+    calls = {"n": 0}
+
+    def cancel():
+        calls["n"] += 1
+        return calls["n"] > 40
+
+    p = pack(BOX, POLY, seed=1, fidelity="low", should_cancel=cancel)
+    assert p.params["stopped"] == "cancelled"
+    assert p.certificate["certified"]
+    assert np.allclose(p.scales, 1.0)
+
+
+def test_time_budget_stops_early():
+    p = pack(BOX, POLY, seed=1, fidelity="low", time_budget=0.0)
+    assert p.params["stopped"] == "deadline"
+    assert p.certificate["certified"]
+    assert p.n == 0
+
+
+def test_progress_reports_monotone_fractions():
+    seen = []
+    pack(BOX, POLY, seed=1, fidelity="low", progress=lambda f, m: seen.append((f, m)))
+    fr = [f for f, _ in seen]
+    assert fr[0] == 0.0 and fr[-1] == 1.0
+    assert all(0.0 <= f <= 1.0 for f in fr)
+    assert any("phase 1" in m for _, m in seen)
+
+
+def test_objects_larger_than_container_give_clear_error():
+    with pytest.raises(PackingError, match="no object fits"):
+        pack("box:3x3x3", POLY, seed=1, fidelity="low")
+
+
+@pytest.mark.parametrize("shares,match", [([1.0], "2 object types"), ([-1, 2], "non-negative"),
+                                          ([0, 0], "positive sum")])
+def test_bad_shares(shares, match):
+    with pytest.raises(InputError, match=match):
+        pack(BOX, POLY, shares, fidelity="low")
+
+
+def test_bad_clearance_and_fidelity():
+    with pytest.raises(InputError, match="clearance"):
+        pack(BOX, POLY, clearance=-1)
+    with pytest.raises(InputError, match="fidelity"):
+        pack(BOX, POLY, fidelity="ultra")
+
+
+def test_broken_container_names_file():
+    bad = MESHES / "broken" / "bunny_with_holes.obj"
+    with pytest.raises(MeshError, match="bunny_with_holes.obj"):
+        pack(str(bad), POLY)
+
+
+def test_thin_wall_container_refused():
+    bad = MESHES / "broken" / "vase_thin_wall_shell.stl"
+    with pytest.raises(MeshError, match="thin wall"):
+        pack(str(bad), POLY)
