@@ -46,6 +46,7 @@ class PackParams:
     extra_passes: tuple[float, ...] = (0.8, 0.6, 0.5)  # cavity passes beyond the paper: threshold
     # = factor * smallest f(V), lattice spacing scaled by the factor too
     extra_retries: int = 1
+    extra_patience: int = 25  # an extra pass ends after this many fruitless points in a row
     repair_rounds: int = 3  # certify -> push apart rounds before removing offenders
     repair_margin: float = 0.01  # margin added per repair round, fraction of bounding radius
     repair_iterations: int = 100
@@ -180,13 +181,16 @@ def pack(container: MeshSource, types: Sequence[MeshSource],
     # beyond the paper: further cavity passes at lower thresholds (objects grown there push
     # their neighbours aside), while the time budget allows
     extra = []
-    for factor in params.extra_passes:
+    n_extra = max(len(params.extra_passes), 1)
+    for i, factor in enumerate(params.extra_passes):
         if stop():
             break
+        lo = 0.8 + 0.1 * i / n_extra
         extra.append(asdict(phase2(
             solver, q, s1 * params.phase2_spacing * factor, rng, stop,
             iters=params.phase2_iterations, margin=margin, retries=params.extra_retries,
-            threshold=factor * f_min, fit_factor=factor, progress=lambda f, m: report(0.8 + 0.1 * f, m))))
+            threshold=factor * f_min, fit_factor=factor, patience=params.extra_patience,
+            progress=lambda f, m, lo=lo: report(lo + 0.1 * f / n_extra, m))))
     after2 = _snapshot_metrics(state, table, q, c_volume)
     t_p2 = time.perf_counter()
 

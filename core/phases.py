@@ -158,13 +158,15 @@ def phase1(solver: Solver, shares: np.ndarray, spacing: float, rng: np.random.Ge
 def phase2(solver: Solver, shares: np.ndarray, spacing: float, rng: np.random.Generator,
            stop: Stop, *, iters: int = 80, margin: np.ndarray, retries: int = 2,
            threshold: float | None = None, fit_factor: float = 1.0,
+           patience: int | None = None,
            progress: Callable[[float, str], None] | None = None) -> PhaseStats:
     """Fill cavities: at lattice points far enough from every object and the wall, insert
     the largest type whose equivalent radius f(V) is below that distance and grow it; on
     failure try up to `retries` random smaller types. The distance threshold is the paper's
     (f(Vbar) + f(Vmin)) / 2 unless `threshold` (container units) is given; a type fits
     where fit_factor * f(V) is below the distance (1 in the paper; < 1 lets an object start
-    in a smaller hole and push its neighbours aside as it grows).
+    in a smaller hole and push its neighbours aside as it grows). With `patience`, the pass
+    ends after that many candidate points in a row where nothing could be added.
     """
     t0 = time.perf_counter()
     st = PhaseStats()
@@ -184,8 +186,12 @@ def phase2(solver: Solver, shares: np.ndarray, spacing: float, rng: np.random.Ge
     pts = pts[order]
     by_size = np.argsort(-f)
     clear = solver.p.clearance
+    misses = 0
     for n_done, p in enumerate(pts):
         if stop():
+            break
+        if patience is not None and misses >= patience:
+            st.stopped = "patience"
             break
         dist = float(solver.free_distances(p[None])[0])
         if dist < threshold:
@@ -193,6 +199,7 @@ def phase2(solver: Solver, shares: np.ndarray, spacing: float, rng: np.random.Ge
         fits = [int(t) for t in by_size if fit_factor * f[t] < dist]
         if not fits:
             continue
+        misses += 1
         tries = [fits[0]]
         smaller = fits[1:]
         if smaller:
@@ -210,12 +217,13 @@ def phase2(solver: Solver, shares: np.ndarray, spacing: float, rng: np.random.Ge
                 continue
             if start >= 1.0 or grow(solver, k, start, iters, stop):
                 st.grown += 1
+                misses = 0
                 break
             st.failed += 1
         if progress is not None and n_done % 8 == 0:
             progress(n_done / len(pts), f"phase 2: {st.grown} added, density "
                      f"{_density(solver):.1%}")
-    st.stopped = stop.reason
+    st.stopped = stop.reason or st.stopped
     st.seconds = time.perf_counter() - t0
     st.extra = {"candidates": int(len(pts)), "threshold": threshold}
     return st

@@ -127,6 +127,7 @@ def test_progress_reports_monotone_fractions():
     fr = [f for f, _ in seen]
     assert fr[0] == 0.0 and fr[-1] == 1.0
     assert all(0.0 <= f <= 1.0 for f in fr)
+    assert all(b >= a for a, b in zip(fr, fr[1:], strict=False)), fr
     assert any("phase 1" in m for _, m in seen)
 
 
