@@ -165,7 +165,8 @@ def phase2(solver: Solver, shares: np.ndarray, spacing: float, rng: np.random.Ge
     failure try up to `retries` random smaller types. The distance threshold is the paper's
     (f(Vbar) + f(Vmin)) / 2 unless `threshold` (container units) is given; a type fits
     where fit_factor * f(V) is below the distance (1 in the paper; < 1 lets an object start
-    in a smaller hole and push its neighbours aside as it grows). With `patience`, the pass
+    in a smaller hole and push its neighbours aside as it grows; there the type tried first is
+    the fitting one the mix lacks most, not the largest). With `patience`, the pass
     ends after that many candidate points in a row where nothing could be added.
     """
     t0 = time.perf_counter()
@@ -187,6 +188,9 @@ def phase2(solver: Solver, shares: np.ndarray, spacing: float, rng: np.random.Ge
     by_size = np.argsort(-f)
     clear = solver.p.clearance
     misses = 0
+    n = solver.s.n
+    full = np.flatnonzero((solver.s.alive[:n] == 1) & (solver.s.scale[:n] >= 1.0))
+    counts = np.bincount(solver.s.typ[full], minlength=len(shares)).astype(np.float64)
     for n_done, p in enumerate(pts):
         if stop():
             break
@@ -200,10 +204,17 @@ def phase2(solver: Solver, shares: np.ndarray, spacing: float, rng: np.random.Ge
         if not fits:
             continue
         misses += 1
-        tries = [fits[0]]
-        smaller = fits[1:]
-        if smaller:
-            tries += list(rng.choice(smaller, size=min(retries, len(smaller)), replace=False))
+        if fit_factor < 1.0:
+            # extra passes: the fitting types the mix lacks most, largest first on ties
+            n_now = counts.sum() + 1.0
+            need = sorted(fits, key=lambda t: (counts[t] - shares[t] * n_now, -f[t]))
+            tries = need[: 1 + retries]
+        else:
+            tries = [fits[0]]
+            smaller = fits[1:]
+            if smaller:
+                tries += list(rng.choice(smaller, size=min(retries, len(smaller)),
+                                         replace=False))
         for t in tries:
             q = random_quaternions(rng, 1)[0]
             # steps below the free radius are collision free: start growing there
@@ -217,6 +228,7 @@ def phase2(solver: Solver, shares: np.ndarray, spacing: float, rng: np.random.Ge
                 continue
             if start >= 1.0 or grow(solver, k, start, iters, stop):
                 st.grown += 1
+                counts[t] += 1
                 misses = 0
                 break
             st.failed += 1
