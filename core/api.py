@@ -41,12 +41,13 @@ class PackParams:
     phase2_spacing: float = 0.5  # phase 2 lattice spacing, fraction of phase 1's
     phase2_iterations: int = 80  # per growth step (paper: 55-150)
     phase2_retries: int = 2  # random smaller types tried after a failure
-    safety: float = 0.1  # contact margin per object, in cells of its distance grid
+    safety: float = 0.3  # contact margin per object, in cells of its distance grid
     wall_safety: float = 0.25  # extra wall distance, in cells of the container grid
     extra_passes: tuple[float, ...] = (0.8, 0.6, 0.5)  # cavity passes beyond the paper: threshold
     # = factor * smallest f(V), lattice spacing scaled by the factor too
     extra_retries: int = 1
     extra_patience: int = 25  # an extra pass ends after this many fruitless points in a row
+    extra_max_tvd: float = 0.03  # extra passes add no object that pushes TVD above this
     repair_rounds: int = 3  # certify -> push apart rounds before removing offenders
     repair_margin: float = 0.01  # margin added per repair round, fraction of bounding radius
     repair_iterations: int = 100
@@ -190,6 +191,7 @@ def pack(container: MeshSource, types: Sequence[MeshSource],
             solver, q, s1 * params.phase2_spacing * factor, rng, stop,
             iters=params.phase2_iterations, margin=margin, retries=params.extra_retries,
             threshold=factor * f_min, fit_factor=factor, patience=params.extra_patience,
+            max_tvd=params.extra_max_tvd,
             progress=lambda f, m, lo=lo: report(lo + 0.1 * f / n_extra, m))))
     after2 = _snapshot_metrics(state, table, q, c_volume)
     t_p2 = time.perf_counter()

@@ -28,6 +28,14 @@ def _density(solver: Solver) -> float:
     return float(solver.t.volume[s.typ[:n][full]].sum() / solver.c.volume)
 
 
+def _tvd(counts: np.ndarray, shares: np.ndarray) -> float:
+    """Total variation distance of type counts (T,) from target shares (T,)."""
+    n = counts.sum()
+    if n <= 0:
+        return 0.5 * float(np.abs(shares).sum())
+    return 0.5 * float(np.abs(counts / n - shares).sum())
+
+
 def random_quaternions(rng: np.random.Generator, n: int) -> np.ndarray:
     """(n,4) uniformly distributed unit quaternions w,x,y,z (Shoemake)."""
     u1, u2, u3 = rng.random((3, n))
@@ -158,7 +166,7 @@ def phase1(solver: Solver, shares: np.ndarray, spacing: float, rng: np.random.Ge
 def phase2(solver: Solver, shares: np.ndarray, spacing: float, rng: np.random.Generator,
            stop: Stop, *, iters: int = 80, margin: np.ndarray, retries: int = 2,
            threshold: float | None = None, fit_factor: float = 1.0,
-           patience: int | None = None,
+           patience: int | None = None, max_tvd: float = 0.03,
            progress: Callable[[float, str], None] | None = None) -> PhaseStats:
     """Fill cavities: at lattice points far enough from every object and the wall, insert
     the largest type whose equivalent radius f(V) is below that distance and grow it; on
@@ -166,7 +174,8 @@ def phase2(solver: Solver, shares: np.ndarray, spacing: float, rng: np.random.Ge
     (f(Vbar) + f(Vmin)) / 2 unless `threshold` (container units) is given; a type fits
     where fit_factor * f(V) is below the distance (1 in the paper; < 1 lets an object start
     in a smaller hole and push its neighbours aside as it grows; there the type tried first is
-    the fitting one the mix lacks most, not the largest). With `patience`, the pass
+    the fitting one the mix lacks most, not the largest, and none that would push the type mix
+    error above `max_tvd`). With `patience`, the pass
     ends after that many candidate points in a row where nothing could be added.
     """
     t0 = time.perf_counter()
@@ -205,7 +214,11 @@ def phase2(solver: Solver, shares: np.ndarray, spacing: float, rng: np.random.Ge
             continue
         misses += 1
         if fit_factor < 1.0:
-            # extra passes: the fitting types the mix lacks most, largest first on ties
+            # extra passes: only types that keep the mix within max_tvd (or improve it),
+            # the one the mix lacks most first, larger first on ties
+            cur = _tvd(counts, shares)
+            cap = max(max_tvd, cur - 1e-12)
+            fits = [t for t in fits if _tvd(counts + np.eye(len(shares))[t], shares) <= cap]
             n_now = counts.sum() + 1.0
             need = sorted(fits, key=lambda t: (counts[t] - shares[t] * n_now, -f[t]))
             tries = need[: 1 + retries]
