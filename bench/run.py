@@ -37,7 +37,7 @@ SCENES = {
     },
     "fruit-in-bunny": {
         "container": "containers/bunny.obj", "types": FRUIT,
-        "kwargs": {"container_size": 200.0, "type_scale": 300.0},
+        "kwargs": {"container_size": 200.0, "type_scale": 300.0, "time_budget": 240.0},
         "bars": {"density": 0.50, "tvd": 0.1, "nni": 1.0, "seconds": 300.0},
         "reference": "issue bar: >= 50% certified, TVD <= 0.1, NNI >= 1.0, <= 5 min",
     },
@@ -160,7 +160,35 @@ def main(argv: list[str] | None = None) -> int:
                   f"TVD {s['median_tvd']:.3f}, NNI {s['median_nni']:.2f}, "
                   f"certified {s['all_certified']}, bars met: {s['meets_bars']}", flush=True)
     _chart(summaries, RESULTS / "speed_density.png")
+    _write_table(summaries, RESULTS / "README.md")
     return 0
+
+
+def _write_table(summaries: list[dict], path: Path) -> None:
+    """Markdown summary of the latest run (merged with scenes run earlier)."""
+    lines = ["# Benchmark results", "",
+             "Written by `python bench/run.py` on this project's 2-core machine; medians over "
+             "the warm seeds, cold = first run with empty numba and approximation caches.", "",
+             "| scene | seeds | objects | certified density | TVD | NNI | warm time (s) | "
+             "cold time (s) | bars | bars met |", "|---|---|---|---|---|---|---|---|---|---|"]
+    known = {}
+    for f in sorted(RESULTS.glob("*.json")):
+        try:
+            known[f.stem] = json.loads(f.read_text())
+        except (OSError, ValueError):
+            continue
+    for s in summaries:
+        known[s["scene"]] = s
+    for name in sorted(known):
+        s = known[name]
+        bars = ", ".join(f"{k} {v}" for k, v in s["bars"].items())
+        lines.append(
+            f"| {name} | {' '.join(map(str, s['seeds']))} | {s['median_count']:.0f} | "
+            f"{s['median_density']:.1%} | {s['median_tvd']:.3f} | {s['median_nni']:.2f} | "
+            f"{s['median_seconds']:.1f} | {s['cold_seconds'] or 0:.1f} | {bars} | "
+            f"{'yes' if s['meets_bars'] else 'no'} |")
+    lines += ["", "![speed against density](speed_density.png)", ""]
+    path.write_text("\n".join(lines))
 
 
 if __name__ == "__main__":

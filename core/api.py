@@ -41,7 +41,8 @@ class PackParams:
     phase2_spacing: float = 0.5  # phase 2 lattice spacing, fraction of phase 1's
     phase2_iterations: int = 80  # per growth step (paper: 55-150)
     phase2_retries: int = 2  # random smaller types tried after a failure
-    safety: float = 0.3  # contact margin per object, in cells of its distance grid
+    surface_points: int | None = None  # override the fidelity's surface points per type
+    safety: float = 0.1  # contact margin per object, in cells of its distance grid
     wall_safety: float = 0.25  # extra wall distance, in cells of the container grid
     extra_passes: tuple[float, ...] = (0.8, 0.6, 0.5)  # cavity passes beyond the paper: threshold
     # = factor * smallest f(V), lattice spacing scaled by the factor too
@@ -147,6 +148,7 @@ def pack(container: MeshSource, types: Sequence[MeshSource],
             Path(m.path).stem if m.path else f"type{i}")
         objtypes.append(build_type(name, m.vertices, m.faces, path=m.path, sha256=m.sha256,
                                    share=float(q[i]), type_scale=type_scale, fidelity=fid,
+                                   surface_points=params.surface_points,
                                    use_cache=use_cache))
     f_min = float(equivalent_radius(volumes.min()))
     spacing = f_min / _CONTAINER_CELLS_PER_RADIUS[fid]
