@@ -14,6 +14,7 @@ from __future__ import annotations
 
 import hashlib
 import os
+import zipfile
 from dataclasses import dataclass
 from pathlib import Path
 
@@ -65,13 +66,17 @@ def cache_dir() -> Path:
     return Path(base) / "jampacked"
 
 
-def _farthest_points(points: np.ndarray, count: int) -> np.ndarray:
-    """Farthest point sampling: `count` well spread rows of points (N,3), deterministic."""
+def _farthest_points(points: np.ndarray, count: int, keep: int = 1) -> np.ndarray:
+    """Farthest point sampling: the first `keep` rows of points (N,3) plus spread others,
+    `count` rows in all (deterministic)."""
     if len(points) <= count:
         return points
-    chosen = [0]
-    d = ((points - points[0]) ** 2).sum(axis=1)
-    for _ in range(count - 1):
+    keep = max(1, min(keep, count))
+    chosen = list(range(keep))
+    d = np.full(len(points), np.inf)
+    for k in chosen:
+        np.minimum(d, ((points - points[k]) ** 2).sum(axis=1), out=d)
+    for _ in range(count - keep):
         k = int(np.argmax(d))
         chosen.append(k)
         np.minimum(d, ((points - points[k]) ** 2).sum(axis=1), out=d)
@@ -79,7 +84,8 @@ def _farthest_points(points: np.ndarray, count: int) -> np.ndarray:
 
 
 def surface_samples(vertices: np.ndarray, faces: np.ndarray, count: int) -> np.ndarray:
-    """Mesh vertices plus points along long edges, thinned to `count` spread points (P,3)."""
+    """Surface samples (P,3): all vertices plus spread points along long edges when the mesh
+    has at most `count` vertices, else `count` spread vertices (farthest point sampling)."""
     edges = np.sort(faces[:, [0, 1, 1, 2, 2, 0]].reshape(-1, 2), axis=1)
     edges = np.unique(edges, axis=0)
     a = vertices[edges[:, 0]]
@@ -99,10 +105,11 @@ def surface_samples(vertices: np.ndarray, faces: np.ndarray, count: int) -> np.n
         t = (np.arange(1, 16) / 16)[None, :, None]
         extra.append((a[sel][:, None, :] * (1 - t) + b[sel][:, None, :] * t).reshape(-1, 3))
     pts = np.concatenate([vertices] + extra) if extra else vertices
-    # Vertices first: corners are where inner spheres miss most; FPS starts from the
-    # vertex farthest from the centroid.
-    start = int(np.argmax((pts ** 2).sum(axis=1)))
-    pts = np.roll(pts, -start, axis=0)
+    if len(vertices) <= count:
+        # every vertex is kept: corners are where inner spheres miss most
+        return np.ascontiguousarray(_farthest_points(pts, count, keep=len(vertices)))
+    start = int(np.argmax(((vertices - vertices.mean(axis=0)) ** 2).sum(axis=1)))
+    pts = np.roll(vertices, -start, axis=0)
     return np.ascontiguousarray(_farthest_points(pts, count))
 
 
@@ -172,8 +179,8 @@ def _load_cached(key: str):
         with np.load(p) as z:
             grid = DistanceGrid(z["values"], z["origin"], float(z["spacing"]))
             return grid, z["centres"], z["radii"], z["points"]
-    except (OSError, KeyError, ValueError):
-        return None
+    except (OSError, KeyError, ValueError, EOFError, zipfile.BadZipFile):
+        return None  # a damaged cache entry is rebuilt
 
 
 def _save_cached(key: str, grid: DistanceGrid, centres, radii, points) -> None:
