@@ -9,11 +9,11 @@ so what is drawn is the exact mesh, not an approximation.
 from __future__ import annotations
 
 import os
-import tempfile
 from collections.abc import Sequence
 
 import numpy as np
 
+from jampacked.core.atomic import atomic_output
 from jampacked.core.certify import to_manifold
 from jampacked.core.errors import InputError
 from jampacked.core.meshes import MeshData, box_mesh, load_mesh, parse_box_spec
@@ -177,18 +177,5 @@ def _type_colours(n: int) -> list:
 
 
 def _atomic_savefig(fig, out: str) -> None:
-    folder, name = os.path.split(out)
-    fd, tmp = tempfile.mkstemp(prefix=f".{name}.", suffix=".tmp.png", dir=folder)
-    try:
-        with os.fdopen(fd, "wb") as f:
-            fig.savefig(f, format="png")
-            f.flush()
-            os.fsync(f.fileno())
-        os.chmod(tmp, 0o644)
-        os.replace(tmp, out)
-    except BaseException:
-        try:
-            os.unlink(tmp)
-        except FileNotFoundError:
-            pass
-        raise
+    with atomic_output(out, "wb", suffix=".tmp.png") as f:
+        fig.savefig(f, format="png")

@@ -109,6 +109,30 @@ def sample_type_grid(g_vals, g_off, g_shape, g_origin, g_h, t, px, py, pz):
 
 
 @njit(cache=True)
+def _push_pair(F, Tq, a, b, pen, nx, ny, nz, ax, ay, az, bx, by, bz):
+    """Record a contact of depth pen pushing a along n (unit) and b the opposite way.
+
+    F[k, :3] sums w * pen * n with weight w = pen and F[k, 3] sums w; the torque arms are
+    (ax, ay, az) from a's centre and (bx, by, bz) from b's centre.
+    """
+    f = pen * pen
+    F[a, 0] += f * nx
+    F[a, 1] += f * ny
+    F[a, 2] += f * nz
+    F[a, 3] += pen
+    F[b, 0] -= f * nx
+    F[b, 1] -= f * ny
+    F[b, 2] -= f * nz
+    F[b, 3] += pen
+    Tq[a, 0] += (ay * nz - az * ny) * f
+    Tq[a, 1] += (az * nx - ax * nz) * f
+    Tq[a, 2] += (ax * ny - ay * nx) * f
+    Tq[b, 0] -= (by * nz - bz * ny) * f
+    Tq[b, 1] -= (bz * nx - bx * nz) * f
+    Tq[b, 2] -= (bx * ny - by * nx) * f
+
+
+@njit(cache=True)
 def _points_in_other(a, b, R_a, R_b, typ, pos, scale, radius, pt_off, pts, g_off, g_vals,
                      g_shape, g_origin, g_h, delta, tol, F, Tq):
     """Surface points of object a against the distance grid of object b.
@@ -152,22 +176,8 @@ def _points_in_other(a, b, R_a, R_b, typ, pos, scale, radius, pt_off, pts, g_off
         nx /= nn
         ny /= nn
         nz /= nn
-        f = pen * pen  # F holds sum(w * pen * n) with weight w = pen; F[:, 3] sums w
-        F[a, 0] += f * nx
-        F[a, 1] += f * ny
-        F[a, 2] += f * nz
-        F[a, 3] += pen
-        F[b, 0] -= f * nx
-        F[b, 1] -= f * ny
-        F[b, 2] -= f * nz
-        F[b, 3] += pen
         # torque about a's centre from its point, about b's centre from the reaction
-        Tq[a, 0] += wy * f * nz - wz * f * ny
-        Tq[a, 1] += wz * f * nx - wx * f * nz
-        Tq[a, 2] += wx * f * ny - wy * f * nx
-        Tq[b, 0] -= ry * f * nz - rz * f * ny
-        Tq[b, 1] -= rz * f * nx - rx * f * nz
-        Tq[b, 2] -= rx * f * ny - ry * f * nx
+        _push_pair(F, Tq, a, b, pen, nx, ny, nz, wx, wy, wz, rx, ry, rz)
         if pen > worst:
             worst = pen
     return worst
@@ -247,21 +257,7 @@ def pair_contact(a, b, typ, pos, quat, scale, margin, clearance, tol, radius, sp
                 nx = 1.0
                 ny = 0.0
                 nz = 0.0
-            w = pen * pen
-            F[a, 0] += w * nx
-            F[a, 1] += w * ny
-            F[a, 2] += w * nz
-            F[a, 3] += pen
-            F[b, 0] -= w * nx
-            F[b, 1] -= w * ny
-            F[b, 2] -= w * nz
-            F[b, 3] += pen
-            Tq[a, 0] += uy * w * nz - uz * w * ny
-            Tq[a, 1] += uz * w * nx - ux * w * nz
-            Tq[a, 2] += ux * w * ny - uy * w * nx
-            Tq[b, 0] -= vy * w * nz - vz * w * ny
-            Tq[b, 1] -= vz * w * nx - vx * w * nz
-            Tq[b, 2] -= vx * w * ny - vy * w * nx
+            _push_pair(F, Tq, a, b, pen, nx, ny, nz, ux, uy, uz, vx, vy, vz)
             if pen > worst:
                 worst = pen
     p1 = _points_in_other(a, b, R_a, R_b, typ, pos, scale, radius, pt_off, pts, g_off, g_vals,

@@ -19,13 +19,13 @@ import json
 import math
 import os
 import re
-import tempfile
 from dataclasses import dataclass, field
 from pathlib import PurePath
 from typing import Any
 
 import numpy as np
 
+from .atomic import atomic_output
 from .errors import InputError
 
 FORMAT = "jampacked.packing"
@@ -394,25 +394,8 @@ def _one_line(m: re.Match) -> str:
 
 def _atomic_write_text(path: str, text: str) -> None:
     """Write `text` to `path` through a temp file in the same folder; never a partial file."""
-    directory, name = os.path.split(path)
-    fd, tmp = tempfile.mkstemp(prefix=f".{name}.", suffix=".tmp", dir=directory)
-    try:
-        with os.fdopen(fd, "w", encoding="utf-8", newline="\n") as f:
-            f.write(text)
-            f.flush()
-            os.fsync(f.fileno())
-        try:
-            mode = os.stat(path).st_mode & 0o777
-        except FileNotFoundError:
-            mode = 0o644
-        os.chmod(tmp, mode)
-        os.replace(tmp, path)
-    except BaseException:
-        try:
-            os.unlink(tmp)
-        except FileNotFoundError:
-            pass
-        raise
+    with atomic_output(path, "w") as f:
+        f.write(text)
 
 
 # --------------------------------------------------------------------------- load

@@ -1,0 +1,40 @@
+"""Atomic file output: write a temporary file beside the target, then rename it over.
+
+A reader never sees a partial file, and a failure leaves any earlier file untouched.
+"""
+
+from __future__ import annotations
+
+import contextlib
+import os
+import tempfile
+from collections.abc import Iterator
+from typing import IO
+
+
+@contextlib.contextmanager
+def atomic_output(path: str | os.PathLike, mode: str = "wb", *,
+                  suffix: str = ".tmp") -> Iterator[IO]:
+    """Open a temporary file in `path`'s folder; on success fsync and rename it to `path`.
+
+    The file keeps an existing target's permission bits (0o644 for a new one).
+    """
+    path = os.fspath(path)
+    directory, name = os.path.split(path)
+    fd, tmp = tempfile.mkstemp(prefix=f".{name}.", suffix=suffix, dir=directory or ".")
+    try:
+        text = "b" not in mode
+        with os.fdopen(fd, mode, **({"encoding": "utf-8", "newline": "\n"} if text else {})) as f:
+            yield f
+            f.flush()
+            os.fsync(f.fileno())
+        try:
+            perm = os.stat(path).st_mode & 0o777
+        except FileNotFoundError:
+            perm = 0o644
+        os.chmod(tmp, perm)
+        os.replace(tmp, path)
+    except BaseException:
+        with contextlib.suppress(FileNotFoundError):
+            os.unlink(tmp)
+        raise
