@@ -30,7 +30,8 @@ FRUIT = [f"fruit/ycb_lowpoly/{n}.obj" for n in
 
 SCENES = {
     "polyhedra-80": {
-        "container": "box:43.4338x41.8435x45.0059", "types": POLY, "kwargs": {},
+        "container": "box:43.4338x41.8435x45.0059", "types": POLY,
+        "kwargs": {"time_budget": 120.0},
         "bars": {"density": 0.455, "seconds": 139.0},
         "reference": "Romanova et al. 2018: 80 objects (60.6%); paper: 78 objects, 45.5%, "
                      "139 s on 12 cores",

@@ -24,6 +24,7 @@ from .objects import FIDELITY, ObjectType, build_type
 from .packing import Packing, TypeRecord, matrix_to_quat, placement_matrices, quat_to_matrix
 from .phases import Stop, equivalent_radius, phase1, phase2
 from .solver import PackState, Solver, SolverParams, TypeTable
+from .spheres import sphere_coverage
 
 Progress = Callable[[float, str], None]
 MeshSource = str | os.PathLike | MeshData
@@ -44,10 +45,10 @@ class PackParams:
     surface_points: int | None = None  # override the fidelity's surface points per type
     safety: float = 0.1  # contact margin per object, in cells of its distance grid
     wall_safety: float = 0.25  # extra wall distance, in cells of the container grid
-    extra_passes: tuple[float, ...] = (0.8, 0.6, 0.5)  # cavity passes beyond the paper: threshold
+    extra_passes: tuple[float, ...] = (0.8, 0.6, 0.5, 0.4)  # cavity passes beyond the paper: threshold
     # = factor * smallest f(V), lattice spacing scaled by the factor too
     extra_retries: int = 1
-    extra_patience: int = 25  # an extra pass ends after this many fruitless points in a row
+    extra_patience: int = 60  # an extra pass ends after this many fruitless points in a row
     extra_max_tvd: float = 0.03  # extra passes add no object that pushes TVD above this
     repair_rounds: int = 3  # certify -> push apart rounds before removing offenders
     repair_margin: float = 0.01  # margin added per repair round, fraction of bounding radius
@@ -225,6 +226,8 @@ def pack(container: MeshSource, types: Sequence[MeshSource],
         "phase1_spacing": s1, "stopped": stop.reason or None,
         "spheres_per_type": [int(len(t.sphere_radii)) for t in objtypes],
         "surface_points_per_type": [int(len(t.surface_points)) for t in objtypes],
+        "sphere_coverage_per_type": [
+            sphere_coverage(t.grid, t.sphere_centres, t.sphere_radii) for t in objtypes],
         "phase1": asdict(st1), "phase2": asdict(st2), "extra_passes": extra,
         "repair": repair,
         "warnings": [w for m in [cmesh, *meshes] for w in m.warnings],
