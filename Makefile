@@ -17,7 +17,7 @@ $(STAMP): pyproject.toml
 
 demo: $(STAMP)
 	mkdir -p out
-	$(BIN)/jampacked pack default -o out/packing.json --preview out/preview.png
+	$(BIN)/jampacked pack default --time-budget 60 -o out/packing.json --preview out/preview.png
 
 test: $(STAMP)
 	$(BIN)/ruff check core export cli tests bench

@@ -126,7 +126,9 @@ def _chart(summaries: list[dict], path: Path) -> None:
         ax.set_ylabel("certified density (%)")
         ax.set_title(s["scene"])
         ax.set_xlim(left=0)
-        ax.legend(fontsize=7, loc="lower right")
+        ys = [100 * r["metrics"]["density"] for r in s["runs"]] + [100 * s["bars"]["density"]]
+        ax.set_ylim(min(ys) - 3.0, max(ys) + 1.5)
+        ax.legend(fontsize=7, loc="lower left")
     fig.tight_layout()
     tmp = path.with_suffix(".tmp.png")
     fig.savefig(tmp, dpi=110)
@@ -140,12 +142,19 @@ def main(argv: list[str] | None = None) -> int:
     ap.add_argument("--seeds", type=int, nargs="+", default=[1, 2, 3])
     ap.add_argument("--meshes", type=Path, default=ROOT.parent / "shared" / "meshes")
     ap.add_argument("--no-cold", action="store_true", help="skip the cold-start run")
+    ap.add_argument("--report-only", action="store_true",
+                    help="redraw the chart and table from bench/results/*.json, run nothing")
     ap.add_argument("--child", nargs=4, help=argparse.SUPPRESS)
     a = ap.parse_args(argv)
     if a.child:
         run_one(a.child[0], int(a.child[1]), Path(a.child[2]), Path(a.child[3]))
         return 0
     RESULTS.mkdir(parents=True, exist_ok=True)
+    if a.report_only:
+        summaries = [json.loads(f.read_text()) for f in sorted(RESULTS.glob("*.json"))]
+        _chart(summaries, RESULTS / "speed_density.png")
+        _write_table(summaries, RESULTS / "README.md")
+        return 0
     summaries = []
     with tempfile.TemporaryDirectory() as cache:
         env = dict(os.environ, NUMBA_CACHE_DIR=os.path.join(cache, "numba"),
