@@ -45,8 +45,9 @@ class PackParams:
     surface_points: int | None = None  # override the fidelity's surface points per type
     safety: float = 0.1  # contact margin per object, in cells of its distance grid
     wall_safety: float = 0.25  # extra wall distance, in cells of the container grid
-    extra_passes: tuple[float, ...] = (0.8, 0.6, 0.5, 0.4)  # cavity passes beyond the paper: threshold
-    # = factor * smallest f(V), lattice spacing scaled by the factor too
+    # cavity passes beyond the paper: threshold = factor * smallest f(V), lattice spacing
+    # scaled by the factor too
+    extra_passes: tuple[float, ...] = (0.8, 0.6, 0.5, 0.4)
     extra_retries: int = 1
     extra_patience: int = 60  # an extra pass ends after this many fruitless points in a row
     extra_max_tvd: float = 0.03  # extra passes add no object that pushes TVD above this
