@@ -173,10 +173,10 @@ def phase2(solver: Solver, shares: np.ndarray, spacing: float, rng: np.random.Ge
     failure try up to `retries` random smaller types. The distance threshold is the paper's
     (f(Vbar) + f(Vmin)) / 2 unless `threshold` (container units) is given; a type fits
     where fit_factor * f(V) is below the distance (1 in the paper; < 1 lets an object start
-    in a smaller hole and push its neighbours aside as it grows; there the type tried first is
-    the fitting one the mix lacks most, not the largest, and none that would push the type mix
-    error above `max_tvd`). With `patience`, the pass
-    ends after that many candidate points in a row where nothing could be added.
+    in a smaller hole and push its neighbours aside as it grows). With fit_factor < 1 the type
+    tried first is the fitting one the mix lacks most, not the largest, and no type is tried
+    that would push the type mix error above `max_tvd`. With `patience`, the pass ends after
+    that many candidate points in a row where nothing could be added.
     """
     t0 = time.perf_counter()
     st = PhaseStats()
