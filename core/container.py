@@ -11,6 +11,7 @@ from dataclasses import dataclass
 import numpy as np
 
 from .distance import DistanceGrid, distance_grid
+from .kernels import sample_grid_many
 
 #: grid cells across the container's largest extent are capped to keep memory and time sane
 MAX_CELLS_PER_AXIS = 220
@@ -54,8 +55,6 @@ def interior_points(container: Container, spacing: float, min_depth: float,
         return np.zeros((0, 3))
     g = np.meshgrid(*axes, indexing="ij")
     pts = np.stack([x.ravel() for x in g], axis=1)
-    from .kernels import sample_grid_many
-
     depth = sample_grid_many(container.grid.values, container.grid.origin,
                              container.grid.spacing, pts)
     return pts[depth >= min_depth]

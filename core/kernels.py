@@ -268,6 +268,22 @@ def pair_contact(a, b, typ, pos, quat, scale, margin, clearance, tol, radius, sp
 
 
 @njit(cache=True)
+def _push_wall(F, Tq, a, pen, gx, gy, gz, ax, ay, az):
+    """Record a wall contact of depth pen pushing a along the container grid's gradient
+    (gx, gy, gz), inward; (ax, ay, az) is the torque arm from a's centre. Same weights as
+    `_push_pair`."""
+    gn = np.sqrt(gx * gx + gy * gy + gz * gz) + 1e-300
+    w = pen * pen
+    F[a, 0] += w * gx / gn
+    F[a, 1] += w * gy / gn
+    F[a, 2] += w * gz / gn
+    F[a, 3] += pen
+    Tq[a, 0] += (ay * gz - az * gy) * w / gn
+    Tq[a, 1] += (az * gx - ax * gz) * w / gn
+    Tq[a, 2] += (ax * gy - ay * gx) * w / gn
+
+
+@njit(cache=True)
 def wall_contact(a, typ, pos, quat, scale, margin, clearance, tol, sph_off, sph_c, sph_r,
                  pt_off, pts, c_vals, c_shape, c_origin, c_h, F, Tq):
     """Penetration of object a into the container wall (spheres and surface points)."""
@@ -287,15 +303,7 @@ def wall_contact(a, typ, pos, quat, scale, margin, clearance, tol, sph_off, sph_
         pen = sph_r[u] * s + delta - d
         if pen <= tol:
             continue
-        gn = np.sqrt(gx * gx + gy * gy + gz * gz) + 1e-300
-        w = pen * pen
-        F[a, 0] += w * gx / gn
-        F[a, 1] += w * gy / gn
-        F[a, 2] += w * gz / gn
-        F[a, 3] += pen
-        Tq[a, 0] += (uy * gz - uz * gy) * w / gn
-        Tq[a, 1] += (uz * gx - ux * gz) * w / gn
-        Tq[a, 2] += (ux * gy - uy * gx) * w / gn
+        _push_wall(F, Tq, a, pen, gx, gy, gz, ux, uy, uz)
         if pen > worst:
             worst = pen
     for m in range(pt_off[t], pt_off[t + 1]):
@@ -308,15 +316,7 @@ def wall_contact(a, typ, pos, quat, scale, margin, clearance, tol, sph_off, sph_
         pen = delta - d
         if pen <= tol:
             continue
-        gn = np.sqrt(gx * gx + gy * gy + gz * gz) + 1e-300
-        w = pen * pen
-        F[a, 0] += w * gx / gn
-        F[a, 1] += w * gy / gn
-        F[a, 2] += w * gz / gn
-        F[a, 3] += pen
-        Tq[a, 0] += (wy * gz - wz * gy) * w / gn
-        Tq[a, 1] += (wz * gx - wx * gz) * w / gn
-        Tq[a, 2] += (wx * gy - wy * gx) * w / gn
+        _push_wall(F, Tq, a, pen, gx, gy, gz, wx, wy, wz)
         if pen > worst:
             worst = pen
     return worst

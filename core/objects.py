@@ -21,6 +21,7 @@ from pathlib import Path
 import numpy as np
 
 from .distance import DistanceGrid, distance_grid
+from .meshes import mesh_volume_centroid
 from .spheres import inner_spheres
 
 #: per fidelity: (sphere count, distance grid cells across the largest extent, surface points)
@@ -138,7 +139,7 @@ def build_type(name: str, vertices_file: np.ndarray, faces: np.ndarray, *, path:
         n_points = int(surface_points)
     v = np.asarray(vertices_file, np.float64) * float(type_scale)
     faces = np.ascontiguousarray(faces, np.int64)
-    volume, centroid = _volume_centroid(v, faces)
+    volume, centroid = mesh_volume_centroid(v, faces)
     v = np.ascontiguousarray(v - centroid)
     local_from_file = np.eye(4)
     local_from_file[:3, :3] *= type_scale
@@ -163,14 +164,6 @@ def build_type(name: str, vertices_file: np.ndarray, faces: np.ndarray, *, path:
         sphere_centres=centres, sphere_radii=radii, surface_points=pts,
         max_edge=float(np.linalg.norm(edges, axis=2).max()),
     )
-
-
-def _volume_centroid(v: np.ndarray, f: np.ndarray) -> tuple[float, np.ndarray]:
-    a, b, c = v[f[:, 0]], v[f[:, 1]], v[f[:, 2]]
-    det = np.einsum("ij,ij->i", a, np.cross(b, c))
-    vol = det.sum() / 6.0
-    cen = ((a + b + c) * det[:, None]).sum(axis=0) / (24.0 * vol)
-    return float(vol), cen
 
 
 def _load_cached(key: str):
