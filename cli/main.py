@@ -35,6 +35,7 @@ from rich.markup import escape
 from rich.progress import BarColumn, Progress, TaskProgressColumn, TextColumn, TimeElapsedColumn
 from rich.table import Table
 
+from jampacked.cli.export_cmd import add_export_parser
 from jampacked.core.api import pack
 from jampacked.core.errors import InputError, JampackedError
 from jampacked.core.meshes import parse_box_spec
@@ -77,8 +78,10 @@ examples:
       --type lemon.obj=30% --type plum.obj -o packing.json
   jampacked pack box:40x40x45 --type cube.stl --type ball.stl --clearance 0.4 \\
       --time-budget 60 -o packing.json
+  jampacked export out/packing.json --mode connect --shell 2 --open-plane +z@0.7 \\
+      -o out/spot.3mf -o out/spot.stl
   jampacked info packing.json
-  jampacked validate out/fruit.stl
+  jampacked validate out/spot.3mf
 
 Run 'jampacked COMMAND --help' for the options of a command.
 Lengths are in container units: millimetres when the result is meant for printing.
@@ -269,8 +272,8 @@ def _add_validate_parser(sub: argparse._SubParsersAction) -> None:
     p.set_defaults(run=_cmd_validate)
 
 
-#: subcommands, in the order of the help text (export will join here)
-_COMMANDS = (_add_pack_parser, _add_info_parser, _add_validate_parser)
+#: subcommands, in the order of the help text
+_COMMANDS = (_add_pack_parser, add_export_parser, _add_info_parser, _add_validate_parser)
 
 
 def build_parser() -> argparse.ArgumentParser:

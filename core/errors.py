@@ -20,3 +20,7 @@ class InputError(JampackedError):
 
 class PackingError(JampackedError):
     """The packing itself cannot be done (e.g. no object fits the container)."""
+
+
+class Cancelled(JampackedError):
+    """The user cancelled a job that has nothing worth keeping yet (e.g. an export)."""

@@ -982,3 +982,48 @@ def load_mesh(path: str | os.PathLike, *, role: str = "object") -> MeshData:
         volume=volume,
         warnings=warns,
     )
+
+
+def mesh_from_arrays(vertices: np.ndarray, faces: np.ndarray, *, name: str,
+                     role: str = "object") -> MeshData:
+    """Check and repair a mesh given as arrays (e.g. a Blender object), as :func:`load_mesh`.
+
+    Args:
+        vertices: (V, 3) positions in the caller's frame and units.
+        faces: (F, 3) vertex indices (triangles; triangulate polygons first).
+        name: what the messages call the mesh (e.g. the Blender object's name).
+        role: ``"object"`` or ``"container"``.
+
+    Returns:
+        A :class:`MeshData` with ``path`` and ``sha256`` None.
+
+    Raises:
+        InputError: bad ``role`` or arrays of the wrong shape.
+        MeshError: the same defects :func:`load_mesh` refuses, naming ``name``.
+    """
+    if role not in ROLES:
+        raise InputError(f"mesh role {role!r} is unknown: use 'object' or 'container'.")
+    v = np.asarray(vertices, dtype=np.float64)
+    f = np.asarray(faces)
+    if v.ndim != 2 or v.shape[1] != 3 or f.ndim != 2 or f.shape[1] != 3:
+        raise InputError(f"{role} mesh '{name}': vertices must be (V, 3) and faces (F, 3) "
+                         f"triangles, got {v.shape} and {f.shape}.")
+    if not np.all(np.isfinite(v)):
+        raise MeshError(f"{role.capitalize()} mesh '{name}' has non-finite vertex "
+                        "coordinates: fix or delete those vertices.")
+    if f.size and (not np.issubdtype(f.dtype, np.integer) or f.min() < 0
+                   or f.max() >= len(v)):
+        raise InputError(f"{role} mesh '{name}': face indices must be integers in "
+                         f"[0, {len(v) - 1}].")
+    label = f"{role} mesh '{name}'"
+    v, f, volume, warns = _check_and_repair(v, f.astype(np.int64), label, role)
+    for message in warns:
+        logger.warning(message)
+    return MeshData(
+        vertices=_frozen(np.ascontiguousarray(v, dtype=np.float64)),
+        faces=_frozen(np.ascontiguousarray(f, dtype=np.int64)),
+        path=None,
+        sha256=None,
+        volume=volume,
+        warnings=warns,
+    )

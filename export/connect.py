@@ -1,0 +1,257 @@
+"""Connector struts that tie every object to the shell or, through its neighbours, to it.
+
+Frames: the packing's container frame, container units. The plan:
+
+1. Proximity graph: candidate pairs from the Delaunay triangulation of the object centres
+   (it contains the Euclidean minimum spanning tree) plus the k nearest centres, and one edge
+   from every object to the shell. Each edge's weight is the exact gap (manifold3d
+   ``min_gap``, searched only up to an upper bound from the nearest vertices, which keeps it
+   fast).
+2. Minimum spanning tree over that graph (Kruskal, scipy). Edges whose two solids already
+   overlap by a positive volume are fused by the union and need no strut.
+3. Every other tree edge gets a cylinder of diameter D between the exact closest points of
+   its two solids (alternating closest-point projection), sunk D into each end (half the
+   wall thickness into the shell) so the union fuses it. A strut between two objects that
+   would leave the container is dropped from the graph and the tree is built again.
+"""
+
+from __future__ import annotations
+
+from collections.abc import Callable, Sequence
+from dataclasses import dataclass, field
+
+import manifold3d as m3
+import numpy as np
+from scipy.sparse import coo_matrix
+from scipy.sparse.csgraph import connected_components, minimum_spanning_tree
+from scipy.spatial import Delaunay, QhullError, cKDTree
+
+from .closest import Surface
+
+#: a strut poking out of the container by more than this fraction of its volume is refused
+OUTSIDE_TOL = 1e-4
+#: segments of a strut's circular cross-section
+STRUT_SEGMENTS = 12
+
+
+@dataclass
+class PlacedObject:
+    """One object in the container frame: its solid, its world vertices, and a way back to
+    its type's local frame for closest-point queries."""
+
+    solid: m3.Manifold
+    vertices: np.ndarray  # (V, 3) container frame
+    world_from_local: np.ndarray  # (4, 4)
+    surface: Surface  # the type's mesh in its local frame
+
+
+@dataclass
+class ConnectPlan:
+    """Struts to add and what they tie together.
+
+    struts: the cylinders (container frame). edges: (node a, node b) per strut, nodes being
+    object indices and ``len(objects)`` for the shell. fused: tree edges whose solids already
+    overlap. lengths: each strut's length between the two surfaces (the visible part).
+    """
+
+    struts: list[m3.Manifold] = field(default_factory=list)
+    edges: list[tuple[int, int]] = field(default_factory=list)
+    lengths: list[float] = field(default_factory=list)
+    fused: int = 0
+    refused: int = 0  # candidate struts dropped because they would leave the container
+
+    @property
+    def total_length(self) -> float:
+        return float(np.sum(self.lengths)) if self.lengths else 0.0
+
+
+def _candidate_pairs(centres: np.ndarray, k: int = 6) -> np.ndarray:
+    """(E, 2) unique object pairs i < j: Delaunay edges plus k nearest neighbours."""
+    n = len(centres)
+    if n < 2:
+        return np.zeros((0, 2), np.int64)
+    if n <= 8:
+        i, j = np.triu_indices(n, 1)
+        return np.stack([i, j], 1).astype(np.int64)
+    pairs = []
+    try:
+        simplices = Delaunay(centres).simplices
+        for a in range(4):
+            for b in range(a + 1, 4):
+                pairs.append(simplices[:, [a, b]])
+    except QhullError:  # all centres on a plane or a line: the neighbours below suffice
+        pass
+    _, nn = cKDTree(centres).query(centres, k=min(k, n - 1) + 1)
+    for col in range(1, nn.shape[1]):
+        pairs.append(np.stack([np.arange(n), nn[:, col]], 1))
+    p = np.sort(np.concatenate(pairs).astype(np.int64), axis=1)
+    p = p[p[:, 0] != p[:, 1]]
+    return np.unique(p, axis=0)
+
+
+def _link_components(n: int, pairs: np.ndarray, centres: np.ndarray) -> np.ndarray:
+    """Add pairs between the closest centres of separate components until one remains."""
+    while True:
+        g = coo_matrix((np.ones(len(pairs)), (pairs[:, 0], pairs[:, 1])), shape=(n, n))
+        count, label = connected_components(g, directed=False)
+        if count <= 1:
+            return pairs
+        inside = np.flatnonzero(label == label[0])
+        outside = np.flatnonzero(label != label[0])
+        d, j = cKDTree(centres[outside]).query(centres[inside])
+        i = int(np.argmin(d))
+        new = np.sort([inside[i], outside[j[i]]])
+        pairs = np.concatenate([pairs, new[None]]).astype(np.int64)
+
+
+def _gap(a: m3.Manifold, b: m3.Manifold, upper: float) -> float:
+    """Exact gap between two solids, given an upper bound (0 when they touch or overlap)."""
+    search = upper * 1.001 + 1e-6
+    return float(a.min_gap(b, search))
+
+
+def _closest_pair(obj: PlacedObject, other: PlacedObject | Surface, start: np.ndarray,
+                  rounds: int = 4) -> tuple[np.ndarray, np.ndarray]:
+    """Closest points (on obj, on other) by alternating projection from obj's vertex
+    ``start``; other is an object or the shell's surface (container frame)."""
+    def on_obj(o: PlacedObject, p: np.ndarray) -> np.ndarray:
+        m = o.world_from_local
+        local = np.linalg.solve(m[:3, :3], p - m[:3, 3])
+        q, _ = o.surface.closest(local[None])
+        return m[:3, :3] @ q[0] + m[:3, 3]
+
+    def on_other(p: np.ndarray) -> np.ndarray:
+        if isinstance(other, Surface):
+            return other.closest(p[None])[0][0]
+        return on_obj(other, p)
+
+    pa = start
+    pb = on_other(pa)
+    for _ in range(rounds):
+        pa_new = on_obj(obj, pb)
+        pb_new = on_other(pa_new)
+        if np.linalg.norm(pb_new - pa_new) >= np.linalg.norm(pb - pa) - 1e-12:
+            break
+        pa, pb = pa_new, pb_new
+    return pa, pb
+
+
+def strut(p: np.ndarray, q: np.ndarray, diameter: float) -> m3.Manifold:
+    """A cylinder of the given diameter from p to q (container frame)."""
+    d = q - p
+    length = float(np.linalg.norm(d))
+    z = d / length
+    helper = np.array([1.0, 0, 0]) if abs(z[0]) < 0.9 else np.array([0, 1.0, 0])
+    x = np.cross(helper, z)
+    x /= np.linalg.norm(x)
+    y = np.cross(z, x)
+    m = np.column_stack([x, y, z, p])  # (3, 4): local cylinder along +z from the origin
+    cyl = m3.Manifold.cylinder(length, diameter / 2, diameter / 2, STRUT_SEGMENTS)
+    return cyl.transform(m)
+
+
+def plan_connectors(objects: Sequence[PlacedObject], diameter: float, *,
+                    shell: m3.Manifold | None = None, shell_surface: Surface | None = None,
+                    shell_thickness: float = 0.0, outside: m3.Manifold | None = None,
+                    should_cancel: Callable[[], bool] | None = None,
+                    progress: Callable[[float, str], None] | None = None) -> ConnectPlan:
+    """Plan the struts that make objects (+ shell) one body; see the module docstring.
+
+    objects: the placed solids. diameter: strut diameter (container units). shell and
+    shell_surface: the shell solid and its mesh (None for no shell: the tree then ties the
+    objects to each other only). outside: the region outside the container (struts between
+    objects must not enter it), or None. Raises nothing for empty input.
+    """
+    n = len(objects)
+    plan = ConnectPlan()
+    if n == 0 or (n == 1 and shell is None):
+        return plan
+    report = progress or (lambda f, m: None)
+    cancel = should_cancel or (lambda: False)
+    centres = np.array([o.vertices.mean(axis=0) for o in objects])
+    trees = [cKDTree(o.vertices) for o in objects]
+    pairs = _link_components(n, _candidate_pairs(centres), centres)
+
+    # edge list: (a, b, gap, start vertex on a)
+    ea, eb, gaps, starts = [], [], [], []
+    for k, (i, j) in enumerate(pairs):
+        d, idx = trees[j].query(objects[i].vertices)
+        v = int(np.argmin(d))
+        ea.append(i)
+        eb.append(j)
+        gaps.append(_gap(objects[i].solid, objects[j].solid, float(d[v])))
+        starts.append(objects[i].vertices[v])
+        if k % 64 == 0:
+            report(0.4 * k / max(len(pairs), 1), "connect: measuring gaps")
+            if cancel():
+                return plan
+    if shell is not None and shell_surface is not None:
+        for i, o in enumerate(objects):
+            d, _ = shell_surface.tree.query(o.vertices)
+            v = int(np.argmin(d))
+            upper = float(d[v]) + shell_surface.radius
+            ea.append(i)
+            eb.append(n)
+            gaps.append(_gap(o.solid, shell, upper))
+            starts.append(o.vertices[v])
+    ea_arr, eb_arr = np.asarray(ea), np.asarray(eb)
+    gap_arr = np.maximum(np.asarray(gaps), 0.0)
+    nodes = n + (1 if shell is not None else 0)
+    scale = float(np.ptp(centres, axis=0).max()) + 1.0
+    allowed = np.ones(len(gap_arr), dtype=bool)
+    report(0.4, "connect: spanning tree")
+
+    def solid(node: int) -> m3.Manifold:
+        return shell if node == n else objects[node].solid
+
+    while True:
+        # scipy drops zero weights: shift every weight by a tiny positive amount
+        w = gap_arr[allowed] + 1e-9 * scale
+        g = coo_matrix((w, (ea_arr[allowed], eb_arr[allowed])), shape=(nodes, nodes))
+        tree = minimum_spanning_tree(g).tocoo()
+        chosen = {(min(a, b), max(a, b)) for a, b in zip(tree.row, tree.col, strict=True)}
+        plan = ConnectPlan(refused=plan.refused)
+        retry = False
+        for e in np.flatnonzero(allowed):
+            a, b = int(ea_arr[e]), int(eb_arr[e])
+            if (min(a, b), max(a, b)) not in chosen:
+                continue
+            if gap_arr[e] <= 0.0 and (solid(a) ^ solid(b)).volume() > 1e-9 * scale ** 3:
+                plan.fused += 1
+                continue
+            target = shell_surface if b == n else objects[b]
+            pa, pb = _closest_pair(objects[a], target, np.asarray(starts[e]))
+            rod = _strut_between(pa, pb, diameter, b == n, shell_thickness,
+                                 centres[a], None if b == n else centres[b])
+            if outside is not None and b != n:
+                out = (rod ^ outside).volume()
+                if out > OUTSIDE_TOL * rod.volume():
+                    allowed[e] = False
+                    plan.refused += 1
+                    retry = True
+                    break
+            plan.struts.append(rod)
+            plan.edges.append((a, b))
+            plan.lengths.append(float(np.linalg.norm(pb - pa)))
+            if cancel():
+                return plan
+        if not retry:
+            report(1.0, f"connect: {len(plan.struts)} struts")
+            return plan
+
+
+def _strut_between(pa: np.ndarray, pb: np.ndarray, diameter: float,
+                   to_shell: bool, shell_thickness: float, centre_a: np.ndarray,
+                   centre_b: np.ndarray | None) -> m3.Manifold:
+    """The strut from closest point pa (on object a) to pb, sunk into both ends."""
+    d = pb - pa
+    gap = float(np.linalg.norm(d))
+    if gap > 1e-9:
+        u = d / gap
+    else:  # touching: lean on the centres for a direction
+        other = centre_b if centre_b is not None else pb
+        u = other - centre_a
+        u = u / (np.linalg.norm(u) or 1.0)
+    sink_a = diameter
+    sink_b = 0.5 * shell_thickness if to_shell else diameter
+    return strut(pa - sink_a * u, pb + sink_b * u, diameter)

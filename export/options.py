@@ -1,0 +1,86 @@
+"""What an export is asked to do (shared by the CLI, the add-on and the benchmarks).
+
+Lengths are in container units (millimetres for printing); frames are the packing's
+container frame.
+"""
+
+from __future__ import annotations
+
+from dataclasses import dataclass
+
+from jampacked.core.errors import InputError
+
+MODES = ("union", "connect", "parts")
+AXES = ("+x", "-x", "+y", "-y", "+z", "-z")
+
+
+@dataclass(frozen=True)
+class Opening:
+    """An opening in the shell so the packed objects show.
+
+    kind: "plane" removes the shell beyond a plane perpendicular to ``axis`` placed at
+        fraction ``at`` (0..1) of the container's extent along that axis, measured from the
+        side ``axis`` points away from (``+z`` at 0.75: the top quarter of the shell goes).
+    kind: "window" cuts a round hole of diameter ``size`` (container units) through the
+        shell's side that faces ``axis``, centred on the container's bounding-box centre.
+    """
+
+    kind: str = "plane"
+    axis: str = "+z"
+    at: float = 0.75
+    size: float = 0.0
+
+    def __post_init__(self) -> None:
+        if self.kind not in ("plane", "window"):
+            raise InputError(f"opening kind must be 'plane' or 'window', got {self.kind!r}.")
+        if self.axis not in AXES:
+            raise InputError(f"opening axis must be one of {', '.join(AXES)}, got "
+                             f"{self.axis!r}.")
+        if self.kind == "plane" and not 0.0 < self.at < 1.0:
+            raise InputError(f"the opening plane must lie inside the container: give a "
+                             f"fraction between 0 and 1 of its height, got {self.at}.")
+        if self.kind == "window" and not self.size > 0:
+            raise InputError(f"a window needs a diameter > 0 (container units), got "
+                             f"{self.size}.")
+
+
+@dataclass(frozen=True)
+class ExportOptions:
+    """mode: "union" (one watertight body where objects touch), "connect" (one body: floating
+    objects tied in by struts) or "parts" (one body per object, kept apart).
+
+    shell: wall thickness of the container shell, or None for no shell (not with "parts").
+    opening: an opening in the shell (plane cut or window), or None.
+    drain: diameter of a drainage/escape hole through the shell's lowest point (-z), or None.
+    connector: strut diameter for "connect"; None picks 0.2 x the smallest object's
+        equivalent diameter.
+    resolution: simplify every mesh to this tolerance (the printer's resolution), or None.
+    split_files: "parts" only: one file per part (out_stem_<type>_<i>.<ext>) instead of one
+        file with one object per part.
+    """
+
+    mode: str = "connect"
+    shell: float | None = None
+    opening: Opening | None = None
+    drain: float | None = None
+    connector: float | None = None
+    resolution: float | None = None
+    split_files: bool = False
+
+    def __post_init__(self) -> None:
+        if self.mode not in MODES:
+            raise InputError(f"export mode must be one of {', '.join(MODES)}, got "
+                             f"{self.mode!r}.")
+        for name in ("shell", "drain", "connector", "resolution"):
+            value = getattr(self, name)
+            if value is not None and not (value > 0 and value < float("inf")):
+                raise InputError(f"{name} must be a positive length (container units), got "
+                                 f"{value}.")
+        if self.mode == "parts" and self.shell is not None:
+            raise InputError("parts mode writes the objects only: a shell would trap them. "
+                             "Drop --shell, or use --mode union or connect.")
+        if (self.opening is not None or self.drain is not None) and self.shell is None:
+            raise InputError("an opening or drain hole needs a shell: give --shell "
+                             "THICKNESS too.")
+        if self.split_files and self.mode != "parts":
+            raise InputError("one file per part only applies to --mode parts.")
