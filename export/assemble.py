@@ -18,6 +18,7 @@ from typing import TYPE_CHECKING, Any
 
 import manifold3d as m3
 import numpy as np
+from scipy.spatial import cKDTree
 
 from jampacked.core.certify import to_manifold
 from jampacked.core.errors import Cancelled, InputError, MeshError
@@ -25,7 +26,7 @@ from jampacked.core.meshes import MeshData, box_mesh, load_mesh, parse_box_spec
 from jampacked.core.packing import Packing, is_spec, load_packing, verify_sources
 
 from .closest import Surface
-from .connect import PlacedObject, plan_connectors
+from .connect import PlacedObject, candidate_pairs, plan_connectors
 from .io import WRITE_FORMATS, write_mesh
 from .options import ExportOptions
 from .validate import ValidationReport
@@ -296,18 +297,22 @@ def _parts(packing: Packing, solids: list[m3.Manifold], out: ExportReport
     bodies = [_arrays(s) for s in solids]
     out.bodies = len(bodies)
     out.volume = float(sum(s.volume() for s in solids))
-    # pairs whose bounds, grown by the clearance (or a small probe), touch
+    # every pair whose bounds, grown by the clearance, touch is checked exactly; the
+    # nearest neighbours too, so the report gives the smallest gap even when all keep it
     probe = max(out.clearance, 1e-3 * _scale(bodies))
     lo = np.array([b[0].min(axis=0) for b in bodies]) - probe
     hi = np.array([b[0].max(axis=0) for b in bodies]) + probe
-    worst = None
+    pairs = {tuple(p) for p in candidate_pairs(np.array([b[0].mean(axis=0) for b in bodies]))}
     for i in range(len(bodies)):
         near = np.flatnonzero(np.all(lo[i + 1:] <= hi[i], axis=1)
                               & np.all(hi[i + 1:] >= lo[i], axis=1)) + i + 1
-        for j in near:
-            g = float(solids[i].min_gap(solids[j], probe))
-            if worst is None or g < worst:
-                worst = g
+        pairs.update((i, int(j)) for j in near)
+    worst = None
+    for i, j in sorted(pairs):
+        upper = float(cKDTree(bodies[j][0]).query(bodies[i][0])[0].min())
+        g = float(solids[i].min_gap(solids[j], upper * 1.001 + 1e-9))
+        if worst is None or g < worst:
+            worst = g
     out.min_gap = worst
     if worst is not None and out.clearance == 0 and worst < probe:
         out.warnings.append(

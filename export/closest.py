@@ -54,6 +54,8 @@ def closest_on_triangles(p: np.ndarray, a: np.ndarray, b: np.ndarray, c: np.ndar
         v = vb / denom
         w = vc / denom
         take(inside, a + v[:, None] * ab + w[:, None] * ac)
+    # zero-area triangles can land in a region whose formula divides 0 by 0
+    todo |= ~np.isfinite(out).all(axis=1)
     if np.any(todo):  # zero-area leftovers: nearest of the three edges
         idx = np.flatnonzero(todo)
         best = np.full(len(idx), np.inf)

@@ -65,7 +65,7 @@ class ConnectPlan:
         return float(np.sum(self.lengths)) if self.lengths else 0.0
 
 
-def _candidate_pairs(centres: np.ndarray, k: int = 6) -> np.ndarray:
+def candidate_pairs(centres: np.ndarray, k: int = 6) -> np.ndarray:
     """(E, 2) unique object pairs i < j: Delaunay edges plus k nearest neighbours."""
     n = len(centres)
     if n < 2:
@@ -136,8 +136,9 @@ def _closest_pair(obj: PlacedObject, other: PlacedObject | Surface, start: np.nd
     return pa, pb
 
 
-def strut(p: np.ndarray, q: np.ndarray, diameter: float) -> m3.Manifold:
-    """A cylinder of the given diameter from p to q (container frame)."""
+def strut(p: np.ndarray, q: np.ndarray, diameter: float, spin: float = 0.0) -> m3.Manifold:
+    """A cylinder of the given diameter from p to q (container frame), its polygonal
+    cross-section turned by ``spin`` radians about its axis."""
     d = q - p
     length = float(np.linalg.norm(d))
     z = d / length
@@ -145,6 +146,9 @@ def strut(p: np.ndarray, q: np.ndarray, diameter: float) -> m3.Manifold:
     x = np.cross(helper, z)
     x /= np.linalg.norm(x)
     y = np.cross(z, x)
+    # turning the cross-section keeps its corners off planes and edges of the objects that
+    # line up with the axes (exact coincidences leave slivers in the union)
+    x, y = np.cos(spin) * x + np.sin(spin) * y, -np.sin(spin) * x + np.cos(spin) * y
     m = np.column_stack([x, y, z, p])  # (3, 4): local cylinder along +z from the origin
     cyl = m3.Manifold.cylinder(length, diameter / 2, diameter / 2, STRUT_SEGMENTS)
     return cyl.transform(m)
@@ -170,7 +174,7 @@ def plan_connectors(objects: Sequence[PlacedObject], diameter: float, *,
     cancel = should_cancel or (lambda: False)
     centres = np.array([o.vertices.mean(axis=0) for o in objects])
     trees = [cKDTree(o.vertices) for o in objects]
-    pairs = _link_components(n, _candidate_pairs(centres), centres)
+    pairs = _link_components(n, candidate_pairs(centres), centres)
 
     # edge list: (a, b, gap, start vertex on a)
     ea, eb, gaps, starts = [], [], [], []
@@ -252,6 +256,7 @@ def _strut_between(pa: np.ndarray, pb: np.ndarray, diameter: float,
         other = centre_b if centre_b is not None else pb
         u = other - centre_a
         u = u / (np.linalg.norm(u) or 1.0)
-    sink_a = diameter
-    sink_b = 0.5 * shell_thickness if to_shell else diameter
-    return strut(pa - sink_a * u, pb + sink_b * u, diameter)
+    # irrational fractions keep the caps and corners off the objects' own planes
+    sink_a = diameter * 1.0618
+    sink_b = 0.5 * shell_thickness if to_shell else diameter * 1.0618
+    return strut(pa - sink_a * u, pb + sink_b * u, diameter, spin=0.5 / np.sqrt(2.0))

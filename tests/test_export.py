@@ -1,0 +1,316 @@
+"""Export modes (union, connect, parts) on small real packings, read back independently."""
+
+from __future__ import annotations
+
+import itertools
+import json
+import os
+from pathlib import Path
+
+import manifold3d as m3
+import meshio
+import numpy as np
+import pytest
+import trimesh
+from scipy.sparse import coo_matrix
+from scipy.sparse.csgraph import connected_components
+
+from jampacked.core.certify import to_manifold
+from jampacked.core.distance import point_triangle_distance
+from jampacked.core.errors import Cancelled, InputError, MeshError
+from jampacked.core.meshes import load_mesh
+from jampacked.core.packing import Packing, TypeRecord, save_packing
+from jampacked.export.assemble import export_packing
+from jampacked.export.closest import Surface, closest_on_triangles
+from jampacked.export.options import ExportOptions, Opening
+from jampacked.export.validate import validate_file
+
+SHARED = Path(__file__).resolve().parents[2] / "shared" / "meshes"
+P1 = SHARED / "polyhedra" / "convex5" / "polytope1.obj"
+P3 = SHARED / "polyhedra" / "convex5" / "polytope3.obj"
+LEMON = SHARED / "fruit" / "ycb_lowpoly" / "014_lemon.obj"
+pytestmark = pytest.mark.skipif(not (P1.is_file() and LEMON.is_file()),
+                                reason=f"shared test meshes not found under {SHARED}")
+
+
+# --------------------------------------------------------------------------- closest points
+
+
+def test_closest_on_triangles_matches_numba_distance_reference():
+    rng = np.random.default_rng(0)
+    k = 3000
+    p = rng.normal(size=(k, 3)) * 2
+    a, b, c = (rng.normal(size=(k, 3)) for _ in range(3))
+    c[:50] = a[:50] + 0.5 * (b[:50] - a[:50])  # degenerate: collinear corners
+    b[50:60] = a[50:60]  # degenerate: repeated corner
+    q = closest_on_triangles(p, a, b, c)
+    got = np.linalg.norm(q - p, axis=1)
+    want = np.array([point_triangle_distance(p[i], a[i], b[i], c[i]) for i in range(k)])
+    np.testing.assert_allclose(got, want, rtol=1e-9, atol=1e-12)
+    # the point returned lies on the triangle: barycentric coordinates in [0, 1]
+    ok = slice(60, None)
+    t = np.stack([b[ok] - a[ok], c[ok] - a[ok]], axis=2)
+    coeff = np.array([np.linalg.lstsq(t[i], q[ok][i] - a[ok][i], rcond=None)[0]
+                      for i in range(len(t))])
+    assert coeff.min() > -1e-9 and (coeff.sum(axis=1) <= 1 + 1e-9).all()
+
+
+def test_surface_closest_is_exact_against_brute_force():
+    m = load_mesh(LEMON)
+    surf = Surface(m.vertices, m.faces)
+    rng = np.random.default_rng(1)
+    lo, hi = m.vertices.min(0), m.vertices.max(0)
+    pts = rng.uniform(lo - 0.05, hi + 0.05, size=(40, 3))
+    q, d = surf.closest(pts)
+    tri = m.vertices[m.faces]
+    for p, dist in zip(pts, d, strict=True):
+        brute = min(point_triangle_distance(p, *t) for t in tri)
+        assert dist == pytest.approx(brute, rel=1e-9, abs=1e-12)
+    np.testing.assert_allclose(np.linalg.norm(q - pts, axis=1), d)
+
+
+# --------------------------------------------------------------------------- packings
+
+
+def _packing(tmp: Path, centres: np.ndarray, types: list[int], *, clearance: float = 0.0,
+             box: float = 80.0) -> Path:
+    """A hand-made packing of polytope1 / polytope3 at the given centres (no rotation)."""
+    recs = []
+    for path in (P1, P3):
+        m = load_mesh(path)
+        lff = np.eye(4)
+        lff[:3, 3] = -m.centroid
+        recs.append(TypeRecord(name=path.stem, path=str(path), sha256=m.sha256, share=0.5,
+                               local_from_file=lff, volume=m.volume))
+    n = len(centres)
+    rot = np.tile([1.0, 0, 0, 0], (n, 1))
+    p = Packing(container_path=f"box:{box}x{box}x{box}", container_sha256=None,
+                frame_from_file=np.eye(4), container_volume=box ** 3, types=recs,
+                type_index=np.array(types), rotations=rot, translations=centres,
+                scales=np.ones(n), params={"clearance": clearance})
+    out = tmp / "packing.json"
+    save_packing(p, out)
+    return out
+
+
+def _solids(packing_json: Path) -> list[m3.Manifold]:
+    from jampacked.core.packing import load_packing
+
+    p = load_packing(packing_json)
+    mats = p.matrices()
+    out = []
+    for i, t in enumerate(p.type_index):
+        m = load_mesh(p.types[t].path)
+        v = (m.vertices @ p.types[t].local_from_file[:3, :3].T
+             + p.types[t].local_from_file[:3, 3])
+        out.append(to_manifold(v, m.faces).transform(mats[i][:3, :]))
+    return out
+
+
+def _grid(step: float, n: int = 2) -> np.ndarray:
+    return np.array(list(itertools.product(*[np.arange(n) * step - (n - 1) * step / 2] * 3)),
+                    float)
+
+
+@pytest.fixture
+def overlapping(tmp_path):
+    """8 objects on a lattice tight enough that neighbours overlap."""
+    return _packing(tmp_path, _grid(9.0), [0, 1] * 4)
+
+
+@pytest.fixture
+def apart(tmp_path):
+    """8 objects 6+ units apart, clearance 1."""
+    return _packing(tmp_path, _grid(26.0), [0, 1, 1, 0, 0, 1, 1, 0], clearance=1.0)
+
+
+def _trimesh_bodies_volume(path: Path) -> tuple[int, float]:
+    loaded = trimesh.load(path, force="mesh", process=False)
+    loaded.merge_vertices()
+    adj = loaded.face_adjacency
+    graph = coo_matrix((np.ones(len(adj)), (adj[:, 0], adj[:, 1])),
+                       shape=(len(loaded.faces),) * 2)
+    bodies, _ = connected_components(graph, directed=False)
+    return int(bodies), float(loaded.volume)
+
+
+def _meshio_volume(path: Path) -> float:
+    mesh = meshio.read(path)
+    tri = np.concatenate([c.data for c in mesh.cells if c.type == "triangle"])
+    v = mesh.points[tri]
+    return float(np.einsum("ij,ij->i", v[:, 0], np.cross(v[:, 1], v[:, 2])).sum() / 6)
+
+
+def test_union_volume_is_sum_minus_overlaps_and_files_agree(overlapping, tmp_path):
+    solids = _solids(overlapping)
+    total = sum(s.volume() for s in solids)
+    overlaps = sum((a ^ b).volume() for a, b in itertools.combinations(solids, 2))
+    triple = sum((a ^ b ^ c).volume() for a, b, c in itertools.combinations(solids, 3))
+    assert overlaps > 0.01 * total  # the scene really overlaps
+    expected = total - overlaps + triple  # inclusion-exclusion (no 4-way overlaps here)
+    stl, ply = tmp_path / "u.stl", tmp_path / "u.ply"
+    rep = export_packing(overlapping, [stl, ply], ExportOptions(mode="union"))
+    assert rep.passed and rep.paths == [str(stl), str(ply)]
+    assert rep.volume == pytest.approx(expected, rel=1e-4)
+    for f in (stl, ply):
+        assert validate_file(f).passed
+        bodies, vol = _trimesh_bodies_volume(f)
+        assert bodies == rep.bodies
+        assert vol == pytest.approx(expected, rel=1e-4)
+        assert _meshio_volume(f) == pytest.approx(expected, rel=1e-4)
+
+
+def test_connect_makes_one_body_from_separate_objects(apart, tmp_path):
+    out = tmp_path / "c.3mf"
+    rep = export_packing(apart, out, ExportOptions(mode="connect", connector=2.0))
+    assert rep.passed and rep.bodies == 1
+    assert rep.connectors + rep.fused == 7  # a spanning tree over 8 objects
+    assert rep.connectors == 7 and rep.connector_length > 7 * 5.0
+    v = validate_file(out)
+    assert v.passed and len(v.bodies) == 1
+    bodies, vol = _trimesh_bodies_volume(out)
+    objects = sum(s.volume() for s in _solids(apart))
+    assert bodies == 1 and vol > objects  # the struts add material
+
+
+def test_connect_fuses_touching_objects_without_struts(overlapping, tmp_path):
+    rep = export_packing(overlapping, tmp_path / "c.stl", ExportOptions(mode="connect"))
+    assert rep.bodies == 1 and rep.passed
+    assert rep.fused >= 1 and rep.connectors + rep.fused == 7
+
+
+def test_parts_keep_clearance_one_object_per_part(apart, tmp_path):
+    out = tmp_path / "parts.3mf"
+    rep = export_packing(apart, out, ExportOptions(mode="parts"))
+    assert rep.passed and rep.bodies == 8
+    assert rep.min_gap is not None and rep.min_gap >= 1.0
+    assert len(validate_file(out).bodies) == 8
+    scene = trimesh.load(out, process=False)
+    names = sorted(scene.geometry)
+    assert len(names) == 8 and all(n.startswith(("polytope1_", "polytope3_")) for n in names)
+
+
+def test_parts_split_writes_one_valid_file_per_part(apart, tmp_path):
+    rep = export_packing(apart, tmp_path / "part.stl",
+                         ExportOptions(mode="parts", split_files=True))
+    assert len(rep.paths) == 8 and not (tmp_path / "part.stl").exists()
+    for p in rep.paths:
+        assert Path(p).name.startswith("part_polytope") and validate_file(p).passed
+
+
+def test_parts_closer_than_clearance_are_refused(tmp_path):
+    src = _packing(tmp_path, _grid(26.0), [0] * 8, clearance=25.0)
+    out = tmp_path / "parts.3mf"
+    with pytest.raises(MeshError, match="clearance"):
+        export_packing(src, out, ExportOptions(mode="parts"))
+    assert not out.exists()
+
+
+def test_resolution_saves_triangles_and_stays_valid(tmp_path):
+    m = load_mesh(LEMON)
+    recs = [TypeRecord(name="lemon", path=str(LEMON), sha256=m.sha256, share=1.0,
+                       local_from_file=np.diag([300.0, 300, 300, 1]) @ _shift(-m.centroid),
+                       volume=m.volume * 300 ** 3)]
+    p = Packing(container_path="box:100x100x100", container_sha256=None,
+                frame_from_file=np.eye(4), container_volume=1e6, types=recs,
+                type_index=np.zeros(2, int), rotations=np.tile([1.0, 0, 0, 0], (2, 1)),
+                translations=np.array([[-20.0, 0, 0], [20.0, 0, 0]]), scales=np.ones(2))
+    full = export_packing(p, tmp_path / "full.stl", ExportOptions(mode="union"))
+    coarse = export_packing(p, tmp_path / "coarse.stl",
+                            ExportOptions(mode="union", resolution=0.5))
+    assert full.triangles_saved == 0
+    assert coarse.triangles_saved > 0 and coarse.passed
+    assert coarse.triangles == full.triangles - coarse.triangles_saved
+    # no surface moves by more than the resolution
+    area = sum(trimesh.load(tmp_path / "full.stl").area for _ in [0])
+    assert abs(coarse.volume - full.volume) <= area * 0.5
+
+
+def _shift(t: np.ndarray) -> np.ndarray:
+    m = np.eye(4)
+    m[:3, 3] = t
+    return m
+
+
+# --------------------------------------------------------------------------- refusals
+
+
+def _single(tmp: Path) -> tuple[Path, Path]:
+    """A one-object packing whose mesh is a copy in tmp: (packing json, mesh copy)."""
+    copy = tmp / "poly.obj"
+    copy.write_bytes(P1.read_bytes())
+    m = load_mesh(copy)
+    rec = TypeRecord(name="poly", path=str(copy), sha256=m.sha256, share=1.0,
+                     local_from_file=_shift(-m.centroid), volume=m.volume)
+    p = Packing(container_path="box:50x50x50", container_sha256=None,
+                frame_from_file=np.eye(4), container_volume=125000.0, types=[rec],
+                type_index=np.zeros(1, int), rotations=[[1.0, 0, 0, 0]],
+                translations=[[0.0, 0, 0]], scales=[1.0])
+    save_packing(p, tmp / "p.json")
+    return tmp / "p.json", copy
+
+
+def test_output_over_an_input_is_refused_and_input_kept(tmp_path):
+    src, mesh = _single(tmp_path)
+    before = mesh.read_bytes()
+    with pytest.raises(InputError, match="input file"):
+        export_packing(src, mesh, ExportOptions(mode="union"))
+    assert mesh.read_bytes() == before
+
+
+def test_changed_source_mesh_is_refused(tmp_path):
+    src, mesh = _single(tmp_path)
+    mesh.write_bytes(P1.read_bytes() + b"\n# edited\n")
+    with pytest.raises(InputError, match="changed"):
+        export_packing(src, tmp_path / "o.stl")
+    assert not (tmp_path / "o.stl").exists()
+
+
+def test_cancel_writes_nothing(apart, tmp_path):
+    out = tmp_path / "c.3mf"
+    with pytest.raises(Cancelled):
+        export_packing(apart, out, ExportOptions(mode="connect"), should_cancel=lambda: True)
+    assert not out.exists() and not [f for f in os.listdir(tmp_path) if ".tmp." in f]
+
+
+def test_progress_is_reported_in_order(apart, tmp_path):
+    seen = []
+    export_packing(apart, tmp_path / "c.stl", progress=lambda f, m: seen.append(f))
+    assert seen[0] == 0.0 and seen[-1] == 1.0 and seen == sorted(seen)
+
+
+@pytest.mark.parametrize("kwargs, match", [
+    ({"mode": "glue"}, "mode"),
+    ({"shell": -1.0}, "positive"),
+    ({"mode": "parts", "shell": 2.0}, "parts"),
+    ({"drain": 3.0}, "needs a shell"),
+    ({"opening": Opening()}, "needs a shell"),
+    ({"split_files": True}, "parts"),
+])
+def test_bad_options_are_clear(kwargs, match):
+    with pytest.raises(InputError, match=match):
+        ExportOptions(**kwargs)
+
+
+def test_bad_outputs_are_clear(apart, tmp_path):
+    with pytest.raises(InputError, match="unknown mesh format"):
+        export_packing(apart, tmp_path / "x.dae")
+    with pytest.raises(InputError, match="no output"):
+        export_packing(apart, [])
+    with pytest.raises(MeshError, match="does not exist"):
+        export_packing(apart, tmp_path / "missing" / "x.stl", ExportOptions(mode="union"))
+
+
+def test_cli_export_end_to_end(apart, tmp_path, capsys):
+    from jampacked.cli.main import main
+
+    out3, outs = tmp_path / "c.3mf", tmp_path / "c.stl"
+    rc = main(["export", str(apart), "--mode", "connect", "--connector", "2", "-o", str(out3),
+               "-o", str(outs), "--json"])
+    doc = json.loads(capsys.readouterr().out)
+    assert rc == 0 and doc["passed"] and doc["bodies"] == 1 and doc["connectors"] == 7
+    assert validate_file(out3).passed and validate_file(outs).passed
+    rc = main(["export", str(apart), "--drain", "3", "-o", str(tmp_path / "d.stl")])
+    assert rc == 2 and "needs a shell" in capsys.readouterr().err
+    rc = main(["export", str(apart), "--open-plane", "+w", "-o", str(tmp_path / "d.stl")])
+    assert rc == 2 and "axis" in capsys.readouterr().err
