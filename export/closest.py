@@ -84,8 +84,13 @@ class Surface:
         tris = np.asarray(vertices, np.float64)[np.asarray(faces, np.int64)]
         self.a, self.b, self.c = tris[:, 0].copy(), tris[:, 1].copy(), tris[:, 2].copy()
         centroids = tris.mean(axis=1)
+        self._centroids = centroids
         self.radius = float(np.linalg.norm(tris - centroids[:, None], axis=2).max())
         self.tree = cKDTree(centroids)
+
+    def centroid(self, index: np.ndarray) -> np.ndarray:
+        """Centroids of the triangles given by index."""
+        return self._centroids[index]
 
     def closest(self, points: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
         """(K, 3) query points -> ((K, 3) closest surface points, (K,) distances)."""
