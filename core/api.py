@@ -54,6 +54,7 @@ class PackParams:
     repair_rounds: int = 3  # certify -> push apart rounds before removing offenders
     repair_margin: float = 0.01  # margin added per repair round, fraction of bounding radius
     repair_iterations: int = 100
+    repair_seconds: float = 20.0  # push-apart time cap; what still fails then is removed
     k_obj: float = 1.0
     k_wall: float = 1.05
     k_rot: float = 1.0
@@ -205,7 +206,9 @@ def pack(container: MeshSource, types: Sequence[MeshSource],
     state.alive[: state.n] &= (state.scale[: state.n] >= 1.0).astype(np.uint8)
     certifier = Certifier(cont, [t.vertices for t in objtypes], [t.faces for t in objtypes],
                           table.volume, np.array([t.max_edge for t in objtypes]))
-    cert, repair = _certify_and_repair(solver, certifier, clearance, params)
+    cert, repair = _certify_and_repair(
+        solver, certifier, clearance, params,
+        lambda: bool(stop.should_cancel is not None and stop.should_cancel()))
     t_cert = time.perf_counter()
 
     idx = state.alive_indices()
@@ -262,13 +265,16 @@ def _snapshot_metrics(state: PackState, table: TypeTable, q: np.ndarray,
 
 
 def _certify_and_repair(solver: Solver, certifier: Certifier, clearance: float,
-                        params: PackParams) -> tuple[dict, dict]:
+                        params: PackParams, cancelled: Callable[[], bool]
+                        ) -> tuple[dict, dict]:
     """Certify; push failing objects apart one at a time (a bigger margin for that object,
     then the solver, rolled back if it cannot settle) and re-check what moved; remove what
-    still fails after `repair_rounds`. Returns (final certificate dict, repair statistics).
+    still fails after `repair_rounds`, after `repair_seconds` of pushing, or on cancel.
+    Returns (final certificate dict, repair statistics).
     """
     s = solver.s
-    stats = {"rounds": 0, "moved": 0, "removed": 0, "first": None}
+    stats = {"rounds": 0, "moved": 0, "removed": 0, "first": None, "timed_out": False}
+    deadline = time.perf_counter() + params.repair_seconds
     subset = None
     moved_ever: set[int] = set()
     for rnd in range(params.repair_rounds + 1):
@@ -282,13 +288,16 @@ def _certify_and_repair(solver: Solver, certifier: Certifier, clearance: float,
         bad = idx[sorted(rep.bad_objects())]
         if len(bad) == 0:
             break
-        if rnd == params.repair_rounds:
+        if rnd == params.repair_rounds or stats["timed_out"]:
             stats["removed"] += _remove_offenders(solver, idx, rep)
             break
         stats["rounds"] += 1
         before_pos = s.pos[: s.n].copy()
         before_q = s.quat[: s.n].copy()
         for k in bad:
+            if time.perf_counter() > deadline or cancelled():
+                stats["timed_out"] = True
+                break
             old = s.margin[k]
             s.margin[k] = 2.0 * old + params.repair_margin * solver.t.radius[s.typ[k]]
             if not solver.resolve(np.array([k], np.int64), params.repair_iterations,

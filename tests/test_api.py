@@ -160,3 +160,16 @@ def test_thin_wall_container_refused():
     bad = MESHES / "broken" / "vase_thin_wall_shell.stl"
     with pytest.raises(MeshError, match="thin wall"):
         pack(str(bad), POLY)
+
+
+def test_repair_time_cap_removes_what_still_fails():
+    """With no safety margins certification finds violations; with no time to push them
+    apart, the offenders are removed (no long repair) and the result is still certified."""
+    from jampacked.core.api import PackParams
+
+    params = PackParams(repair_seconds=0.0, safety=0.0, wall_safety=0.0, extra_passes=())
+    p = pack(BOX, POLY, seed=1, fidelity="low", params=params)
+    rep = p.params["repair"]
+    assert not rep["first"]["certified"]  # the scene really needs repair
+    assert rep["timed_out"] and rep["moved"] == 0 and rep["removed"] >= 1
+    assert p.certificate["certified"]
