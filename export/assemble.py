@@ -252,7 +252,22 @@ def export_packing(packing: Packing | str | os.PathLike,
             before = result.num_tri()
             result = result.simplify(options.resolution)
             out.triangles_saved += before - result.num_tri()
-        out.bodies = len(result.decompose())
+        parts = result.decompose()
+        volumes = [c.volume() for c in parts]
+        # specks of no volume (where a strut grazes a surface) are dropped; a closed void
+        # inside a solid is a component of negative volume, not a body
+        speck = 1e-9 * float(np.prod(np.ptp(np.reshape(result.bounding_box(), (2, 3)),
+                                           axis=0)))
+        if any(abs(v) <= speck for v in volumes):
+            result = m3.Manifold.compose([c for c, v in zip(parts, volumes, strict=True)
+                                          if abs(v) > speck])
+        out.bodies = sum(v > speck for v in volumes)
+        voids = sum(v < -speck for v in volumes)
+        if voids:
+            out.warnings.append(
+                f"the result encloses {voids} sealed void{'s' if voids > 1 else ''} (space "
+                "shut in between objects, struts and shell); resin and powder printers "
+                "cannot drain them.")
         out.volume = float(result.volume())
         v, f = _arrays(result)
         bodies, names = [(v, f)], ["jampacked"]
@@ -345,16 +360,14 @@ def _connect(packing: Packing, local: list[np.ndarray], types: Sequence[MeshData
         # 0.2 x the smallest type's equivalent diameter: sturdy but small beside the objects
         vol = min(t.volume for t in packing.types)
         diameter = 0.2 * 2 * (3 * vol / (4 * np.pi)) ** (1 / 3)
-    shell_surface = None
-    if shell is not None:
-        sv, sf = _arrays(shell)
-        shell_surface = Surface(sv, sf)
+    shells = [(part, Surface(*_arrays(part))) for part in
+              (shell.decompose() if shell is not None else [])]
     cont = to_manifold(c_vertices, container.faces)
     lo, hi = c_vertices.min(axis=0), c_vertices.max(axis=0)
     pad = 0.1 * float((hi - lo).max()) + 1.0
     box = m3.Manifold.cube(tuple(hi - lo + 2 * pad)).translate(tuple(lo - pad))
     outside = box - cont
-    plan = plan_connectors(placed, diameter, shell=shell, shell_surface=shell_surface,
+    plan = plan_connectors(placed, diameter, shells=shells,
                            shell_thickness=options.shell or 0.0, outside=outside,
                            should_cancel=cancel,
                            progress=lambda f, m: report(0.3 + 0.3 * f, m))

@@ -4,11 +4,11 @@ Frames: the packing's container frame, container units. The plan:
 
 1. Proximity graph: candidate pairs from the Delaunay triangulation of the object centres
    (it contains the Euclidean minimum spanning tree) plus the k nearest centres, and one edge
-   from every object to the shell. Each edge's weight is the exact gap (manifold3d
-   ``min_gap``, searched only up to an upper bound from the nearest vertices, which keeps it
-   fast).
-2. Minimum spanning tree over that graph (Kruskal, scipy). Edges whose two solids already
-   overlap by a positive volume are fused by the union and need no strut.
+   from every object to each body of the shell (an opening can cut it into several). Each
+   edge's weight is the nearest-vertex distance.
+2. Minimum spanning tree over that graph (scipy). Tree edges whose two solids overlap by a
+   positive volume (exact gap from manifold3d ``min_gap``, then the intersection) are fused
+   by the union and need no strut.
 3. Every other tree edge gets a cylinder of diameter D between the exact closest points of
    its two solids (alternating closest-point projection), sunk D into each end (half the
    wall thickness into the shell) so the union fuses it. A strut between two objects that
@@ -50,8 +50,9 @@ class ConnectPlan:
     """Struts to add and what they tie together.
 
     struts: the cylinders (container frame). edges: (node a, node b) per strut, nodes being
-    object indices and ``len(objects)`` for the shell. fused: tree edges whose solids already
-    overlap. lengths: each strut's length between the two surfaces (the visible part).
+    object indices and ``len(objects) + k`` for the shell's body k. fused: tree edges whose
+    solids already overlap. lengths: each strut's length between the two surfaces (the
+    visible part).
     """
 
     struts: list[m3.Manifold] = field(default_factory=list)
@@ -155,20 +156,20 @@ def strut(p: np.ndarray, q: np.ndarray, diameter: float, spin: float = 0.0) -> m
 
 
 def plan_connectors(objects: Sequence[PlacedObject], diameter: float, *,
-                    shell: m3.Manifold | None = None, shell_surface: Surface | None = None,
+                    shells: Sequence[tuple[m3.Manifold, Surface]] = (),
                     shell_thickness: float = 0.0, outside: m3.Manifold | None = None,
                     should_cancel: Callable[[], bool] | None = None,
                     progress: Callable[[float, str], None] | None = None) -> ConnectPlan:
     """Plan the struts that make objects (+ shell) one body; see the module docstring.
 
-    objects: the placed solids. diameter: strut diameter (container units). shell and
-    shell_surface: the shell solid and its mesh (None for no shell: the tree then ties the
+    objects: the placed solids. diameter: strut diameter (container units). shells: the
+    shell's bodies, each as (solid, its surface); empty for no shell (the tree then ties the
     objects to each other only). outside: the region outside the container (struts between
     objects must not enter it), or None. Raises nothing for empty input.
     """
     n = len(objects)
     plan = ConnectPlan()
-    if n == 0 or (n == 1 and shell is None):
+    if n == 0 or (n == 1 and not shells):
         return plan
     report = progress or (lambda f, m: None)
     cancel = should_cancel or (lambda: False)
@@ -191,24 +192,24 @@ def plan_connectors(objects: Sequence[PlacedObject], diameter: float, *,
             report(0.4 * k / max(len(pairs), 1), "connect: proximity graph")
             if cancel():
                 return plan
-    if shell is not None and shell_surface is not None:
+    for k, (_, surface) in enumerate(shells):
         for o_idx, o in enumerate(objects):
-            _, near = shell_surface.tree.query(o.vertices)
-            d = np.linalg.norm(o.vertices - shell_surface.centroid(near), axis=1)
+            _, near = surface.tree.query(o.vertices)
+            d = np.linalg.norm(o.vertices - surface.centroid(near), axis=1)
             v = int(np.argmin(d))
             ea.append(o_idx)
-            eb.append(n)
-            gaps.append(float(shell_surface.closest(o.vertices[v][None])[1][0]))
+            eb.append(n + k)
+            gaps.append(float(surface.closest(o.vertices[v][None])[1][0]))
             starts.append(o.vertices[v])
     ea_arr, eb_arr = np.asarray(ea), np.asarray(eb)
     gap_arr = np.maximum(np.asarray(gaps), 0.0)
-    nodes = n + (1 if shell is not None else 0)
+    nodes = n + len(shells)
     scale = float(np.ptp(centres, axis=0).max()) + 1.0
     allowed = np.ones(len(gap_arr), dtype=bool)
     report(0.4, "connect: spanning tree")
 
     def solid(node: int) -> m3.Manifold:
-        return shell if node == n else objects[node].solid
+        return shells[node - n][0] if node >= n else objects[node].solid
 
     while True:
         # scipy drops zero weights: shift every weight by a tiny positive amount
@@ -222,16 +223,16 @@ def plan_connectors(objects: Sequence[PlacedObject], diameter: float, *,
             a, b = int(ea_arr[e]), int(eb_arr[e])
             if (min(a, b), max(a, b)) not in chosen:
                 continue
-            upper = gap_arr[e] + (shell_surface.radius if b == n else 0.0)
+            upper = gap_arr[e] + (shells[b - n][1].radius if b >= n else 0.0)
             if (_gap(solid(a), solid(b), upper) <= 0.0
                     and (solid(a) ^ solid(b)).volume() > 1e-9 * scale ** 3):
                 plan.fused += 1
                 continue
-            target = shell_surface if b == n else objects[b]
+            target = shells[b - n][1] if b >= n else objects[b]
             pa, pb = _closest_pair(objects[a], target, np.asarray(starts[e]))
-            rod = _strut_between(pa, pb, diameter, b == n, shell_thickness,
-                                 centres[a], None if b == n else centres[b])
-            if outside is not None and b != n:
+            rod = _strut_between(pa, pb, diameter, b >= n, shell_thickness,
+                                 centres[a], None if b >= n else centres[b])
+            if outside is not None and b < n:
                 out = (rod ^ outside).volume()
                 if out > OUTSIDE_TOL * rod.volume():
                     allowed[e] = False

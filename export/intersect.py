@@ -227,6 +227,15 @@ def _triangles_meet(p0, p1, p2, q0, q1, q2, tol):
         axis = _drop_axis(n2)
         return _triangles_2d(_p2(p0, axis), _p2(p1, axis), _p2(p2, axis),
                              _p2(q0, axis), _p2(q1, axis), _p2(q2, axis), tol)
+    if length < 1e-6:
+        # nearly parallel planes: the line of intersection is ill-conditioned, so ask
+        # instead whether any edge of one triangle meets the other (they meet iff one does)
+        return (_segment_meets_triangle(p0, p1, q0, q1, q2, tol)
+                or _segment_meets_triangle(p1, p2, q0, q1, q2, tol)
+                or _segment_meets_triangle(p2, p0, q0, q1, q2, tol)
+                or _segment_meets_triangle(q0, q1, p0, p1, p2, tol)
+                or _segment_meets_triangle(q1, q2, p0, p1, p2, tol)
+                or _segment_meets_triangle(q2, q0, p0, p1, p2, tol))
     direction = _scale(direction, 1.0 / length)
     lo1, hi1 = _interval(p0, p1, p2, a0, a1, a2, direction)
     lo2, hi2 = _interval(q0, q1, q2, b0, b1, b2, direction)

@@ -294,7 +294,9 @@ def _encode_3mf(bodies: Sequence[Body], names: Sequence[str] | None) -> bytes:
     parts += [f'<item objectid="{k + 1}"/>\n' for k in range(len(bodies))]
     parts.append("</build>\n</model>\n")
     buffer = io.BytesIO()
-    with zipfile.ZipFile(buffer, "w", compression=zipfile.ZIP_DEFLATED) as archive:
+    # level 1: a quarter of level 6's time on big meshes for a file ~25% larger
+    with zipfile.ZipFile(buffer, "w", compression=zipfile.ZIP_DEFLATED,
+                         compresslevel=1) as archive:
         archive.writestr("[Content_Types].xml", _3MF_CONTENT_TYPES)
         archive.writestr("_rels/.rels", _3MF_RELS)
         archive.writestr("3D/3dmodel.model", "".join(parts))

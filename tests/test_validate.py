@@ -394,6 +394,30 @@ def test_coplanar_pairs():
     assert not intersect._pair_meets(flat, pair, 0, 1, 1e-9)
 
 
+def test_nearly_parallel_apart_triangles_do_not_meet():
+    """Planes 1e-9 apart in angle, triangles 0.01-0.09 mm apart (seen on an offset
+    surface): the interval test's line is ill-conditioned there and used to say they meet."""
+    v = np.array([[22.700779700886542, -41.332627630450745, -8.531535864140466],
+                  [21.82622420628799, -40.52488255202738, -8.59834628031566],
+                  [22.736372214246757, -40.422479622491984, -8.495943350780266],
+                  [21.82622420628799, -40.332627630450745, -8.591644324659313],
+                  [22.73988599297077, -40.332627630450745, -8.492429572056253],
+                  [22.82622420628799, -40.41237015948412, -8.4858338877724]])
+    faces = np.array([[0, 2, 5], [1, 3, 4]])
+    assert not intersect._pair_meets(v, faces, 0, 1, 1e-9)
+    # a copy of the first triangle turned by 1e-7 rad about an in-plane line through its
+    # centroid crosses it along that line: nearly parallel planes that do meet
+    t = v[[0, 2, 5]]
+    c = t.mean(0)
+    u = (t[1] - t[0]) / np.linalg.norm(t[1] - t[0])
+    angle = 1e-7
+    k = np.array([[0, -u[2], u[1]], [u[2], 0, -u[0]], [-u[1], u[0], 0]])
+    rot = np.eye(3) + np.sin(angle) * k + (1 - np.cos(angle)) * k @ k
+    crossed = np.vstack([t, (t - c) @ rot.T + c])
+    faces = np.array([[0, 1, 2], [3, 4, 5]])
+    assert intersect._pair_meets(crossed, faces, 0, 1, 1e-9)
+
+
 def test_winding_numbers():
     v, f = box()
     w = intersect.winding_numbers(np.array([[0.0, 0, 0], [5, 0, 0]]), v, f)

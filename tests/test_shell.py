@@ -1,0 +1,308 @@
+"""Tests for jampacked.export.shell: the container shell, its openings and its accuracy.
+
+Small meshes (trimesh.creation boxes, icospheres and a torus, in mm) keep the file fast; one
+test runs Spot the cow from ../shared/meshes at 150 mm.
+"""
+
+from __future__ import annotations
+
+import json
+import math
+import re
+from pathlib import Path
+
+import manifold3d as m3
+import numpy as np
+import pytest
+import trimesh
+
+from jampacked.core.errors import InputError
+from jampacked.export.options import Opening
+from jampacked.export.shell import (
+    ShellReport,
+    make_shell,
+    march_tetrahedra,
+    measure_wall_thickness,
+    surface_distance,
+)
+from jampacked.export.validate import validate_arrays
+
+SHARED = Path(__file__).resolve().parents[2] / "shared" / "meshes"
+
+
+def arrays(m: m3.Manifold) -> tuple[np.ndarray, np.ndarray]:
+    """Vertices and faces of a manifold as a file would hold them (float32 positions)."""
+    mesh = m.to_mesh()
+    return np.asarray(mesh.vert_properties)[:, :3].astype(np.float64), np.asarray(mesh.tri_verts)
+
+
+def validated(m: m3.Manifold):
+    report = validate_arrays(*arrays(m))
+    assert report.passed, report.failures()
+    return report
+
+
+def ray_hits(m: m3.Manifold, start, end) -> list[float]:
+    """Coordinates along the ray's main axis where it crosses the surface of m."""
+    axis = int(np.argmax(np.abs(np.subtract(end, start))))
+    return sorted(h.position[axis] for h in m.ray_cast(list(start), list(end)))
+
+
+@pytest.fixture(scope="module")
+def sphere() -> trimesh.Trimesh:
+    return trimesh.creation.icosphere(subdivisions=3, radius=10.0)
+
+
+@pytest.fixture(scope="module")
+def sphere_shell(sphere):
+    return make_shell(sphere.vertices, sphere.faces, 1.5)
+
+
+# --------------------------------------------------------------------------------------------
+# the building blocks
+
+
+def test_march_tetrahedra_sphere_is_closed_and_round():
+    h = 0.5
+    axis = np.arange(-6.0, 6.0 + h / 2, h) + 0.0123  # off-centre: no symmetric ties
+    x, y, z = np.meshgrid(axis, axis, axis, indexing="ij")
+    values = 4.0 - np.sqrt(x * x + y * y + z * z)  # positive inside a sphere of radius 4
+    origin = np.array([axis[0]] * 3)
+    v, f = march_tetrahedra(values, 0.5, origin, h)  # the sphere of radius 3.5
+    report = validate_arrays(v, f)
+    assert report.passed, report.failures()
+    assert len(report.bodies) == 1 and report.bodies[0].genus == 0
+    r = np.linalg.norm(v, axis=1)
+    assert np.all(np.abs(r - 3.5) < 0.05)  # vertices on grid edges: linear interpolation
+    assert report.volume == pytest.approx(4 / 3 * math.pi * 3.5 ** 3, rel=0.02)
+
+
+def test_surface_distance_matches_numpy_reference():
+    mesh = trimesh.creation.icosphere(subdivisions=1, radius=3.0)
+    rng = np.random.default_rng(1)
+    points = rng.uniform(-5, 5, size=(300, 3))
+    got = surface_distance(points, mesh.vertices, mesh.faces)
+    # reference: trimesh's vectorised closest point on every (point, triangle) pair
+    tri = mesh.triangles
+    p = np.repeat(points, len(tri), axis=0)
+    t = np.tile(tri, (len(points), 1, 1))
+    closest = trimesh.triangles.closest_point(t, p)
+    ref = np.linalg.norm(closest - p, axis=1).reshape(len(points), len(tri)).min(axis=1)
+    np.testing.assert_allclose(got, ref, rtol=1e-9, atol=1e-9)
+
+
+def test_simplification_falls_back_when_validation_fails(sphere, monkeypatch):
+    import jampacked.export.shell as shell_module
+
+    real = shell_module.validate_arrays
+    calls = []
+
+    def refuse_first(v, f, **kw):  # the first (coarsest) attempt "fails" validation
+        calls.append(len(f))
+        report = real(v, f, **kw)
+        return report if len(calls) > 1 else type("R", (), {"passed": False})()
+
+    monkeypatch.setattr(shell_module, "validate_arrays", refuse_first)
+    shell, report = make_shell(sphere.vertices, sphere.faces, 1.5, resolution=0.75)
+    assert len(calls) == 2 and calls[1] > calls[0]  # a smaller tolerance keeps more faces
+    # tolerance asked with a resolution: min(resolution / 2, T / 10)
+    assert report.tolerance == pytest.approx(shell_module.SIMPLIFY_LADDER[1] * 0.15)
+    validated(shell)
+    simplified = report.triangles
+
+    monkeypatch.setattr(shell_module, "validate_arrays",
+                        lambda v, f, **kw: type("R", (), {"passed": False})())
+    shell, report = make_shell(sphere.vertices, sphere.faces, 1.5, resolution=0.75)
+    assert report.tolerance == 0.0 and "could not be simplified" in report.notes[0]
+    assert report.triangles > 2 * simplified  # the whole grid surface
+    validated(shell)
+
+
+# --------------------------------------------------------------------------------------------
+# closed shells
+
+
+def test_box_shell_volume_and_exact_outer_surface():
+    box = trimesh.creation.box([20.0, 16.0, 12.0])
+    shell, report = make_shell(box.vertices, box.faces, 2.0)
+    expected = 20 * 16 * 12 - 16 * 12 * 8
+    assert shell.volume() == pytest.approx(expected, rel=0.01)
+    assert report.volume == pytest.approx(shell.volume())
+    val = validated(shell)
+    kinds = sorted(b.kind for b in val.bodies)
+    assert kinds == ["cavity", "solid"]  # the outer solid and its sealed cavity
+    # the outer surface is the container's own mesh
+    v, _ = arrays(shell)
+    gap = np.min(np.linalg.norm(v[None] - box.vertices[:, None], axis=2), axis=1)
+    assert gap.max() < 1e-5
+    assert np.allclose(v.min(axis=0), box.vertices.min(axis=0))
+    assert report.measured_median == pytest.approx(2.0, rel=0.01)
+
+
+def test_sphere_shell_thickness_is_measured_close_to_t(sphere, sphere_shell):
+    shell, report = sphere_shell
+    assert isinstance(report, ShellReport)
+    assert report.samples == 2000
+    assert report.measured_median == pytest.approx(1.5, rel=0.03)
+    assert 0.9 * 1.5 < report.measured_min <= report.measured_median
+    assert report.measured_median <= report.measured_max < 1.1 * 1.5
+    val = validated(shell)
+    assert len(val.bodies) == 2 and all(b.genus == 0 for b in val.bodies)
+    # the outer surface is the icosphere's own triangles; the rest is the cavity
+    cavity = [p for p in shell.decompose() if p.volume() < 0]
+    assert len(cavity) == 1
+    assert cavity[0].num_tri() == shell.num_tri() - len(sphere.faces)
+    assert -cavity[0].volume() == pytest.approx(4 / 3 * math.pi * 8.5 ** 3, rel=0.03)
+    json.dumps(report.as_dict())  # JSON-able
+
+
+def test_measure_wall_thickness_on_a_known_offset(sphere):
+    # the inner solid is a sphere of radius 8: against the icosphere of radius 10 the wall is
+    # between 10 cos(angle to a face centre) - 8 and 2
+    inner = m3.Manifold.sphere(8.0, 256)
+    d = measure_wall_thickness(sphere.vertices, sphere.faces, inner, n=500, seed=3)
+    assert d.shape == (500,)
+    assert np.all(d <= 2.0 + 1e-9) and np.all(d > 1.8)
+
+
+def test_thin_parts_become_solid():
+    body = trimesh.creation.box([20.0, 20.0, 20.0])
+    fin = trimesh.creation.box([10.0, 2.0, 10.0])
+    fin.apply_translation([14.0, 0.0, 0.0])  # a 2 mm fin: thinner than 2T = 3 mm
+    solid = m3.Manifold(m3.Mesh(vert_properties=body.vertices.astype(np.float32),
+                                tri_verts=body.faces.astype(np.uint32)))
+    solid += m3.Manifold(m3.Mesh(vert_properties=fin.vertices.astype(np.float32),
+                                 tri_verts=fin.faces.astype(np.uint32)))
+    v, f = arrays(solid)
+    shell, report = make_shell(v, f, 1.5)
+    assert report.cavities == 1
+    validated(shell)
+    probe = m3.Manifold.cube([1.0, 0.5, 1.0], center=True).translate([15.0, 0.0, 0.0])
+    assert (shell ^ probe).volume() == pytest.approx(0.5, rel=1e-6)  # the fin is filled
+
+
+def test_too_thick_raises_with_the_largest_thickness():
+    box = trimesh.creation.box([20.0, 16.0, 12.0])
+    with pytest.raises(InputError) as err:
+        make_shell(box.vertices, box.faces, 6.5)
+    message = str(err.value)
+    assert "too thick" in message and "Fix" in message
+    deepest = float(re.search(r"below ([0-9.]+)", message).group(1))
+    assert deepest == pytest.approx(6.0, abs=0.05)  # half the box's 12 mm height
+
+
+@pytest.mark.parametrize("bad", [0.0, -1.0, float("nan"), float("inf")])
+def test_bad_thickness_raises(bad):
+    box = trimesh.creation.box([10.0, 10.0, 10.0])
+    with pytest.raises(InputError):
+        make_shell(box.vertices, box.faces, bad)
+
+
+# --------------------------------------------------------------------------------------------
+# openings and the drain
+
+
+@pytest.mark.parametrize("axis, bound", [("+z", 5.0), ("-z", -5.0)])
+def test_plane_opening_removes_beyond_the_plane(sphere, sphere_shell, axis, bound):
+    closed, _ = sphere_shell
+    shell, report = make_shell(sphere.vertices, sphere.faces, 1.5,
+                               opening=Opening("plane", axis, 0.75))
+    assert report.opening == f"plane {axis}@0.75"
+    lo, hi = np.asarray(shell.bounding_box()).reshape(2, 3)
+    z_lo, z_hi = sphere.vertices[:, 2].min(), sphere.vertices[:, 2].max()
+    if axis == "+z":
+        assert hi[2] == pytest.approx(bound, abs=1e-6) and lo[2] == pytest.approx(z_lo)
+    else:
+        assert lo[2] == pytest.approx(bound, abs=1e-6) and hi[2] == pytest.approx(z_hi)
+    assert 0.5 * closed.volume() < shell.volume() < 0.95 * closed.volume()
+    val = validated(shell)
+    assert len(val.bodies) == 1 and val.bodies[0].genus == 0  # a bowl
+
+
+def test_window_cuts_only_the_near_wall():
+    box = trimesh.creation.box([30.0, 30.0, 30.0])
+    closed, _ = make_shell(box.vertices, box.faces, 2.0)
+    shell, report = make_shell(box.vertices, box.faces, 2.0,
+                               opening=Opening("window", "+x", size=8.0))
+    assert report.opening == "window +x 8 mm"
+    removed = closed.volume() - shell.volume()
+    assert removed == pytest.approx(math.pi * 4.0 ** 2 * 2.0, rel=0.02)
+    val = validated(shell)
+    assert len(val.bodies) == 1 and val.bodies[0].genus == 0
+    # through the window's axis: only the -x wall is left
+    hits = ray_hits(shell, (40.0, 0.013, 0.021), (-40.0, 0.013, 0.021))
+    np.testing.assert_allclose(hits, [-15.0, -13.0], atol=1e-3)
+
+
+def test_window_on_a_torus_spares_the_inner_ring():
+    torus = trimesh.creation.torus(10.0, 4.0, major_sections=32, minor_sections=16)
+    shell, _ = make_shell(torus.vertices, torus.faces, 1.0, resolution=0.4,
+                          opening=Opening("window", "+x", size=4.0))
+    validated(shell)
+    hits = ray_hits(shell, (30.0, 0.05, 0.03), (-30.0, 0.05, 0.03))
+    # the +x tube keeps its inner wall (x about 6..7); its outer wall (13..14) is open
+    assert sum(1 for x in hits if x > 0) == 2
+    assert all(5.5 < x < 7.5 for x in hits if x > 0)
+    assert sum(1 for x in hits if x < 0) == 4  # the -x tube is untouched
+
+
+def test_window_that_misses_raises():
+    torus = trimesh.creation.torus(10.0, 4.0, major_sections=32, minor_sections=16)
+    with pytest.raises(InputError, match="misses the shell"):
+        make_shell(torus.vertices, torus.faces, 1.0, resolution=0.5,
+                   opening=Opening("window", "+z", size=4.0))
+
+
+def test_drain_opens_the_bottom(sphere, sphere_shell):
+    closed, _ = sphere_shell
+    shell, report = make_shell(sphere.vertices, sphere.faces, 1.5, drain=2.0)
+    assert report.drain == 2.0 and report.drain_at is not None
+    x, y, z = report.drain_at
+    assert z == pytest.approx(sphere.vertices[:, 2].min() + 1.5, abs=0.2)  # cavity's floor
+    removed = closed.volume() - shell.volume()
+    assert removed == pytest.approx(math.pi * 1.0 ** 2 * 1.5, rel=0.25)
+    val = validated(shell)
+    assert len(val.bodies) == 1 and val.bodies[0].genus == 0
+    # up the drain's axis: the bottom wall is gone, the top wall is intact
+    hits = ray_hits(shell, (x, y, -20.0), (x, y, 20.0))
+    assert len(hits) == 2 and all(h > 8.0 for h in hits)
+
+
+def test_drain_through_a_flat_floor_is_in_its_middle():
+    box = trimesh.creation.box([20.0, 16.0, 12.0])
+    closed, _ = make_shell(box.vertices, box.faces, 2.0)
+    shell, report = make_shell(box.vertices, box.faces, 2.0, drain=3.0)
+    x, y, z = report.drain_at
+    assert abs(x) < 1.0 and abs(y) < 1.0 and z == pytest.approx(-4.0, abs=0.01)
+    # exactly one floor plug of the cylinder goes: no side wall is touched
+    assert closed.volume() - shell.volume() == pytest.approx(math.pi * 1.5 ** 2 * 2.0, rel=0.01)
+    validated(shell)
+
+
+def test_progress_reports_and_resolution(sphere):
+    seen = []
+    _, report = make_shell(sphere.vertices, sphere.faces, 1.5, resolution=0.6,
+                           progress=lambda f, msg: seen.append((f, msg)))
+    fractions = [f for f, _ in seen]
+    assert fractions == sorted(fractions) and fractions[0] == 0.0 and fractions[-1] == 1.0
+    assert report.grid_spacing == pytest.approx(0.6)
+    assert abs(report.measured_median - 1.5) < 0.6
+
+
+# --------------------------------------------------------------------------------------------
+# a real container
+
+
+def test_spot_the_cow_at_150_mm():
+    path = SHARED / "containers" / "spot.obj"
+    if not path.exists():
+        pytest.skip(f"shared test mesh not found: {path}")
+    from jampacked.core.meshes import load_mesh
+
+    cow = load_mesh(path, role="container")
+    v = cow.vertices * (150.0 / cow.extents.max())
+    shell, report = make_shell(v, cow.faces, 2.0, resolution=1.5,
+                               opening=Opening("plane", "+z", 0.8), drain=3.0)
+    assert report.measured_median == pytest.approx(2.0, rel=0.1)
+    assert report.measured_min > 1.5 and report.measured_max < 2.5
+    validated(shell)
