@@ -34,11 +34,12 @@ shell and openings:
   the objects show with --open-plane +z@0.75 (removes the shell beyond 75%% of the height
   along +z; any of +x -x +y -y +z -z) or --window +y@30 (a 30 mm round hole through the
   side facing +y). --drain D adds a drainage/escape hole of diameter D through the lowest
-  point of the shell for resin and powder printers.
+  point of the shell along --up (default +z) for resin and powder printers. Write
+  negative axes with '=': --up=-y, --open-plane=-z@0.3.
 
 examples:
-  jampacked export out/packing.json --mode connect --shell 2 --open-plane +z@0.7 \\
-      -o out/spot.3mf -o out/spot.stl
+  jampacked export out/packing.json --mode connect --shell 2 --up +y \\
+      --open-plane +y@0.55 --drain 3 -o out/spot.3mf -o out/spot.stl --render out/spot.png
   jampacked export packing.json --mode parts -o parts.3mf
   jampacked export packing.json --mode union --resolution 0.1 -o fruit.stl
 
@@ -126,6 +127,9 @@ def add_export_parser(sub: argparse._SubParsersAction) -> None:
                          help="cut a round window through the shell's side, e.g. +y@30")
     p.add_argument("--drain", type=_length("--drain"), metavar="MM",
                    help="drainage hole of this diameter through the shell's lowest point")
+    p.add_argument("--up", default="+z", choices=AXES, metavar="AXIS",
+                   help="the axis pointing up when printed (default +z; +y for Y-up models): "
+                        "the drain goes through the lowest point along it")
     p.add_argument("--connector", type=_length("--connector"), metavar="MM",
                    help="strut diameter for --mode connect (default: 0.2 x the smallest "
                         "object's equivalent diameter)")
@@ -134,6 +138,8 @@ def add_export_parser(sub: argparse._SubParsersAction) -> None:
                         "most this much)")
     p.add_argument("--split", action="store_true",
                    help="--mode parts: write one file per part (NAME_<type>_<n>.EXT)")
+    p.add_argument("--render", metavar="PNG",
+                   help="also draw the first file written, as read back, in two shaded views")
     p.add_argument("--json", action="store_true",
                    help="print the export report as JSON instead of tables")
     p.add_argument("-q", "--quiet", action="store_true", help="no progress bar or summary")
@@ -154,13 +160,13 @@ def cmd_export(args: argparse.Namespace) -> int:
     from jampacked.export.assemble import export_packing
 
     out, err = _consoles()
-    for path in args.output:
-        _check_output(path, "-o", [args.packing])
+    for path in args.output + ([args.render] if args.render else []):
+        _check_output(path, "-o" if path != args.render else "--render", [args.packing])
     try:
         options = ExportOptions(mode=args.mode, shell=args.shell,
                                 opening=args.open_plane or args.window, drain=args.drain,
                                 connector=args.connector, resolution=args.resolution,
-                                split_files=args.split)
+                                split_files=args.split, up=args.up)
     except InputError as exc:
         raise UsageError(str(exc)) from None
     with contextlib.ExitStack() as stack:
@@ -193,6 +199,15 @@ def cmd_export(args: argparse.Namespace) -> int:
                       highlight=False)
     for w in report.warnings:
         err.print(f"[yellow]warning:[/] {escape(w)}", highlight=False)
+    if args.render and report.paths:
+        from jampacked.cli.render import write_render
+        from jampacked.export.io import read_mesh_arrays
+
+        v, f = read_mesh_arrays(report.paths[0])
+        write_render(v, f, args.render, title=f"{report.paths[0]} ({report.mode})",
+                     up=options.up)
+        if not args.quiet and not args.json:
+            out.print(f"wrote {args.render}", highlight=False)
     return 0 if report.passed else EXIT_ERROR
 
 

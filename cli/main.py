@@ -78,8 +78,8 @@ examples:
       --type lemon.obj=30% --type plum.obj -o packing.json
   jampacked pack box:40x40x45 --type cube.stl --type ball.stl --clearance 0.4 \\
       --time-budget 60 -o packing.json
-  jampacked export out/packing.json --mode connect --shell 2 --open-plane +z@0.7 \\
-      -o out/spot.3mf -o out/spot.stl
+  jampacked export out/packing.json --mode connect --shell 2 --up +y \\
+      --open-plane +y@0.55 --drain 3 -o out/spot.3mf -o out/spot.stl
   jampacked info packing.json
   jampacked validate out/spot.3mf
 

@@ -9,6 +9,7 @@ validated as written before it is put in place (:func:`jampacked.export.io.write
 
 from __future__ import annotations
 
+import dataclasses
 import os
 import time
 from collections.abc import Callable, Sequence
@@ -28,7 +29,7 @@ from jampacked.core.packing import Packing, is_spec, load_packing, verify_source
 from .closest import Surface
 from .connect import PlacedObject, candidate_pairs, plan_connectors
 from .io import WRITE_FORMATS, write_mesh
-from .options import ExportOptions
+from .options import ExportOptions, rotate_axis, up_rotation
 from .validate import ValidationReport
 
 if TYPE_CHECKING:
@@ -221,14 +222,24 @@ def export_packing(packing: Packing | str | os.PathLike,
     shell = None
     c_vertices = _apply(packing.frame_from_file, container.vertices)
     if options.shell is not None:
-        from .shell import make_shell  # its distance field is only needed here
+        from .shell import make_shell, opening_label  # only needed here
 
         report(0.1, "building the shell")
         t = time.perf_counter()
-        shell, out.shell = make_shell(c_vertices, container.faces, options.shell,
-                                      opening=options.opening, drain=options.drain,
+        # the shell is made with the print's up axis as +z (the drain goes down), then
+        # turned back; rotations by signed permutations are exact in floating point
+        rot = up_rotation(options.up)
+        opening = options.opening
+        if opening is not None:
+            opening = dataclasses.replace(opening, axis=rotate_axis(opening.axis, rot))
+        shell, out.shell = make_shell(c_vertices @ rot.T, container.faces, options.shell,
+                                      opening=opening, drain=options.drain,
                                       resolution=options.resolution,
                                       progress=lambda f, m: report(0.1 + 0.2 * f, m))
+        shell = shell.transform(np.column_stack([rot.T, np.zeros(3)]))
+        out.shell.opening = opening_label(options.opening)  # named in the caller's axes
+        if out.shell.drain_at is not None:
+            out.shell.drain_at = tuple(float(c) for c in rot.T @ np.asarray(out.shell.drain_at))
         timings["shell"] = time.perf_counter() - t
         check_cancel()
 

@@ -8,10 +8,30 @@ from __future__ import annotations
 
 from dataclasses import dataclass
 
+import numpy as np
+
 from jampacked.core.errors import InputError
 
 MODES = ("union", "connect", "parts")
 AXES = ("+x", "-x", "+y", "-y", "+z", "-z")
+
+
+def up_rotation(up: str) -> np.ndarray:
+    """(3, 3) proper rotation (a signed permutation) taking the axis ``up`` ("+x" ... "-z")
+    to +z."""
+    if up not in AXES:
+        raise InputError(f"the up axis must be one of {', '.join(AXES)}, got {up!r}.")
+    k = "xyz".index(up[-1])
+    z = np.eye(3)[k] * (-1.0 if up.startswith("-") else 1.0)
+    x = np.eye(3)[(k + 1) % 3]
+    return np.array([x, np.cross(z, x), z])  # rows: the new axes in old coordinates
+
+
+def rotate_axis(axis: str, rotation: np.ndarray) -> str:
+    """The axis name ("+x" ... "-z") that ``axis`` becomes under a signed permutation."""
+    v = rotation @ (np.eye(3)["xyz".index(axis[-1])] * (-1.0 if axis.startswith("-") else 1.0))
+    k = int(np.argmax(np.abs(v)))
+    return ("+" if v[k] > 0 else "-") + "xyz"[k]
 
 
 @dataclass(frozen=True)
@@ -57,6 +77,8 @@ class ExportOptions:
     resolution: simplify every mesh to this tolerance (the printer's resolution), or None.
     split_files: "parts" only: one file per part (out_stem_<type>_<i>.<ext>) instead of one
         file with one object per part.
+    up: the axis that points up when printing ("+z" by default; "+y" for Y-up models): the
+        drain hole goes through the lowest point along it.
     """
 
     mode: str = "connect"
@@ -66,8 +88,10 @@ class ExportOptions:
     connector: float | None = None
     resolution: float | None = None
     split_files: bool = False
+    up: str = "+z"
 
     def __post_init__(self) -> None:
+        up_rotation(self.up)  # checks the axis name
         if self.mode not in MODES:
             raise InputError(f"export mode must be one of {', '.join(MODES)}, got "
                              f"{self.mode!r}.")

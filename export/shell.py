@@ -617,7 +617,7 @@ def _drain(shell: m3.Manifold, inner: m3.Manifold, diameter: float,
     return shell - hole, (float(low[0]), float(low[1]), float(low[2]))
 
 
-def _opening_label(opening: Opening | None) -> str | None:
+def opening_label(opening: Opening | None) -> str | None:
     if opening is None:
         return None
     if opening.kind == "plane":
@@ -718,7 +718,7 @@ def make_shell(vertices: np.ndarray, faces: np.ndarray, thickness: float, *,
         measured_median=float(np.median(measured)) if measured.size else math.nan,
         measured_max=float(measured.max()) if measured.size else math.nan,
         samples=int(measured.size),
-        opening=_opening_label(opening),
+        opening=opening_label(opening),
         drain=None if drain is None else float(drain),
         volume=float(shell.volume()),
         triangles=int(shell.num_tri()),

@@ -314,3 +314,52 @@ def test_cli_export_end_to_end(apart, tmp_path, capsys):
     assert rc == 2 and "needs a shell" in capsys.readouterr().err
     rc = main(["export", str(apart), "--open-plane", "+w", "-o", str(tmp_path / "d.stl")])
     assert rc == 2 and "axis" in capsys.readouterr().err
+
+
+# --------------------------------------------------------------------------- with a shell
+
+
+def test_union_with_shell_adds_the_shell_volume(apart, tmp_path):
+    objects = sum(s.volume() for s in _solids(apart))  # all 6+ units from the walls
+    rep = export_packing(apart, tmp_path / "u.3mf", ExportOptions(mode="union", shell=2.0))
+    inner = (80.0 - 2 * 2.0) ** 3
+    assert rep.passed and rep.shell is not None
+    assert rep.shell.volume == pytest.approx(80.0 ** 3 - inner, rel=0.01)
+    assert rep.volume == pytest.approx(objects + rep.shell.volume, rel=1e-4)
+    assert rep.shell.measured_median == pytest.approx(2.0, rel=0.05)
+
+
+def test_connect_with_opened_shell_is_one_body(apart, tmp_path):
+    out = tmp_path / "c.stl"
+    rep = export_packing(apart, out, ExportOptions(
+        mode="connect", shell=2.0, connector=2.0, opening=Opening(axis="+z", at=0.6)))
+    assert rep.passed and rep.bodies == 1
+    v = validate_file(out)
+    assert v.passed and len(v.bodies) == 1
+    assert v.bbox_max[2] < 40 - 2.0 - 10  # the top wall is gone (objects reach z ~ 22)...
+    assert rep.connectors >= 4  # ...and the objects above the cut hang on struts
+
+
+@pytest.mark.parametrize("up, axis", [("+z", 2), ("+y", 1), ("-x", 0)])
+def test_drain_goes_through_the_lowest_wall_along_up(apart, tmp_path, up, axis):
+    rep = export_packing(apart, tmp_path / "d.stl",
+                         ExportOptions(mode="union", shell=2.0, drain=4.0, up=up))
+    assert rep.passed and rep.shell.drain_at is not None
+    low = 40.0 if up.startswith("-") else -40.0  # the floor's outer face along up
+    inner_floor = low + (2.0 if low < 0 else -2.0)
+    assert rep.shell.drain_at[axis] == pytest.approx(inner_floor, abs=0.5)
+    assert rep.shell.opening is None and rep.passed
+
+
+def test_cli_export_with_shell_render_and_up(apart, tmp_path, capsys):
+    from jampacked.cli.main import main
+
+    png = tmp_path / "r.png"
+    rc = main(["export", str(apart), "--shell", "2", "--up", "+y", "--open-plane", "+y@0.6",
+               "--drain", "3", "--connector", "2", "-o", str(tmp_path / "s.3mf"), "--render",
+               str(png)])
+    text = capsys.readouterr().out
+    assert rc == 0 and "plane +y@0.6" in text and "PASS" in text
+    assert png.read_bytes()[:8] == b"\x89PNG\r\n\x1a\n"
+    v = validate_file(tmp_path / "s.3mf")
+    assert v.passed and v.bbox_max[1] < 40 - 2.0 - 10  # the +y wall is cut away
