@@ -1,12 +1,13 @@
 # Two commands on a fresh machine with only python3:
-#   make demo   packs the bundled default scene (Spot the cow filled with fruit)
+#   make demo   packs the bundled default scene (Spot the cow filled with fruit) and exports
+#               it as one watertight, validated print: out/spot.3mf + out/spot.stl
 #   make test   runs the test suite
 PY ?= python3
 VENV := .venv
 BIN := $(VENV)/bin
 STAMP := $(VENV)/.installed
 
-.PHONY: demo test lint bench clean
+.PHONY: demo test lint bench clean addon
 
 $(STAMP): pyproject.toml
 	$(PY) -m venv $(VENV)
@@ -18,6 +19,9 @@ $(STAMP): pyproject.toml
 demo: $(STAMP)
 	mkdir -p out
 	$(BIN)/jampacked pack default --time-budget 60 -o out/packing.json --preview out/preview.png
+	$(BIN)/jampacked export out/packing.json --mode connect --shell 2 --up +y \
+		--open-plane +y@0.55 --drain 3 -o out/spot.3mf -o out/spot.stl --render out/spot.png
+	$(BIN)/jampacked validate out/spot.3mf out/spot.stl
 
 test: $(STAMP)
 	$(BIN)/ruff check core export cli tests bench
@@ -25,6 +29,11 @@ test: $(STAMP)
 
 bench: $(STAMP)
 	$(BIN)/python bench/run.py
+
+# Blender extension zip with the engine's wheels for linux-x64, windows-x64 and macos-arm64
+# (downloads about 250 MB into addon/wheels/ once) -> dist/jampacked-<version>.zip
+addon: $(STAMP)
+	$(BIN)/python addon/build.py
 
 clean:
 	rm -rf $(VENV) out
