@@ -5,7 +5,7 @@ validation of what was written. Writes bench/results/export.json and a line in t
     python bench/export_bench.py --repeats 3
 
 The scene: five YCB low-poly fruit (x300) packed into the Stanford bunny scaled to 260 mm
-(seed 1, fidelity low, 150 s budget): about 500 fruit. Its packing JSON is kept in
+(seed 1, automatic fidelity, 150 s budget): about 500 fruit. Its packing JSON is kept in
 bench/results/ so later runs time the export only. Bars (issue 3): union <= 10 s,
 validation of the result <= 2 s. Wall-clock seconds on this 2-core machine: medians of
 --repeats runs in one process (the first run also pays numba's cache load).
@@ -33,7 +33,7 @@ def _make_packing(meshes: Path) -> None:
     from jampacked.core.packing import save_packing
 
     p = pack(str(meshes / "containers" / "bunny.obj"), [str(meshes / f) for f in FRUIT],
-             seed=1, fidelity="low", time_budget=150.0, container_size=260.0,
+             seed=1, time_budget=150.0, container_size=260.0,
              type_scale=300.0)
     save_packing(p, PACKING)
 

@@ -19,13 +19,15 @@ from typing import TYPE_CHECKING, Any
 
 import manifold3d as m3
 import numpy as np
+from scipy.sparse import coo_matrix
+from scipy.sparse.csgraph import connected_components
 from scipy.spatial import cKDTree
 
-from jampacked.core.certify import to_manifold
 from jampacked.core.errors import Cancelled, InputError, MeshError
 from jampacked.core.meshes import MeshData, box_mesh, load_mesh, parse_box_spec
 from jampacked.core.packing import Packing, is_spec, load_packing, verify_sources
 
+from .cleanup import remove_degenerate_faces
 from .closest import Surface
 from .connect import PlacedObject, candidate_pairs, plan_connectors
 from .io import WRITE_FORMATS, write_mesh
@@ -134,8 +136,17 @@ def _apply(m: np.ndarray, v: np.ndarray) -> np.ndarray:
     return v @ m[:3, :3].T + m[:3, 3]
 
 
+def _solid(vertices: np.ndarray, faces: np.ndarray) -> m3.Manifold:
+    """manifold3d solid from float64 arrays (exact positions; no trimesh processing)."""
+    mesh = m3.Mesh64(vert_properties=np.ascontiguousarray(vertices, np.float64),
+                     tri_verts=np.ascontiguousarray(faces, np.uint32))
+    return m3.Manifold(mesh)
+
+
 def _arrays(solid: m3.Manifold) -> tuple[np.ndarray, np.ndarray]:
-    mesh = solid.to_mesh()
+    # float64: rounding manifold3d's double positions to float32 can merge two vertices of
+    # a short edge and leave zero-area faces
+    mesh = solid.to_mesh64()
     v = np.asarray(mesh.vert_properties, np.float64)[:, :3]
     f = np.asarray(mesh.tri_verts, np.int64)
     return v, f
@@ -204,7 +215,7 @@ def export_packing(packing: Packing | str | os.PathLike,
     type_solids = []
     saved_per_type = []
     for v, m in zip(local, types, strict=True):
-        s = to_manifold(v, m.faces)
+        s = _solid(v, m.faces)
         before = s.num_tri()
         if options.resolution is not None:
             s = s.simplify(options.resolution)
@@ -248,39 +259,32 @@ def export_packing(packing: Packing | str | os.PathLike,
     if options.mode == "parts":
         bodies, names = _parts(packing, solids, out)
     else:
-        extra: list[m3.Manifold] = []
-        if options.mode == "connect":
-            extra = _connect(packing, local, types, solids, shell, c_vertices, container,
-                             options, out, report, cancel)
-            check_cancel()
-        report(0.6, "union")
-        pieces = solids + extra + ([shell] if shell is not None else [])
-        result = m3.Manifold.batch_boolean(pieces, m3.OpType.Add)
-        if result.status() != m3.Error.NoError:
-            raise MeshError(f"the union failed in manifold3d ({result.status()}); please "
-                            "report this with the packing file.")
-        if options.resolution is not None:
-            before = result.num_tri()
-            result = result.simplify(options.resolution)
-            out.triangles_saved += before - result.num_tri()
-        parts = result.decompose()
-        volumes = [c.volume() for c in parts]
+        saved = out.triangles_saved
+        for attempt in range(3 if options.mode == "connect" else 1):
+            out.triangles_saved = saved
+            extra: list[m3.Manifold] = []
+            if options.mode == "connect":
+                extra = _connect(packing, local, types, solids, shell, c_vertices, container,
+                                 options, out, report, cancel, variant=attempt)
+                check_cancel()
+            report(0.6, "union")
+            v, f, left = _union(solids + extra, shell, options, out)
+            if left == 0:
+                break
+            # slivers the local repairs cannot remove: struts turned another way meet the
+            # surfaces elsewhere (union mode has nothing to turn; validation names the faces)
         # specks of no volume (where a strut grazes a surface) are dropped; a closed void
         # inside a solid is a component of negative volume, not a body
-        speck = 1e-9 * float(np.prod(np.ptp(np.reshape(result.bounding_box(), (2, 3)),
-                                           axis=0)))
-        if any(abs(v) <= speck for v in volumes):
-            result = m3.Manifold.compose([c for c, v in zip(parts, volumes, strict=True)
-                                          if abs(v) > speck])
-        out.bodies = sum(v > speck for v in volumes)
-        voids = sum(v < -speck for v in volumes)
+        speck = 1e-9 * float(np.prod(np.ptp(v, axis=0))) if len(v) else 0.0
+        v, f, volumes = _drop_specks(v, f, speck)
+        out.bodies = int(np.sum(volumes > 0))
+        voids = int(np.sum(volumes < 0))
         if voids:
             out.warnings.append(
                 f"the result encloses {voids} sealed void{'s' if voids > 1 else ''} (space "
                 "shut in between objects, struts and shell); resin and powder printers "
                 "cannot drain them.")
-        out.volume = float(result.volume())
-        v, f = _arrays(result)
+        out.volume = float(volumes.sum())
         bodies, names = [(v, f)], ["jampacked"]
         if options.mode == "connect" and out.bodies != 1:
             raise MeshError(f"connect made {out.bodies} bodies instead of one; nothing was "
@@ -314,6 +318,70 @@ def export_packing(packing: Packing | str | os.PathLike,
     out.timings = timings
     report(1.0, "done")
     return out
+
+
+def _union(pieces: list[m3.Manifold], shell: m3.Manifold | None, options: ExportOptions,
+           out: ExportReport) -> tuple[np.ndarray, np.ndarray, int]:
+    """Union of the pieces and the shell: (vertices, faces, zero-area faces left)."""
+    result = m3.Manifold.batch_boolean(pieces, m3.OpType.Add)
+    if shell is not None:
+        # a separate boolean: batch_boolean with a hollow shell among hundreds of pieces
+        # returned the solid container (cavity filled) in manifold3d 3.x
+        result = result + shell
+    if result.status() != m3.Error.NoError:
+        raise MeshError(f"the union failed in manifold3d ({result.status()}); please "
+                        "report this with the packing file.")
+    total = sum(p.volume() for p in pieces) + (shell.volume() if shell else 0.0)
+    if result.volume() > total * (1 + 1e-6) + 1e-9:
+        raise MeshError(f"the union's volume ({result.volume():.6g}) exceeds the sum of its "
+                        f"parts ({total:.6g}): manifold3d returned a wrong result; nothing "
+                        "was written. Please report this with the packing file.")
+    if options.resolution is not None:
+        before = result.num_tri()
+        result = result.simplify(options.resolution)
+        out.triangles_saved += before - result.num_tri()
+    return _clean_arrays(result)
+
+
+def _clean_arrays(result: m3.Manifold) -> tuple[np.ndarray, np.ndarray, int]:
+    """The result's arrays without zero-area faces (see export/cleanup.py), and how many
+    are left. Where the local repairs cannot remove them all, manifold3d first simplifies
+    by a tolerance far below any printer's resolution (1e-7 to 1e-5 of the size)."""
+    v, f, left = remove_degenerate_faces(*_arrays(result))
+    if left == 0 or len(v) == 0:
+        return v, f, left
+    diagonal = float(np.linalg.norm(np.ptp(v, axis=0)))
+    for rel in (1e-7, 1e-6, 1e-5):
+        cv, cf, left_here = remove_degenerate_faces(*_arrays(result.simplify(rel * diagonal)))
+        if left_here == 0:
+            return cv, cf, 0
+    return v, f, left
+
+
+def _drop_specks(v: np.ndarray, f: np.ndarray, speck: float
+                 ) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+    """Split a mesh into its connected components (by shared vertices, as manifold3d
+    writes them), drop those whose |volume| <= speck and unused vertices, and return
+    (vertices, faces, signed volume of each kept component)."""
+    n = len(v)
+    if len(f) == 0:
+        return v, f, np.zeros(0)
+    rows = np.concatenate([f[:, 0], f[:, 1]])
+    cols = np.concatenate([f[:, 1], f[:, 2]])
+    graph = coo_matrix((np.ones(len(rows)), (rows, cols)), shape=(n, n))
+    count, label = connected_components(graph, directed=False)
+    face_label = label[f[:, 0]]
+    tri = v[f]
+    six = np.einsum("ij,ij->i", tri[:, 0], np.cross(tri[:, 1], tri[:, 2]))
+    volumes = np.bincount(face_label, six, minlength=count) / 6.0
+    used = np.zeros(count, bool)
+    used[face_label] = True
+    keep = used & (np.abs(volumes) > speck)
+    if not np.all(keep[used]) or len(np.unique(f)) < n:
+        f = f[keep[face_label]]
+        verts, inverse = np.unique(f, return_inverse=True)
+        v, f = v[verts], inverse.reshape(-1, 3)
+    return v, f, volumes[keep]
 
 
 def _parts(packing: Packing, solids: list[m3.Manifold], out: ExportReport
@@ -359,7 +427,8 @@ def _scale(bodies: list[tuple[np.ndarray, np.ndarray]]) -> float:
 def _connect(packing: Packing, local: list[np.ndarray], types: Sequence[MeshData],
              solids: list[m3.Manifold], shell: m3.Manifold | None, c_vertices: np.ndarray,
              container: MeshData, options: ExportOptions, out: ExportReport,
-             report: Progress, cancel: Callable[[], bool]) -> list[m3.Manifold]:
+             report: Progress, cancel: Callable[[], bool], variant: int = 0
+             ) -> list[m3.Manifold]:
     """Struts for connect mode (see export/connect.py)."""
     mats = packing.matrices()
     surfaces = [Surface(v, m.faces) for v, m in zip(local, types, strict=True)]
@@ -373,7 +442,7 @@ def _connect(packing: Packing, local: list[np.ndarray], types: Sequence[MeshData
         diameter = 0.2 * 2 * (3 * vol / (4 * np.pi)) ** (1 / 3)
     shells = [(part, Surface(*_arrays(part))) for part in
               (shell.decompose() if shell is not None else [])]
-    cont = to_manifold(c_vertices, container.faces)
+    cont = _solid(c_vertices, container.faces)
     lo, hi = c_vertices.min(axis=0), c_vertices.max(axis=0)
     pad = 0.1 * float((hi - lo).max()) + 1.0
     box = m3.Manifold.cube(tuple(hi - lo + 2 * pad)).translate(tuple(lo - pad))
@@ -381,7 +450,7 @@ def _connect(packing: Packing, local: list[np.ndarray], types: Sequence[MeshData
     plan = plan_connectors(placed, diameter, shells=shells,
                            shell_thickness=options.shell or 0.0, outside=outside,
                            should_cancel=cancel,
-                           progress=lambda f, m: report(0.3 + 0.3 * f, m))
+                           progress=lambda f, m: report(0.3 + 0.3 * f, m), variant=variant)
     out.connectors = len(plan.struts)
     out.connector_length = plan.total_length
     out.fused = plan.fused

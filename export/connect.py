@@ -159,13 +159,16 @@ def plan_connectors(objects: Sequence[PlacedObject], diameter: float, *,
                     shells: Sequence[tuple[m3.Manifold, Surface]] = (),
                     shell_thickness: float = 0.0, outside: m3.Manifold | None = None,
                     should_cancel: Callable[[], bool] | None = None,
-                    progress: Callable[[float, str], None] | None = None) -> ConnectPlan:
+                    progress: Callable[[float, str], None] | None = None,
+                    variant: int = 0) -> ConnectPlan:
     """Plan the struts that make objects (+ shell) one body; see the module docstring.
 
     objects: the placed solids. diameter: strut diameter (container units). shells: the
     shell's bodies, each as (solid, its surface); empty for no shell (the tree then ties the
     objects to each other only). outside: the region outside the container (struts between
-    objects must not enter it), or None. Raises nothing for empty input.
+    objects must not enter it), or None. variant: another turn and depth of the struts'
+    polygonal cross-sections, for a retry when a union left slivers. Raises nothing for
+    empty input.
     """
     n = len(objects)
     plan = ConnectPlan()
@@ -231,7 +234,7 @@ def plan_connectors(objects: Sequence[PlacedObject], diameter: float, *,
             target = shells[b - n][1] if b >= n else objects[b]
             pa, pb = _closest_pair(objects[a], target, np.asarray(starts[e]))
             rod = _strut_between(pa, pb, diameter, b >= n, shell_thickness,
-                                 centres[a], None if b >= n else centres[b])
+                                 centres[a], None if b >= n else centres[b], variant)
             if outside is not None and b < n:
                 out = (rod ^ outside).volume()
                 if out > OUTSIDE_TOL * rod.volume():
@@ -251,7 +254,7 @@ def plan_connectors(objects: Sequence[PlacedObject], diameter: float, *,
 
 def _strut_between(pa: np.ndarray, pb: np.ndarray, diameter: float,
                    to_shell: bool, shell_thickness: float, centre_a: np.ndarray,
-                   centre_b: np.ndarray | None) -> m3.Manifold:
+                   centre_b: np.ndarray | None, variant: int = 0) -> m3.Manifold:
     """The strut from closest point pa (on object a) to pb, sunk into both ends."""
     d = pb - pa
     gap = float(np.linalg.norm(d))
@@ -262,6 +265,7 @@ def _strut_between(pa: np.ndarray, pb: np.ndarray, diameter: float,
         u = other - centre_a
         u = u / (np.linalg.norm(u) or 1.0)
     # irrational fractions keep the caps and corners off the objects' own planes
-    sink_a = diameter * 1.0618
-    sink_b = 0.5 * shell_thickness if to_shell else diameter * 1.0618
-    return strut(pa - sink_a * u, pb + sink_b * u, diameter, spin=0.5 / np.sqrt(2.0))
+    sink = diameter * (1.0618 + 0.0417 * variant)
+    sink_b = 0.5 * shell_thickness if to_shell else sink
+    return strut(pa - sink * u, pb + sink_b * u, diameter,
+                 spin=(0.5 + 0.618 * variant) / np.sqrt(2.0))

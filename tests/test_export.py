@@ -363,3 +363,46 @@ def test_cli_export_with_shell_render_and_up(apart, tmp_path, capsys):
     assert png.read_bytes()[:8] == b"\x89PNG\r\n\x1a\n"
     v = validate_file(tmp_path / "s.3mf")
     assert v.passed and v.bbox_max[1] < 40 - 2.0 - 10  # the +y wall is cut away
+
+
+# --------------------------------------------------------------------------- cleanup
+
+
+def _octahedron():
+    v = np.array([[1.0, 0, 0], [-1, 0, 0], [0, 1, 0], [0, -1, 0], [0, 0, 1], [0, 0, -1]])
+    f = np.array([[0, 2, 4], [2, 1, 4], [1, 3, 4], [3, 0, 4],
+                  [2, 0, 5], [1, 2, 5], [3, 1, 5], [0, 3, 5]])
+    return v, f
+
+
+def test_cap_is_flipped_away_and_shape_kept():
+    from jampacked.export.cleanup import degenerate_faces, remove_degenerate_faces
+    from jampacked.export.validate import validate_arrays
+
+    v, f = _octahedron()
+    # vertex 6 on edge 0-2; faces (0,2,4) -> (0,6,4), (6,2,4); cap (0,2,6) beside (2,0,5)
+    v = np.vstack([v, (v[0] + v[2]) / 2])
+    f = np.vstack([[[0, 6, 4], [6, 2, 4], [0, 2, 6]], f[1:]])
+    assert len(degenerate_faces(v, f)) == 1 and not validate_arrays(v, f).passed
+    v2, f2, left = remove_degenerate_faces(v, f)
+    rep = validate_arrays(v2, f2)
+    assert left == 0 and rep.passed, rep.summary()
+    assert rep.volume == pytest.approx(4 / 3)
+
+
+def test_needle_is_collapsed():
+    from jampacked.export.cleanup import remove_degenerate_faces
+    from jampacked.export.validate import validate_arrays
+
+    v, f = _octahedron()
+    # split vertex 4 into 4 and 6 at the same position: faces (0,2,4),(2,1,4) keep 4, the
+    # other two use 6, and the needles (4,6,...) close the surface
+    v = np.vstack([v, v[4]])
+    f = np.array([[0, 2, 4], [2, 1, 4], [1, 3, 6], [3, 0, 6], [1, 6, 4], [0, 4, 6],
+                  [2, 0, 5], [1, 2, 5], [3, 1, 5], [0, 3, 5]])
+    assert not validate_arrays(v, f).passed
+    v2, f2, left = remove_degenerate_faces(v, f)
+    used = np.unique(f2)
+    rep = validate_arrays(v2, f2)
+    assert left == 0 and len(f2) == 8 and (6 not in used or 4 not in used)
+    assert rep.passed and rep.volume == pytest.approx(4 / 3)

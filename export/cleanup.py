@@ -1,0 +1,109 @@
+"""Remove zero-area faces from a closed mesh without changing its shape.
+
+manifold3d's booleans can leave a few zero-area faces where intersection curves meet
+(vertices that coincide, or a vertex on the far edge), and float32 files (STL) merge
+vertices closer than float32 resolution. Two local, shape-preserving repairs fix them:
+
+* a *needle* (two corners at the same position) is removed by collapsing that edge: its two
+  faces go, one vertex replaces the other (allowed only when the two vertices share exactly
+  those two neighbours, so the surface stays a 2-manifold);
+* a *cap* (a corner on the opposite edge ab) is removed by flipping ab: faces (a, b, c) and
+  (b, a, d) become (c, a, d) and (d, b, c), the same region split at c.
+
+Positions are tested as given and as float32 (the coarsest format written); faces keep
+their winding.
+"""
+
+from __future__ import annotations
+
+import numpy as np
+
+#: a face whose height is at most this fraction of the bounding-box diagonal has zero area
+#: (export.validate.DEGENERATE_REL, repeated to keep this module free of numba imports)
+ZERO_HEIGHT_REL = 1e-9
+
+
+def _zero_area(p: np.ndarray, f: np.ndarray) -> np.ndarray:
+    tri = p[f]
+    area2 = np.linalg.norm(np.cross(tri[:, 1] - tri[:, 0], tri[:, 2] - tri[:, 0]), axis=1)
+    longest = np.max(np.linalg.norm(tri - np.roll(tri, 1, axis=1), axis=2), axis=1)
+    diagonal = float(np.linalg.norm(np.ptp(p, axis=0)))
+    return area2 <= ZERO_HEIGHT_REL * diagonal * longest
+
+
+def degenerate_faces(v: np.ndarray, f: np.ndarray) -> np.ndarray:
+    """Indices of faces of zero area, with the positions as given (float64: 3MF, OBJ) or
+    rounded to float32 (STL, PLY)."""
+    if len(f) == 0:
+        return np.zeros(0, np.int64)
+    return np.flatnonzero(_zero_area(v, f)
+                          | _zero_area(v.astype(np.float32).astype(np.float64), f))
+
+
+def _faces_with_edge(f: np.ndarray, a: int, b: int) -> np.ndarray:
+    """Faces holding the directed edge a -> b."""
+    nxt = np.roll(f, -1, axis=1)
+    return np.flatnonzero(np.any((f == a) & (nxt == b), axis=1))
+
+
+def _neighbours(f: np.ndarray, a: int) -> set[int]:
+    return set(np.unique(f[np.any(f == a, axis=1)])) - {a}
+
+
+def _collapse(f: np.ndarray, p: int, q: int) -> np.ndarray | None:
+    """Collapse edge pq onto p, or None when that would break the 2-manifold."""
+    faces = np.flatnonzero(np.any(f == p, axis=1) & np.any(f == q, axis=1))
+    if len(faces) != 2:
+        return None
+    opposite = {int(x) for x in f[faces].ravel()} - {p, q}
+    if _neighbours(f, p) & _neighbours(f, q) != opposite:
+        return None
+    out = np.delete(f, faces, axis=0)
+    out[out == q] = p
+    return out
+
+
+def _flip(f: np.ndarray, face: int, a: int, b: int, c: int) -> np.ndarray | None:
+    """Flip edge ab of face (a, b, c) with the face across it, or None when edge cd exists."""
+    across = _faces_with_edge(f, b, a)
+    if len(across) != 1:
+        return None
+    g = f[across[0]]
+    d = int(g[(list(g).index(a) + 1) % 3])  # g is (b, a, d) up to rotation
+    if d in (a, b, c) or d in _neighbours(f, c):
+        return None
+    out = f.copy()
+    out[face] = (c, a, d)
+    out[across[0]] = (d, b, c)
+    return out
+
+
+def remove_degenerate_faces(v: np.ndarray, f: np.ndarray, max_steps: int = 1000
+                            ) -> tuple[np.ndarray, np.ndarray, int]:
+    """Repair zero-area faces of a closed, consistently wound mesh.
+
+    Returns (vertices, faces, faces still degenerate). Vertices are unchanged (a collapsed
+    vertex is simply no longer used); faces keep their winding.
+    """
+    f = np.array(f, dtype=np.int64, copy=True)
+    p32 = v.astype(np.float32).astype(np.float64)
+    tried: set[tuple[int, ...]] = set()
+    for _ in range(max_steps):
+        bad = [int(i) for i in degenerate_faces(v, f) if tuple(f[i]) not in tried]
+        if not bad:
+            break
+        i = bad[0]
+        tri = [int(x) for x in f[i]]
+        tried.add(tuple(tri))
+        edges = [(tri[k], tri[(k + 1) % 3]) for k in range(3)]
+        lengths = [float(np.linalg.norm(p32[a] - p32[b])) for a, b in edges]
+        k = int(np.argmin(lengths))
+        if lengths[k] == 0.0:
+            new = _collapse(f, *edges[k])
+        else:
+            k = int(np.argmax(lengths))
+            a, b = edges[k]
+            new = _flip(f, i, a, b, tri[(k + 2) % 3])
+        if new is not None:
+            f = new
+    return v, f, len(degenerate_faces(v, f))
