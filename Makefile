@@ -24,7 +24,7 @@ demo: $(STAMP)
 	$(BIN)/jampacked validate out/spot.3mf out/spot.stl
 
 test: $(STAMP)
-	$(BIN)/ruff check core export cli tests bench
+	$(BIN)/ruff check core export cli addon tests bench
 	$(BIN)/python -m pytest -q
 
 bench: $(STAMP)

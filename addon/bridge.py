@@ -1,0 +1,427 @@
+"""Blender <-> arrays: read objects as world-space triangles, turn packings into objects.
+
+Frames (Blender units throughout):
+- inputs are evaluated meshes (modifiers applied) in world space, triangulated with
+  Blender's loop triangles; the packing's container frame is therefore world space;
+- a type's "file" frame is its object's world space at packing time; the engine's
+  ``local_from_file`` L moves it to the type's local frame (volume centroid at the origin);
+- results: one mesh per type, made from the type object with modifiers applied and moved
+  into the local frame (vertices ``L @ W @ v``, W the source's world matrix), shared by every
+  placement of the type; each placement is an object with ``matrix_world`` = the packing's
+  matrix [R | t] (rotation quaternion and location set exactly).
+
+Everything here runs on Blender's main thread.
+"""
+
+import os
+from dataclasses import dataclass, field
+from typing import Any
+
+import bpy
+import numpy as np
+from mathutils import Matrix
+
+from . import summary
+from .engine import PackOutcome, Triangles
+
+
+def _input_error(message: str) -> Exception:
+    from jampacked.core.errors import InputError
+
+    return InputError(message)
+
+
+def matrix_np(matrix: Matrix) -> np.ndarray:
+    """A mathutils 4x4 matrix as a float64 numpy array (rows are rows)."""
+    return np.array([list(row) for row in matrix], dtype=np.float64)
+
+
+def _mesh_arrays(mesh: bpy.types.Mesh) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+    mesh.calc_loop_triangles()
+    co = np.empty(len(mesh.vertices) * 3, np.float32)
+    mesh.vertices.foreach_get("co", co)
+    tris = np.empty(len(mesh.loop_triangles) * 3, np.int32)
+    mesh.loop_triangles.foreach_get("vertices", tris)
+    poly = np.empty(len(mesh.loop_triangles), np.int32)
+    mesh.loop_triangles.foreach_get("polygon_index", poly)
+    return (co.reshape(-1, 3).astype(np.float64), tris.reshape(-1, 3).astype(np.int64),
+            poly.astype(np.int64))
+
+
+def _transform(vertices: np.ndarray, m: np.ndarray) -> np.ndarray:
+    return vertices @ m[:3, :3].T + m[:3, 3]
+
+
+def mesh_triangles(mesh: bpy.types.Mesh, name: str,
+                   transform: np.ndarray | None = None) -> Triangles:
+    """Triangles of a mesh datablock, optionally transformed by a 4x4 matrix."""
+    v, f, poly = _mesh_arrays(mesh)
+    if transform is not None:
+        v = _transform(v, transform)
+    return Triangles(name=name, vertices=v, faces=f, tri_polygon=poly,
+                     n_polygons=len(mesh.polygons))
+
+
+def object_triangles(obj: bpy.types.Object, depsgraph: bpy.types.Depsgraph, *,
+                     apply_modifiers: bool = True, world: bool = True) -> Triangles:
+    """An object's mesh as triangles: evaluated (modifiers applied) and in world space by
+    default. The object must be a mesh object."""
+    if not apply_modifiers:
+        m = matrix_np(obj.matrix_world) if world else None
+        return mesh_triangles(obj.data, obj.name, m)
+    ob_eval = obj.evaluated_get(depsgraph)
+    mesh = ob_eval.to_mesh()
+    try:
+        m = matrix_np(ob_eval.matrix_world) if world else None
+        return mesh_triangles(mesh, obj.name, m)
+    finally:
+        ob_eval.to_mesh_clear()
+
+
+def _require_mesh(obj: bpy.types.Object | None, what: str) -> bpy.types.Object:
+    if obj is None:
+        raise _input_error(f"pick a {what}: a closed mesh object (Jampacked panel in the 3D "
+                           "viewport's sidebar).")
+    if obj.type != 'MESH':
+        raise _input_error(f"{what} '{obj.name}' is not a mesh object (its type is "
+                           f"{obj.type.title()}): pick a mesh object, or convert it first "
+                           "(Object > Convert > Mesh).")
+    return obj
+
+
+# ------------------------------------------------------------------------------ pack
+
+
+@dataclass
+class PackRequest:
+    """Everything a pack job needs, read from the scene on the main thread."""
+
+    container_name: str
+    type_names: list[str]
+    container: Triangles
+    types: list[Triangles]
+    shares: list[float]
+    seed: int
+    clearance: float
+    fidelity: str
+    time_budget: float | None
+    signatures: list[str] = field(default_factory=list)
+
+
+def gather_pack(context: bpy.types.Context) -> PackRequest:
+    """Read the Jampacked settings and the input meshes (world space, modifiers applied).
+
+    Raises InputError with a message that names the object and says what to do.
+    """
+    s = context.scene.jampacked
+    container = _require_mesh(s.container, "container")
+    if not len(s.types):
+        raise _input_error("add at least one object type (the + button under Object Types), "
+                           "then pick a mesh object for it.")
+    objects: list[bpy.types.Object] = []
+    shares: list[float] = []
+    for i, item in enumerate(s.types):
+        obj = item.object
+        if obj is None:
+            raise _input_error(f"object type {i + 1} has no object: pick a mesh object for "
+                               "it or remove the row.")
+        _require_mesh(obj, f"object type {i + 1}")
+        if obj == container:
+            raise _input_error(f"'{obj.name}' is both the container and object type {i + 1}: "
+                               "pick different objects.")
+        if obj in objects:
+            raise _input_error(f"'{obj.name}' is listed twice as an object type: remove one "
+                               "row and raise the other's share instead.")
+        objects.append(obj)
+        shares.append(float(item.share))
+    if sum(shares) <= 0:
+        raise _input_error("every object type has share 0: give at least one a share above "
+                           "0.")
+    depsgraph = context.evaluated_depsgraph_get()
+    ctris = object_triangles(container, depsgraph)
+    ttris = [object_triangles(o, depsgraph) for o in objects]
+    return PackRequest(
+        container_name=container.name, type_names=[o.name for o in objects],
+        container=ctris, types=ttris, shares=shares, seed=int(s.seed),
+        clearance=float(s.clearance), fidelity=s.fidelity.lower(),
+        time_budget=float(s.time_budget) if s.time_budget > 0 else None,
+        signatures=[t.signature() for t in [ctris, *ttris]])
+
+
+def check_unchanged(context: bpy.types.Context, request: PackRequest) -> None:
+    """Raise InputError if an input object was deleted, moved or edited during the job (the
+    result would not match the scene)."""
+    depsgraph = context.evaluated_depsgraph_get()
+    names = [request.container_name, *request.type_names]
+    for name, signature in zip(names, request.signatures, strict=True):
+        obj = bpy.data.objects.get(name)
+        if obj is None or obj.type != 'MESH':
+            raise _input_error(f"'{name}' was deleted or renamed while packing: nothing was "
+                               "added; pack again.")
+        if object_triangles(obj, depsgraph).signature() != signature:
+            raise _input_error(f"'{name}' was moved or edited while packing: nothing was "
+                               "added; pack again.")
+
+
+def _type_material(name: str, colour: tuple[float, float, float, float]
+                   ) -> bpy.types.Material:
+    mat = bpy.data.materials.new(f"Jampacked {name}")
+    mat.diffuse_color = colour
+    try:  # node-based look for the renderers; the viewport uses diffuse_color
+        mat.use_nodes = True
+        bsdf = mat.node_tree.nodes.get("Principled BSDF")
+        if bsdf is not None:
+            bsdf.inputs["Base Color"].default_value = colour
+    except (AttributeError, KeyError, TypeError):
+        pass
+    return mat
+
+
+def _set_descriptions(coll: bpy.types.Collection) -> None:
+    for key, text in summary.DESCRIPTIONS.items():
+        full = summary.PREFIX + key
+        if full in coll.keys():
+            try:
+                coll.id_properties_ui(full).update(description=text)
+            except TypeError:  # lists/strings without UI data in some versions
+                pass
+
+
+def build_result(context: bpy.types.Context, request: PackRequest,
+                 outcome: PackOutcome) -> bpy.types.Collection:
+    """Create the result collection: one shared mesh and material per type, one object per
+    placement at the packing's matrix, metrics and the packing JSON as custom properties.
+
+    On any failure everything created is removed again and the exception re-raised, so the
+    scene is as it was.
+    """
+    packing = outcome.packing
+    created: list[Any] = []
+    try:
+        coll = bpy.data.collections.new(f"Jampacked {request.container_name}")
+        created.append(coll)
+        depsgraph = context.evaluated_depsgraph_get()
+        meshes = []
+        for t, (obj_name, rec) in enumerate(zip(request.type_names, packing.types,
+                                                strict=True)):
+            source = bpy.data.objects[obj_name].evaluated_get(depsgraph)
+            mesh = bpy.data.meshes.new_from_object(source, preserve_all_data_layers=True,
+                                                   depsgraph=depsgraph)
+            created.append(mesh)
+            mesh.name = f"Jampacked {rec.name}"
+            to_local = rec.local_from_file @ matrix_np(source.matrix_world)
+            mesh.transform(Matrix(to_local.tolist()))
+            if np.linalg.det(to_local[:3, :3]) < 0:
+                mesh.flip_normals()
+            colour = summary.type_colour(t)
+            if not len(mesh.materials):
+                mat = _type_material(rec.name, colour)
+                created.append(mat)
+                mesh.materials.append(mat)
+            mesh.update()
+            meshes.append((mesh, colour))
+        for i in range(packing.n):
+            t = int(packing.type_index[i])
+            mesh, colour = meshes[t]
+            obj = bpy.data.objects.new(f"{packing.types[t].name} {i + 1}", mesh)
+            created.append(obj)
+            obj.rotation_mode = 'QUATERNION'
+            obj.rotation_quaternion = [float(x) for x in packing.rotations[i]]
+            obj.location = [float(x) for x in packing.translations[i]]
+            obj.scale = [float(packing.scales[i])] * 3
+            obj.color = colour
+            obj["jampacked_type"] = t
+            coll.objects.link(obj)
+        props = summary.collection_properties(
+            packing.metrics, packing.certificate, packing.params, packing.timings,
+            [rec.name for rec in packing.types], [rec.share for rec in packing.types],
+            packing.seed)
+        for key, value in props.items():
+            coll[summary.PREFIX + key] = value
+        coll[summary.PREFIX + "packing"] = outcome.json_text
+        coll[summary.PREFIX + "container"] = request.container_name
+        coll[summary.PREFIX + "container_sha256"] = request.signatures[0]
+        coll[summary.PREFIX + "type_objects"] = list(request.type_names)
+        coll[summary.PREFIX + "type_meshes"] = [m.name for m, _ in meshes]
+        _set_descriptions(coll)
+        context.scene.collection.children.link(coll)
+        context.scene.jampacked.result = coll
+    except BaseException:
+        _remove(created)
+        raise
+    return coll
+
+
+def _remove(ids: list[Any]) -> None:
+    """Remove datablocks created by a failed build, newest first."""
+    for block in reversed(ids):
+        for coll in (bpy.data.objects, bpy.data.meshes, bpy.data.materials,
+                     bpy.data.collections):
+            try:
+                if block.name in coll and coll[block.name] == block:
+                    coll.remove(block)
+                    break
+            except ReferenceError:
+                break
+
+
+# ------------------------------------------------------------------------------ export
+
+
+@dataclass
+class ExportRequest:
+    """Everything an export job needs, read from the scene on the main thread."""
+
+    packing_json: str
+    container: Triangles
+    types: list[Triangles]
+    out_path: str
+    options: Any
+
+
+FORMAT_EXTENSIONS = {'STL': ".stl", '3MF': ".3mf", 'OBJ': ".obj", 'PLY': ".ply"}
+
+
+def output_path(filepath: str, file_format: str) -> str:
+    """Absolute output path with the format's extension ('//' = the .blend file's folder)."""
+    if not filepath:
+        raise _input_error("give an output file (Export > File).")
+    if filepath.startswith("//") and not bpy.data.filepath:
+        raise _input_error(f"the output file '{filepath}' is relative to the .blend file, "
+                           "which is not saved yet: save it first or give an absolute path.")
+    path = bpy.path.abspath(filepath)
+    stem, ext = os.path.splitext(path)
+    if ext.lower() in FORMAT_EXTENSIONS.values():
+        path = stem
+    path += FORMAT_EXTENSIONS[file_format]
+    folder = os.path.dirname(path) or "."
+    if not os.path.isdir(folder):
+        raise _input_error(f"the output folder '{folder}' does not exist: create it or pick "
+                           "another file.")
+    return path
+
+
+def result_collection(context: bpy.types.Context) -> bpy.types.Collection:
+    """The result collection Export writes: the last Pack's, or the active object's."""
+    coll = context.scene.jampacked.result
+    if coll is None:
+        obj = context.active_object
+        for c in (obj.users_collection if obj is not None else ()):
+            if summary.PREFIX + "packing" in c.keys():
+                coll = c
+                break
+    if coll is None or summary.PREFIX + "packing" not in coll.keys():
+        raise _input_error("there is no packing to export: run Pack first (or select an "
+                           "object of a Jampacked result collection).")
+    return coll
+
+
+def gather_export(context: bpy.types.Context, options: Any) -> ExportRequest:
+    """Read the packing of the result collection and its meshes for export.
+
+    The container is read again from its object and must be unchanged since packing; the
+    types come from the result's shared meshes, moved back to their packing "file" frame.
+    """
+    from .engine import packing_from_json
+
+    s = context.scene.jampacked
+    coll = result_collection(context)
+    text = str(coll[summary.PREFIX + "packing"])
+    packing = packing_from_json(text)
+    cname = str(coll.get(summary.PREFIX + "container", ""))
+    container = bpy.data.objects.get(cname)
+    if container is None:
+        raise _input_error(f"the container '{cname}' of '{coll.name}' is gone: restore it "
+                           "(undo) or pack again.")
+    _require_mesh(container, "container")
+    ctris = object_triangles(container, context.evaluated_depsgraph_get())
+    if ctris.signature() != coll.get(summary.PREFIX + "container_sha256"):
+        raise _input_error(f"the container '{cname}' was moved or edited after packing "
+                           f"'{coll.name}': pack again, or undo the change.")
+    mesh_names = list(coll.get(summary.PREFIX + "type_meshes", []))
+    if len(mesh_names) != len(packing.types):
+        raise _input_error(f"'{coll.name}' does not record its type meshes: pack again.")
+    types = []
+    for rec, mesh_name in zip(packing.types, mesh_names, strict=True):
+        mesh = bpy.data.meshes.get(mesh_name)
+        if mesh is None:
+            raise _input_error(f"the mesh '{mesh_name}' of type '{rec.name}' is gone: undo "
+                               "its removal or pack again.")
+        types.append(mesh_triangles(mesh, rec.name, np.linalg.inv(rec.local_from_file)))
+    return ExportRequest(packing_json=text, container=ctris, types=types,
+                         out_path=output_path(s.filepath, s.file_format), options=options)
+
+
+# ------------------------------------------------------------------------------ validate
+
+#: offending kind -> element type it selects
+FACE_KINDS = ("flipped_faces", "degenerate_faces", "duplicate_faces", "intersecting_faces")
+EDGE_KINDS = ("open_edges", "nonmanifold_edges", "inconsistent_edges")
+VERTEX_KINDS = ("nonmanifold_vertices",)
+
+
+def _polygon_elements(mesh: bpy.types.Mesh, polygons: np.ndarray
+                      ) -> tuple[np.ndarray, np.ndarray]:
+    """(vertices, edges) used by the given polygons."""
+    starts = np.empty(len(mesh.polygons), np.int32)
+    totals = np.empty(len(mesh.polygons), np.int32)
+    mesh.polygons.foreach_get("loop_start", starts)
+    mesh.polygons.foreach_get("loop_total", totals)
+    loop_verts = np.empty(len(mesh.loops), np.int32)
+    loop_edges = np.empty(len(mesh.loops), np.int32)
+    mesh.loops.foreach_get("vertex_index", loop_verts)
+    mesh.loops.foreach_get("edge_index", loop_edges)
+    loops = np.concatenate([np.arange(starts[p], starts[p] + totals[p]) for p in polygons]
+                           ) if len(polygons) else np.zeros(0, np.int64)
+    return loop_verts[loops], loop_edges[loops]
+
+
+def select_offending(context: bpy.types.Context, obj: bpy.types.Object, kind: str,
+                     indices: np.ndarray, tris: Triangles, groups: np.ndarray) -> int:
+    """Select the offending elements of ``kind`` on ``obj`` and enter edit mode.
+
+    indices: as the validation reports them (triangles, vertex pairs or vertices of
+    ``tris``, which must have the topology of ``obj.data``); groups: (V,) position group of
+    each vertex (coincident vertices share one), so that edges and vertices are found
+    whichever of the coincident vertices they use. Returns the number of elements selected
+    (faces, edges or vertices, by kind).
+    """
+    if context.object is not None and context.object.mode != 'OBJECT':
+        bpy.ops.object.mode_set(mode='OBJECT')
+    for other in context.selected_objects:
+        other.select_set(False)
+    obj.select_set(True)
+    context.view_layer.objects.active = obj
+    mesh = obj.data
+    vsel = np.zeros(len(mesh.vertices), bool)
+    esel = np.zeros(len(mesh.edges), bool)
+    fsel = np.zeros(len(mesh.polygons), bool)
+    indices = np.asarray(indices, np.int64)
+    edge_verts = np.empty(len(mesh.edges) * 2, np.int32)
+    mesh.edges.foreach_get("vertices", edge_verts)
+    edge_verts = edge_verts.reshape(-1, 2)
+    if kind in FACE_KINDS:
+        polygons = np.unique(tris.tri_polygon[indices.reshape(-1)])
+        fsel[polygons] = True
+        verts, edges = _polygon_elements(mesh, polygons)
+        vsel[verts] = True
+        esel[edges] = True
+        mode, count = (False, False, True), int(fsel.sum())
+    elif kind in EDGE_KINDS:
+        wanted = {(int(a), int(b)) for a, b in np.sort(groups[indices.reshape(-1, 2)], axis=1)}
+        edge_groups = np.sort(groups[edge_verts], axis=1)
+        esel = np.fromiter(((int(a), int(b)) in wanted for a, b in edge_groups), bool,
+                           count=len(edge_groups))
+        vsel[edge_verts[esel].reshape(-1)] = True
+        mode, count = (False, True, False), int(esel.sum())
+    elif kind in VERTEX_KINDS:
+        vsel = np.isin(groups, groups[indices.reshape(-1)])
+        mode, count = (True, False, False), int(vsel.sum())
+    else:
+        raise _input_error(f"unknown kind of defect {kind!r}.")
+    mesh.vertices.foreach_set("select", vsel)
+    mesh.edges.foreach_set("select", esel)
+    mesh.polygons.foreach_set("select", fsel)
+    context.tool_settings.mesh_select_mode = mode
+    bpy.ops.object.mode_set(mode='EDIT')
+    return count

@@ -1,0 +1,210 @@
+"""The add-on's calls into jampacked, on plain arrays (no bpy: safe in the worker thread).
+
+Frames: the Blender side (:mod:`.bridge`) hands over world-space triangles, so a packing's
+container frame is Blender's world space (``frame_from_file`` is the identity) and a type's
+"file" coordinates are the type object's world-space vertices at packing time. Units are
+Blender units throughout.
+
+jampacked itself is imported inside the functions: registering the add-on stays fast, and a
+missing engine (no wheels installed) becomes a clear message instead of a failed register.
+"""
+
+from __future__ import annotations
+
+import hashlib
+import os
+import tempfile
+from collections.abc import Callable, Sequence
+from dataclasses import dataclass
+from typing import TYPE_CHECKING
+
+import numpy as np
+
+if TYPE_CHECKING:
+    from jampacked.core.meshes import MeshData
+    from jampacked.core.packing import Packing
+    from jampacked.export.assemble import ExportReport
+    from jampacked.export.options import ExportOptions
+    from jampacked.export.validate import ValidationReport
+
+Progress = Callable[[float, str], None]
+ShouldCancel = Callable[[], bool]
+
+#: how the packing JSON names a container that came from Blender (a spec string, which
+#: jampacked keeps verbatim and never reads as a file)
+CONTAINER_SPEC = "blender:"
+
+
+def engine_missing() -> str | None:
+    """None when jampacked can be imported, else a message saying how to fix it."""
+    try:
+        import jampacked.core.api  # noqa: F401
+        import jampacked.export.validate  # noqa: F401
+    except ImportError as exc:
+        return (f"the jampacked engine cannot be imported ({exc}); install the extension "
+                "from its zip (which bundles the engine and its wheels), or install "
+                "jampacked into Blender's Python.")
+    return None
+
+
+@dataclass
+class Triangles:
+    """A triangle mesh read from Blender.
+
+    Attributes:
+        name: the object's (or mesh's) name, for messages.
+        vertices: (V, 3) float64 positions (world space for objects).
+        faces: (F, 3) int64 vertex indices (Blender's loop triangles).
+        tri_polygon: (F,) int64 polygon of each triangle.
+        n_polygons: polygons of the Blender mesh.
+    """
+
+    name: str
+    vertices: np.ndarray
+    faces: np.ndarray
+    tri_polygon: np.ndarray
+    n_polygons: int
+
+    def signature(self) -> str:
+        """sha256 of the positions and triangles: equal means the same geometry."""
+        h = hashlib.sha256()
+        h.update(np.ascontiguousarray(self.vertices, np.float64).tobytes())
+        h.update(np.ascontiguousarray(self.faces, np.int64).tobytes())
+        return h.hexdigest()
+
+    def mesh_data(self, role: str) -> MeshData:
+        """Checked (and repaired) engine mesh; raises MeshError naming the object."""
+        from jampacked.core.meshes import mesh_from_arrays
+
+        return mesh_from_arrays(self.vertices, self.faces, name=self.name, role=role)
+
+
+@dataclass
+class PackOutcome:
+    """What a pack job returns to the main thread."""
+
+    packing: Packing
+    json_text: str
+
+
+def packing_to_json(packing: Packing) -> str:
+    """The packing file's text (as ``jampacked pack -o`` writes it)."""
+    from jampacked.core.packing import save_packing
+
+    with tempfile.TemporaryDirectory(prefix="jampacked-") as tmp:
+        path = os.path.join(tmp, "packing.json")
+        save_packing(packing, path)
+        with open(path, encoding="utf-8") as f:
+            return f.read()
+
+
+def packing_from_json(text: str) -> Packing:
+    """Read a packing from its JSON text (InputError on a damaged text)."""
+    from jampacked.core.packing import load_packing
+
+    with tempfile.TemporaryDirectory(prefix="jampacked-") as tmp:
+        path = os.path.join(tmp, "packing.json")
+        with open(path, "w", encoding="utf-8") as f:
+            f.write(text)
+        return load_packing(path)
+
+
+def pack_triangles(container: Triangles, types: Sequence[Triangles], shares: Sequence[float],
+                   *, seed: int, clearance: float, fidelity: str, time_budget: float | None,
+                   progress: Progress, should_cancel: ShouldCancel) -> PackOutcome:
+    """Check the meshes and pack; runs in the worker thread.
+
+    Returns the certified packing (container frame = world space) and its JSON text, in
+    which the container is named ``blender:<object name>`` and the types have no path.
+    Raises JampackedError subclasses (MeshError naming the object, InputError, ...).
+    """
+    from jampacked.core.api import pack
+
+    progress(0.0, f"checking {container.name}")
+    cmesh = container.mesh_data("container")
+    tmeshes = [t.mesh_data("object") for t in types]
+    packing = pack(cmesh, tmeshes, list(shares), seed=seed, clearance=clearance,
+                   fidelity=fidelity, time_budget=time_budget, progress=progress,
+                   should_cancel=should_cancel, names=[t.name for t in types])
+    packing.container_path = CONTAINER_SPEC + container.name
+    return PackOutcome(packing=packing, json_text=packing_to_json(packing))
+
+
+def export_triangles(packing_json: str, container: Triangles, types: Sequence[Triangles],
+                     out_path: str, options: ExportOptions, *, progress: Progress,
+                     should_cancel: ShouldCancel) -> ExportReport:
+    """Export a packing made in Blender; runs in the worker thread.
+
+    container: world-space triangles of the container object; types: each type's triangles
+    in its packing "file" frame (world space at packing time). Raises JampackedError
+    subclasses (Cancelled when should_cancel() said so).
+    """
+    from jampacked.export.assemble import export_packing
+
+    packing = packing_from_json(packing_json)
+    meshes = (container.mesh_data("container"), [t.mesh_data("object") for t in types])
+    return export_packing(packing, out_path, options, meshes=meshes, progress=progress,
+                          should_cancel=should_cancel)
+
+
+def export_options(mode: str, shell: float, opening: str, axis: str, at: float, size: float,
+                   drain: float, connector: float, resolution: float,
+                   split_files: bool) -> ExportOptions:
+    """ExportOptions from the panel's values (0 means "none"/"auto" for lengths).
+
+    The shell, opening and drain only apply with a shell, and never in parts mode (the
+    panel hides them then). Raises InputError for values ExportOptions refuses.
+    """
+    from jampacked.export.options import ExportOptions, Opening
+
+    mode = mode.lower()
+    with_shell = mode != "parts" and shell > 0
+    hole = None
+    if with_shell and opening != "NONE":
+        hole = Opening(kind=opening.lower(), axis=axis, at=at,
+                       size=size if opening == "WINDOW" else 0.0)
+    return ExportOptions(
+        mode=mode, shell=shell if with_shell else None, opening=hole,
+        drain=drain if with_shell and drain > 0 else None,
+        connector=connector if connector > 0 else None,
+        resolution=resolution if resolution > 0 else None,
+        split_files=split_files and mode == "parts")
+
+
+def validate_triangles(tris: Triangles) -> ValidationReport:
+    """The checks of ``jampacked validate`` on a Blender mesh."""
+    from jampacked.export.validate import validate_arrays
+
+    return validate_arrays(tris.vertices, tris.faces, path=None)
+
+
+def position_groups(vertices: np.ndarray) -> np.ndarray:
+    """(V,) group of each vertex: vertices at exactly the same position share a group (as
+    the validation merges them)."""
+    from jampacked.export.validate import merge_identical
+
+    return merge_identical(vertices)[1]
+
+
+def validation_counts(report: ValidationReport) -> list[tuple[str, str, int]]:
+    """(kind, label, count) for every offending-element kind with a count, plus the number of
+    holes and of bodies; kinds are keys of ``report.offending``."""
+    labels = {
+        "open_edges": "Open edges",
+        "nonmanifold_edges": "Non-manifold edges",
+        "inconsistent_edges": "Inconsistent edges",
+        "nonmanifold_vertices": "Non-manifold vertices",
+        "flipped_faces": "Flipped faces",
+        "degenerate_faces": "Degenerate faces",
+        "duplicate_faces": "Duplicate faces",
+        "intersecting_faces": "Intersecting faces",
+    }
+    out: list[tuple[str, str, int]] = []
+    for kind, label in labels.items():
+        arr = report.offending.get(kind)
+        count = 0 if arr is None else int(len(arr))
+        out.append((kind, label, count))
+    holes = sum(b.holes for b in report.bodies)
+    out.append(("holes", "Holes", int(holes)))
+    out.append(("bodies", "Bodies", len(report.bodies)))
+    return out

@@ -1,0 +1,508 @@
+"""Operators: Pack, Cancel, Export, Validate, Select Defects and the type list buttons.
+
+Pack and Export run their job in a worker thread (:mod:`.worker`) and follow it with a modal
+timer (:class:`JobRunner`): progress goes to ``WindowManager.jampacked_job`` (the panel) and
+the status bar; Esc or the Cancel button stop it. With no user interface (background mode,
+or ``execute`` from a script) the same steps run in a blocking loop. The scene is only
+changed at the end, in the step that returns FINISHED, so Pack is one undo step and a
+cancelled or failed job leaves the scene as it was.
+"""
+
+# No "from __future__ import annotations": Blender reads operator property annotations.
+import time
+from typing import Any
+
+import bpy
+import numpy as np
+from bpy.props import EnumProperty, StringProperty
+
+from . import bridge, engine, worker
+from .props import axis_name
+
+#: seconds between progress updates
+POLL_SECONDS = 0.1
+
+
+def _errors() -> Any:
+    from jampacked.core import errors
+
+    return errors
+
+
+def _tag_redraw(context: bpy.types.Context) -> None:
+    wm = context.window_manager
+    for window in getattr(wm, "windows", ()):
+        screen = window.screen
+        for area in (screen.areas if screen is not None else ()):
+            if area.type in {'VIEW_3D', 'STATUSBAR'}:
+                area.tag_redraw()
+
+
+def _status(context: bpy.types.Context, text: str | None) -> None:
+    workspace = getattr(context, "workspace", None)
+    if workspace is not None:
+        try:
+            workspace.status_text_set(text)
+        except (AttributeError, RuntimeError, TypeError):
+            pass
+
+
+class JobRunner:
+    """Runs a :class:`worker.Job` from an operator: modal timer in the UI, blocking loop
+    otherwise. Plain Python (no bpy base class), so tests can drive ``modal`` directly.
+
+    Subclasses implement ``make_job(context) -> worker.Job`` (main thread: read the scene,
+    raise JampackedError on bad input) and ``apply(context, result) -> set`` (main thread:
+    change the scene, report, return {'FINISHED'}). ``report`` comes from bpy's Operator.
+    """
+
+    # plain class attributes, not annotations: Blender reads annotations as properties
+    job_title = "Job"
+    _job = None  # the worker.Job being followed
+    _timer = None  # the window manager timer of the modal UI
+
+    # ---------------------------------------------------------------- to implement
+    def make_job(self, context: bpy.types.Context) -> worker.Job:
+        raise NotImplementedError
+
+    def apply(self, context: bpy.types.Context, result: Any) -> set[str]:
+        raise NotImplementedError
+
+    # ---------------------------------------------------------------- steps
+    def begin(self, context: bpy.types.Context) -> bool:
+        """Check, read the inputs and start the job; False (after a report) if it cannot."""
+        missing = engine.engine_missing()
+        if missing:
+            self._fail(context, missing)
+            return False
+        if worker.busy():
+            job = worker.active_job()
+            self._fail(context, f"{job.title if job else 'a job'} is still running: wait "
+                                "for it or cancel it (Esc, or Cancel in the Jampacked panel).")
+            return False
+        try:
+            job = self.make_job(context)
+            job.start()
+        except (_errors().JampackedError, worker.BusyError) as exc:
+            self._fail(context, str(exc))
+            return False
+        self._job = job
+        state = context.window_manager.jampacked_job
+        state.running = True
+        state.title = job.title
+        state.fraction = 0.0
+        state.message = "starting"
+        state.stopping = False
+        return True
+
+    def step(self, context: bpy.types.Context) -> set[str]:
+        """One poll: copy progress to the UI; when the job is over, handle its outcome.
+
+        Returns {'RUNNING_MODAL'} while it runs, then {'FINISHED'} or {'CANCELLED'}.
+        """
+        job = self._job
+        if job is None:
+            return {'CANCELLED'}
+        snap = job.snapshot()
+        state = context.window_manager.jampacked_job
+        state.fraction = snap.fraction
+        state.message = snap.message
+        state.stopping = snap.stopping
+        if snap.state == worker.RUNNING:
+            hint = "stopping..." if snap.stopping else "Esc to cancel"
+            _status(context, f"Jampacked {job.title.lower()}: {snap.fraction:.0%} "
+                             f"{snap.message} ({hint})")
+            _tag_redraw(context)
+            return {'RUNNING_MODAL'}
+        self.end(context)
+        if snap.state == worker.CANCELLED:
+            self._note(context, 'WARNING', f"{job.title} cancelled: nothing was changed.")
+            return {'CANCELLED'}
+        if snap.state == worker.FAILED:
+            self._fail(context, job.error or f"{job.title} failed.")
+            return {'CANCELLED'}
+        try:
+            return self.apply(context, job.result)
+        except _errors().JampackedError as exc:
+            self._fail(context, str(exc))
+        except Exception as exc:  # noqa: BLE001 - shown to the user; the scene is restored
+            import traceback
+
+            traceback.print_exc()
+            self._fail(context, f"{job.title} could not add its result ({type(exc).__name__}: "
+                                f"{exc}); nothing was changed.")
+        return {'CANCELLED'}
+
+    def end(self, context: bpy.types.Context) -> None:
+        """Remove the timer, clear the status bar, free the job slot."""
+        wm = context.window_manager
+        if self._timer is not None:
+            wm.event_timer_remove(self._timer)
+            self._timer = None
+        _status(context, None)
+        wm.jampacked_job.running = False
+        wm.jampacked_job.stopping = False
+        if self._job is not None:
+            self._job.release()
+        _tag_redraw(context)
+
+    def run_blocking(self, context: bpy.types.Context) -> set[str]:
+        """The modal steps in a loop, for scripts and background mode."""
+        if not self.begin(context):
+            return {'CANCELLED'}
+        while True:
+            result = self.step(context)
+            if result != {'RUNNING_MODAL'}:
+                return result
+            self._job.wait(POLL_SECONDS)
+
+    # ---------------------------------------------------------------- operator API
+    def execute(self, context: bpy.types.Context) -> set[str]:
+        return self.run_blocking(context)
+
+    def invoke(self, context: bpy.types.Context, event: Any) -> set[str]:
+        if bpy.app.background or context.window is None:
+            return self.run_blocking(context)
+        if not self.begin(context):
+            return {'CANCELLED'}
+        wm = context.window_manager
+        self._timer = wm.event_timer_add(POLL_SECONDS, window=context.window)
+        wm.modal_handler_add(self)
+        return {'RUNNING_MODAL'}
+
+    def modal(self, context: bpy.types.Context, event: Any) -> set[str]:
+        if event.type == 'ESC' and event.value == 'PRESS':
+            if self._job is not None:
+                self._job.cancel()
+            return self.step(context)
+        if event.type == 'TIMER':
+            return self.step(context)
+        return {'PASS_THROUGH'}
+
+    def cancel(self, context: bpy.types.Context) -> None:
+        """Called by Blender when the modal operator is ended from outside (file load)."""
+        if self._job is not None:
+            self._job.cancel()
+        self.end(context)
+
+    # ---------------------------------------------------------------- messages
+    def _note(self, context: bpy.types.Context, level: str, message: str) -> None:
+        state = context.window_manager.jampacked_job
+        state.last_message = message
+        state.last_level = level
+        self.report({level}, message)
+
+    def _fail(self, context: bpy.types.Context, message: str) -> None:
+        self._note(context, 'ERROR', message[:1].upper() + message[1:])
+
+
+class PackRunner(JobRunner):
+    """Pack: read the scene, pack in the thread, add the result collection."""
+
+    job_title = "Packing"
+    _request = None  # the bridge.PackRequest the job was made from
+
+    def make_job(self, context: bpy.types.Context) -> worker.Job:
+        request = bridge.gather_pack(context)
+        self._request = request
+
+        def run(progress: worker.Progress, should_cancel: worker.ShouldCancel) -> Any:
+            return engine.pack_triangles(
+                request.container, request.types, request.shares, seed=request.seed,
+                clearance=request.clearance, fidelity=request.fidelity,
+                time_budget=request.time_budget, progress=progress,
+                should_cancel=should_cancel)
+
+        return worker.Job(self.job_title, run)
+
+    def apply(self, context: bpy.types.Context, result: engine.PackOutcome) -> set[str]:
+        bridge.check_unchanged(context, self._request)
+        coll = bridge.build_result(context, self._request, result)
+        p = result.packing
+        m, cert = p.metrics, p.certificate
+        nni = m.get("nni_mean")
+        text = (f"Packed {p.n} objects into '{coll.name}': density {m.get('density', 0):.1%}, "
+                f"TVD {m.get('tvd', 0):.3f}, NNI {'-' if nni is None else f'{nni:.2f}'}, "
+                f"{'certified' if cert.get('certified') else 'NOT certified'}.")
+        self._note(context, 'INFO' if cert.get("certified") else 'WARNING', text)
+        return {'FINISHED'}
+
+
+class JAMPACKED_OT_pack(PackRunner, bpy.types.Operator):
+    """Fill the container with the object types (runs in the background; Esc cancels)"""
+
+    bl_idname = "jampacked.pack"
+    bl_label = "Pack"
+    bl_options = {'REGISTER', 'UNDO'}
+
+    @classmethod
+    def poll(cls, context: bpy.types.Context) -> bool:
+        if worker.busy():
+            cls.poll_message_set("A Jampacked job is running")
+            return False
+        return context.scene is not None
+
+
+class ExportRunner(JobRunner):
+    """Export: read the result and meshes, export in the thread, report the validation."""
+
+    job_title = "Export"
+
+    def make_job(self, context: bpy.types.Context) -> worker.Job:
+        s = context.scene.jampacked
+        options = engine.export_options(
+            s.export_mode, s.shell, s.opening, axis_name(s.opening_axis), s.opening_at,
+            s.opening_size, s.drain, s.connector, s.resolution, s.split_files)
+        request = bridge.gather_export(context, options)
+
+        def run(progress: worker.Progress, should_cancel: worker.ShouldCancel) -> Any:
+            return engine.export_triangles(
+                request.packing_json, request.container, request.types, request.out_path,
+                request.options, progress=progress, should_cancel=should_cancel)
+
+        return worker.Job(self.job_title, run)
+
+    def apply(self, context: bpy.types.Context, result: Any) -> set[str]:
+        lines = [v.summary() for v in result.validation]
+        text = f"Exported {', '.join(result.paths)}: {result.summary()}"
+        if lines:
+            text += " " + " ".join(lines)
+        self._note(context, 'INFO' if result.passed else 'WARNING', text)
+        return {'FINISHED'}
+
+
+class JAMPACKED_OT_export(ExportRunner, bpy.types.Operator):
+    """Export the packing as a printable mesh and validate the file written"""
+
+    bl_idname = "jampacked.export"
+    bl_label = "Export"
+    bl_options = {'REGISTER'}
+
+    @classmethod
+    def poll(cls, context: bpy.types.Context) -> bool:
+        if worker.busy():
+            cls.poll_message_set("A Jampacked job is running")
+            return False
+        return context.scene is not None
+
+
+class JAMPACKED_OT_cancel(bpy.types.Operator):
+    """Stop the running Jampacked job"""
+
+    bl_idname = "jampacked.cancel"
+    bl_label = "Cancel"
+    bl_options = {'INTERNAL'}
+
+    action: EnumProperty(
+        name="Action",
+        items=[('CANCEL', "Cancel", "Stop and discard: the scene stays as it was"),
+               ('FINISH', "Finish Now", "Stop placing and keep the best certified packing "
+                                        "so far")],
+        default='CANCEL')
+
+    @classmethod
+    def poll(cls, context: bpy.types.Context) -> bool:
+        return worker.busy()
+
+    def execute(self, context: bpy.types.Context) -> set[str]:
+        job = worker.active_job()
+        if job is None:
+            return {'CANCELLED'}
+        if self.action == 'FINISH':
+            job.finish_early()
+        else:
+            job.cancel()
+        context.window_manager.jampacked_job.stopping = True
+        return {'FINISHED'}
+
+
+# ------------------------------------------------------------------------------ type list
+
+
+class JAMPACKED_OT_type_add(bpy.types.Operator):
+    """Add the selected mesh objects as object types (or an empty row)"""
+
+    bl_idname = "jampacked.type_add"
+    bl_label = "Add Object Type"
+    bl_options = {'REGISTER', 'UNDO'}
+
+    def execute(self, context: bpy.types.Context) -> set[str]:
+        s = context.scene.jampacked
+        listed = {item.object for item in s.types if item.object is not None}
+        added = 0
+        for obj in context.selected_objects:
+            if obj.type == 'MESH' and obj not in listed and obj != s.container:
+                s.types.add().object = obj
+                added += 1
+        if not added:
+            s.types.add()
+        s.active_type = len(s.types) - 1
+        return {'FINISHED'}
+
+
+class JAMPACKED_OT_type_remove(bpy.types.Operator):
+    """Remove the active object type"""
+
+    bl_idname = "jampacked.type_remove"
+    bl_label = "Remove Object Type"
+    bl_options = {'REGISTER', 'UNDO'}
+
+    @classmethod
+    def poll(cls, context: bpy.types.Context) -> bool:
+        return len(context.scene.jampacked.types) > 0
+
+    def execute(self, context: bpy.types.Context) -> set[str]:
+        s = context.scene.jampacked
+        s.types.remove(s.active_type)
+        s.active_type = min(s.active_type, max(len(s.types) - 1, 0))
+        return {'FINISHED'}
+
+
+class JAMPACKED_OT_type_move(bpy.types.Operator):
+    """Move the active object type up or down"""
+
+    bl_idname = "jampacked.type_move"
+    bl_label = "Move Object Type"
+    bl_options = {'REGISTER', 'UNDO'}
+
+    direction: EnumProperty(items=[('UP', "Up", ""), ('DOWN', "Down", "")], default='UP')
+
+    @classmethod
+    def poll(cls, context: bpy.types.Context) -> bool:
+        return len(context.scene.jampacked.types) > 1
+
+    def execute(self, context: bpy.types.Context) -> set[str]:
+        s = context.scene.jampacked
+        i = s.active_type
+        j = i - 1 if self.direction == 'UP' else i + 1
+        if 0 <= j < len(s.types):
+            s.types.move(i, j)
+            s.active_type = j
+        return {'FINISHED'}
+
+
+# ------------------------------------------------------------------------------ validate
+
+#: object name -> (triangles, report, position groups, selectable) of the last Validate
+_validation_cache: dict[str, tuple[Any, Any, np.ndarray, bool]] = {}
+
+
+def validation_cache() -> dict[str, tuple[Any, Any, np.ndarray, bool]]:
+    """The offending elements of the last Validate, by object name."""
+    return _validation_cache
+
+
+class JAMPACKED_OT_validate(bpy.types.Operator):
+    """Check the selected meshes as 'jampacked validate' checks a file: closed, manifold,
+    outward, no degenerate, duplicate or intersecting faces"""
+
+    bl_idname = "jampacked.validate"
+    bl_label = "Validate"
+    bl_options = {'REGISTER'}
+
+    @classmethod
+    def poll(cls, context: bpy.types.Context) -> bool:
+        return any(o.type == 'MESH' for o in context.selected_objects) or (
+            context.active_object is not None and context.active_object.type == 'MESH')
+
+    def execute(self, context: bpy.types.Context) -> set[str]:
+        missing = engine.engine_missing()
+        if missing:
+            self.report({'ERROR'}, missing)
+            return {'CANCELLED'}
+        objects = [o for o in context.selected_objects if o.type == 'MESH']
+        active = context.active_object
+        if not objects and active is not None and active.type == 'MESH':
+            objects = [active]
+        apply_modifiers = context.scene.jampacked.validate_modifiers
+        depsgraph = context.evaluated_depsgraph_get()
+        results = context.window_manager.jampacked_validation.reports
+        results.clear()
+        _validation_cache.clear()
+        failed = 0
+        t0 = time.perf_counter()
+        for obj in objects:
+            if obj.mode == 'EDIT':
+                obj.update_from_editmode()
+                depsgraph = context.evaluated_depsgraph_get()
+            tris = bridge.object_triangles(obj, depsgraph, apply_modifiers=apply_modifiers)
+            report = engine.validate_triangles(tris)
+            selectable = (tris.n_polygons == len(obj.data.polygons)
+                          and len(tris.vertices) == len(obj.data.vertices))
+            _validation_cache[obj.name] = (tris, report, engine.position_groups(tris.vertices),
+                                           selectable)
+            entry = results.add()
+            entry.object_name = obj.name
+            entry.passed = report.passed
+            entry.summary = report.summary().replace("mesh", obj.name, 1)
+            if not selectable:
+                entry.note = ("Modifiers change the topology: turn off Apply Modifiers to "
+                              "select offending elements")
+            for kind, label, count in engine.validation_counts(report):
+                check = entry.checks.add()
+                check.kind, check.label, check.count = kind, label, count
+                check.selectable = selectable and kind in (
+                    bridge.FACE_KINDS + bridge.EDGE_KINDS + bridge.VERTEX_KINDS)
+            failed += not report.passed
+        seconds = time.perf_counter() - t0
+        if failed:
+            self.report({'WARNING'}, f"{failed} of {len(objects)} mesh(es) fail: "
+                                     + "; ".join(r.summary for r in results if not r.passed))
+        else:
+            self.report({'INFO'}, f"{len(objects)} mesh(es) pass ({seconds:.1f} s): "
+                                  + "; ".join(r.summary for r in results))
+        return {'FINISHED'}
+
+
+class JAMPACKED_OT_select_defects(bpy.types.Operator):
+    """Select the offending elements in edit mode"""
+
+    bl_idname = "jampacked.select_defects"
+    bl_label = "Select"
+    bl_options = {'REGISTER', 'UNDO'}
+
+    object_name: StringProperty(name="Object")
+    kind: StringProperty(name="Kind")
+
+    def execute(self, context: bpy.types.Context) -> set[str]:
+        cached = _validation_cache.get(self.object_name)
+        obj = bpy.data.objects.get(self.object_name)
+        if cached is None or obj is None or obj.type != 'MESH':
+            self.report({'ERROR'}, f"No validation of '{self.object_name}': run Validate "
+                                   "first.")
+            return {'CANCELLED'}
+        tris, report, groups, selectable = cached
+        if not selectable:
+            self.report({'ERROR'}, f"'{obj.name}' was validated with modifiers that change "
+                                   "its topology: turn off Apply Modifiers and validate again.")
+            return {'CANCELLED'}
+        if self.kind not in report.offending:
+            self.report({'ERROR'}, f"Unknown kind of defect '{self.kind}'.")
+            return {'CANCELLED'}
+        if context.view_layer.objects.get(obj.name) is None:
+            self.report({'ERROR'}, f"'{obj.name}' is not in the current view layer.")
+            return {'CANCELLED'}
+        try:
+            count = bridge.select_offending(context, obj, self.kind,
+                                            report.offending[self.kind], tris, groups)
+        except _errors().JampackedError as exc:
+            self.report({'ERROR'}, str(exc))
+            return {'CANCELLED'}
+        label = dict((k, lab) for k, lab, _ in engine.validation_counts(report)).get(
+            self.kind, self.kind)
+        self.report({'INFO'}, f"Selected {count} element(s): {label.lower()} of '{obj.name}'.")
+        return {'FINISHED'}
+
+
+classes = (
+    JAMPACKED_OT_pack,
+    JAMPACKED_OT_export,
+    JAMPACKED_OT_cancel,
+    JAMPACKED_OT_type_add,
+    JAMPACKED_OT_type_remove,
+    JAMPACKED_OT_type_move,
+    JAMPACKED_OT_validate,
+    JAMPACKED_OT_select_defects,
+)
+
+__all__ = ["ExportRunner", "JobRunner", "PackRunner", "classes", "validation_cache"]

@@ -1,0 +1,137 @@
+"""Metrics of a packing as custom properties and panel lines (no bpy: plain values).
+
+The result collection of a Pack carries these custom properties (``jampacked_`` prefix):
+count, count_per_type, type_names, target_shares, density, tvd, nni_mean, nni_per_type
+(-1 where a type has fewer than two objects), certified, worst_overlap, worst_outside,
+min_pair_gap and min_wall_gap (with a clearance), clearance, seed, fidelity, stopped,
+time_s, plus the packing JSON (``jampacked_packing``). Definitions: DESIGN.md.
+"""
+
+from __future__ import annotations
+
+import colorsys
+from collections.abc import Mapping
+from typing import Any
+
+PREFIX = "jampacked_"
+
+#: custom property -> description shown in Blender's UI
+DESCRIPTIONS = {
+    "count": "Objects placed",
+    "count_per_type": "Objects placed per type, in the order of type_names",
+    "type_names": "Object types, in packing order",
+    "target_shares": "Target share of each type (normalised)",
+    "density": "Placed mesh volume / container mesh volume",
+    "tvd": "Type-share error: total variation distance of the achieved shares from the "
+           "targets (0 = exact mix)",
+    "nni_mean": "Clark-Evans nearest neighbour index, count-weighted mean over types "
+                "(<1 clumped, ~1 random, >1 regular)",
+    "nni_per_type": "Clark-Evans index per type (-1: fewer than two objects of the type)",
+    "certified": "Every overlap and wall violation checked exactly on the meshes is within "
+                 "tolerance",
+    "worst_overlap": "Largest pairwise intersection volume / the smaller object's volume",
+    "worst_outside": "Largest object volume outside the container / the object's volume",
+    "min_pair_gap": "Smallest gap between two objects (checked with a clearance)",
+    "min_wall_gap": "Smallest gap between an object and the wall (checked with a clearance)",
+    "clearance": "Clearance asked for (scene units)",
+    "seed": "Random seed",
+    "fidelity": "Fidelity used",
+    "stopped": "Why placement stopped early (deadline: time budget; cancelled: finished "
+               "early), empty when it ran to the end",
+    "time_s": "Seconds the packing took",
+}
+
+
+def _number(value: Any) -> float | None:
+    try:
+        f = float(value)
+    except (TypeError, ValueError):
+        return None
+    return f if f == f and abs(f) != float("inf") else None
+
+
+def collection_properties(metrics: Mapping[str, Any], certificate: Mapping[str, Any],
+                          params: Mapping[str, Any], timings: Mapping[str, Any],
+                          type_names: list[str], shares: list[float], seed: int,
+                          ) -> dict[str, Any]:
+    """The custom properties of a result collection (keys without the prefix).
+
+    Values are ints, floats, strings, bools or lists of them (what Blender's ID properties
+    hold); undefined values are left out, except per-type NNI (-1).
+    """
+    n_types = len(type_names)
+    out: dict[str, Any] = {
+        "count": int(metrics.get("count", 0)),
+        "count_per_type": [int(c) for c in metrics.get("count_per_type", [0] * n_types)],
+        "type_names": list(type_names),
+        "target_shares": [float(s) for s in shares],
+        "nni_per_type": [(_number(r) if _number(r) is not None else -1.0)
+                         for r in (metrics.get("nni_per_type") or [None] * n_types)],
+        "certified": bool(certificate.get("certified", False)),
+        "seed": int(seed),
+        "fidelity": str(params.get("fidelity", "")),
+        "stopped": str(params.get("stopped") or ""),
+    }
+    for key, source in (("density", metrics), ("tvd", metrics), ("nni_mean", metrics),
+                        ("worst_overlap", certificate), ("worst_outside", certificate),
+                        ("min_pair_gap", certificate), ("min_wall_gap", certificate),
+                        ("clearance", params)):
+        value = _number(source.get(key))
+        if value is not None:
+            out[key] = value
+    total = _number(timings.get("total"))
+    if total is not None:
+        out["time_s"] = total
+    return out
+
+
+def _get(props: Mapping[str, Any], key: str, default: Any = None) -> Any:
+    return props.get(PREFIX + key, default)
+
+
+def panel_lines(props: Mapping[str, Any]) -> list[tuple[str, str]]:
+    """(label, value) rows for the panel, read from a result collection's properties."""
+    def pct(x: Any) -> str:
+        v = _number(x)
+        return "-" if v is None else f"{v:.1%}"
+
+    def num(x: Any, fmt: str) -> str:
+        v = _number(x)
+        return "-" if v is None else format(v, fmt)
+
+    rows: list[tuple[str, str]] = []
+    names = list(_get(props, "type_names", []))
+    counts = list(_get(props, "count_per_type", []))
+    targets = list(_get(props, "target_shares", []))
+    nni = list(_get(props, "nni_per_type", []))
+    total = int(_get(props, "count", 0) or 0)
+    for t, name in enumerate(names):
+        c = int(counts[t]) if t < len(counts) else 0
+        share = c / total if total else 0.0
+        target = targets[t] if t < len(targets) else None
+        r = nni[t] if t < len(nni) and nni[t] is not None and nni[t] >= 0 else None
+        rows.append((name, f"{c}  ({pct(share)} / {pct(target)})  NNI {num(r, '.2f')}"))
+    rows.append(("Objects", str(total)))
+    rows.append(("Density", pct(_get(props, "density"))))
+    rows.append(("TVD", num(_get(props, "tvd"), ".3f")))
+    rows.append(("NNI mean", num(_get(props, "nni_mean"), ".2f")))
+    certified = _get(props, "certified")
+    rows.append(("Certified", "yes" if certified else ("NO" if certified is not None else "-")))
+    rows.append(("Worst overlap", num(_get(props, "worst_overlap"), ".2e")))
+    rows.append(("Worst outside", num(_get(props, "worst_outside"), ".2e")))
+    if _number(_get(props, "clearance")):
+        rows.append(("Min gap objects", num(_get(props, "min_pair_gap"), ".3g")))
+        rows.append(("Min gap wall", num(_get(props, "min_wall_gap"), ".3g")))
+    stopped = _get(props, "stopped")
+    if stopped:
+        rows.append(("Stopped", {"deadline": "time budget", "cancelled": "finished early"}
+                     .get(stopped, stopped)))
+    rows.append(("Time", num(_get(props, "time_s"), ".1f") + " s"))
+    return rows
+
+
+def type_colour(index: int) -> tuple[float, float, float, float]:
+    """A distinct, saturated RGBA colour per type (golden-ratio hue steps)."""
+    hue = (0.08 + 0.618034 * index) % 1.0
+    r, g, b = colorsys.hsv_to_rgb(hue, 0.65, 0.9)
+    return (r, g, b, 1.0)

@@ -1,0 +1,229 @@
+"""Background jobs for the add-on: one thread at a time, never touching bpy.
+
+A :class:`Job` runs ``fn(progress, should_cancel)`` in a daemon thread. The thread only sees
+what ``fn`` closes over (numpy arrays, plain values): everything Blender-side is read before
+the job starts and written after it ends, on Blender's main thread, by the modal operator in
+:mod:`.operators`, which polls :meth:`Job.snapshot` from a timer.
+
+Stopping: :meth:`Job.cancel` (Esc, the Cancel button) asks the engine to stop and throws the
+result away; :meth:`Job.finish_early` asks it to stop and keeps the best certified result so
+far. Both only set a flag that the engine polls through ``should_cancel``; the thread ends
+when the engine returns (it certifies what it has first, which can take a moment).
+
+This module imports no bpy, so that the thread cannot call into Blender by accident.
+"""
+
+from __future__ import annotations
+
+import logging
+import threading
+import time
+import traceback
+from collections.abc import Callable
+from dataclasses import dataclass
+from typing import Any
+
+logger = logging.getLogger("jampacked.addon")
+
+Progress = Callable[[float, str], None]
+ShouldCancel = Callable[[], bool]
+JobFunction = Callable[[Progress, ShouldCancel], Any]
+
+#: job states
+RUNNING, DONE, CANCELLED, FAILED = "running", "done", "cancelled", "failed"
+
+
+class BusyError(RuntimeError):
+    """Another job is still running: one job at a time."""
+
+
+@dataclass(frozen=True)
+class Snapshot:
+    """What the main thread reads from a job: progress and, once over, its outcome.
+
+    Attributes:
+        state: RUNNING, DONE, CANCELLED or FAILED.
+        fraction: progress in [0, 1].
+        message: the engine's last progress message (phase, objects placed, density).
+        stopping: a cancel or finish-early request is pending.
+        elapsed: seconds since the job started.
+    """
+
+    state: str
+    fraction: float
+    message: str
+    stopping: bool
+    elapsed: float
+
+
+class Job:
+    """One background computation with progress, cancel and a result or an error.
+
+    Args:
+        title: what the job does, for messages ("Packing", "Export").
+        fn: ``fn(progress, should_cancel) -> result``; runs in the thread. It must not touch
+            bpy. ``jampacked`` errors (JampackedError) become the job's error message as they
+            are; any other exception becomes "internal error" with the traceback logged.
+    """
+
+    def __init__(self, title: str, fn: JobFunction) -> None:
+        self.title = title
+        self._fn = fn
+        self._lock = threading.Lock()
+        self._stop = threading.Event()
+        self._keep = True  # keep the result when stopped (finish early) or not (cancel)
+        self._fraction = 0.0
+        self._message = "starting"
+        self._state = RUNNING
+        self._result: Any = None
+        self._error: str | None = None
+        self._started = time.perf_counter()
+        self._ended: float | None = None
+        self._thread = threading.Thread(target=self._run, name=f"jampacked {title}",
+                                        daemon=True)
+
+    # ---------------------------------------------------------------- thread side
+
+    def _progress(self, fraction: float, message: str) -> None:
+        with self._lock:
+            self._fraction = min(max(float(fraction), self._fraction), 1.0)
+            self._message = str(message)
+
+    def _should_cancel(self) -> bool:
+        return self._stop.is_set()
+
+    def _run(self) -> None:
+        from jampacked.core import errors
+
+        try:
+            result = self._fn(self._progress, self._should_cancel)
+        except errors.JampackedError as exc:
+            cancelled = getattr(errors, "Cancelled", ())
+            if isinstance(exc, cancelled) and self._stop.is_set():
+                self._end(CANCELLED)
+            else:
+                self._end(FAILED, error=str(exc))
+        except Exception as exc:  # noqa: BLE001 - reported to the user, logged in full
+            logger.error("%s failed:\n%s", self.title, traceback.format_exc())
+            self._end(FAILED, error=f"{self.title} failed with an internal error "
+                                    f"({type(exc).__name__}: {exc}); see the system console.")
+        else:
+            if self._stop.is_set() and not self._keep:
+                self._end(CANCELLED)
+            else:
+                self._end(DONE, result=result)
+
+    def _end(self, state: str, *, result: Any = None, error: str | None = None) -> None:
+        with self._lock:
+            self._result = result
+            self._error = error
+            self._ended = time.perf_counter()
+            if state == DONE:
+                self._fraction = 1.0
+            self._state = state
+
+    # ---------------------------------------------------------------- main thread side
+
+    def start(self) -> Job:
+        """Start the thread; raises BusyError if another job is still running."""
+        _claim(self)
+        self._started = time.perf_counter()
+        self._thread.start()
+        return self
+
+    def cancel(self) -> None:
+        """Stop as soon as the engine allows and discard the result."""
+        with self._lock:
+            self._keep = False
+        self._stop.set()
+
+    def finish_early(self) -> None:
+        """Stop as soon as the engine allows and keep the best (certified) result so far."""
+        self._stop.set()
+
+    @property
+    def cancel_requested(self) -> bool:
+        """True once :meth:`cancel` was called (not :meth:`finish_early`)."""
+        with self._lock:
+            return self._stop.is_set() and not self._keep
+
+    def snapshot(self) -> Snapshot:
+        """Progress and state, read consistently."""
+        with self._lock:
+            end = self._ended if self._ended is not None else time.perf_counter()
+            return Snapshot(state=self._state, fraction=self._fraction, message=self._message,
+                            stopping=self._stop.is_set() and self._state == RUNNING,
+                            elapsed=end - self._started)
+
+    @property
+    def over(self) -> bool:
+        """The thread has finished (done, cancelled or failed)."""
+        with self._lock:
+            return self._state != RUNNING
+
+    @property
+    def result(self) -> Any:
+        """The function's return value (DONE only)."""
+        with self._lock:
+            return self._result
+
+    @property
+    def error(self) -> str | None:
+        """The message of a FAILED job."""
+        with self._lock:
+            return self._error
+
+    def wait(self, timeout: float | None = None) -> bool:
+        """Block until the thread ends or ``timeout`` passes; True when it ended."""
+        self._thread.join(timeout)
+        return not self._thread.is_alive()
+
+    def release(self) -> None:
+        """Let another job start (call once this job's outcome has been handled)."""
+        _release(self)
+
+
+# ---------------------------------------------------------------- one job at a time
+
+_active_lock = threading.Lock()
+_active: Job | None = None
+
+
+def _claim(job: Job) -> None:
+    global _active
+    with _active_lock:
+        if _active is not None and _active is not job:
+            raise BusyError(f"{_active.title} is still running: wait for it or cancel it "
+                            "(Esc, or Cancel in the Jampacked panel).")
+        _active = job
+
+
+def _release(job: Job) -> None:
+    global _active
+    with _active_lock:
+        if _active is job:
+            _active = None
+
+
+def active_job() -> Job | None:
+    """The job that holds the slot (running, or over but not yet handled), or None."""
+    with _active_lock:
+        return _active
+
+
+def busy() -> bool:
+    """True while a job holds the slot: a second Pack or Export cannot start."""
+    return active_job() is not None
+
+
+def abandon(timeout: float = 0.0) -> None:
+    """Cancel the active job and free the slot (file loaded, add-on disabled).
+
+    The thread ends by itself once the engine returns; its result is dropped.
+    """
+    job = active_job()
+    if job is None:
+        return
+    job.cancel()
+    job.wait(timeout)
+    job.release()

@@ -1,0 +1,226 @@
+"""Pack from Blender: the result matches the packing, cancel/errors change nothing, undo."""
+
+from __future__ import annotations
+
+import json
+import threading
+import time
+
+import numpy as np
+import pytest
+
+pytest.importorskip("bpy")
+
+from addon_helpers import (  # noqa: E402
+    BIG_BOX,
+    CUBE_FACES,
+    Event,
+    cube_object,
+    drive,
+    runner,
+    scene_state,
+)
+
+
+def _matrix(obj) -> np.ndarray:
+    return np.array([list(r) for r in obj.matrix_world], dtype=np.float64)
+
+
+def _packing(addon, coll):
+    return addon.engine.packing_from_json(coll["jampacked_packing"])
+
+
+def test_pack_operator_builds_the_packing(bpy, addon, scene):
+    before = scene_state(bpy)
+    assert bpy.ops.jampacked.pack() == {'FINISHED'}
+    coll = scene.settings.result
+    assert coll is not None and coll.name == "Jampacked Box"
+    assert coll.name in bpy.context.scene.collection.children
+    packing = _packing(addon, coll)
+    assert packing.n > 5
+    assert packing.certificate["certified"] is True
+    assert coll["jampacked_certified"] is True or coll["jampacked_certified"] == 1
+    # container frame = world space
+    np.testing.assert_array_equal(packing.frame_from_file, np.eye(4))
+    assert json.loads(coll["jampacked_packing"])["container"]["path"] == "blender:Box"
+
+    objects = sorted(coll.objects, key=lambda o: int(o.name.rsplit(" ", 1)[1]))
+    assert len(objects) == packing.n
+    mats = packing.matrices()
+    for i, obj in enumerate(objects):
+        assert obj["jampacked_type"] == packing.type_index[i]
+        np.testing.assert_allclose(_matrix(obj), mats[i], atol=1e-5)
+
+    # one shared mesh (and material) per type; nothing else new in the scene
+    for t, rec in enumerate(packing.types):
+        meshes = {o.data.name for o, k in zip(objects, packing.type_index, strict=True)
+                  if k == t}
+        assert meshes == {f"Jampacked {rec.name}"}
+        assert bpy.data.meshes[f"Jampacked {rec.name}"].materials[0].name == \
+            f"Jampacked {rec.name}"
+    new_meshes = set(m.name for m in bpy.data.meshes) - set(before["meshes"])
+    assert new_meshes == {f"Jampacked {rec.name}" for rec in packing.types}
+    assert set(o.name for o in bpy.data.objects) - set(before["objects"]) == \
+        {o.name for o in objects}
+
+    # placed geometry = packing matrix @ local_from_file @ (type object's world vertices)
+    depsgraph = bpy.context.evaluated_depsgraph_get()
+    for t, source in enumerate(scene.types):
+        src = addon.bridge.object_triangles(source, depsgraph)
+        i = int(np.flatnonzero(packing.type_index == t)[0])
+        obj = objects[i]
+        placed = addon.bridge.object_triangles(obj, depsgraph)
+        expected = src.vertices @ (mats[i] @ packing.types[t].local_from_file)[:3, :3].T \
+            + (mats[i] @ packing.types[t].local_from_file)[:3, 3]
+        np.testing.assert_allclose(placed.vertices, expected, atol=1e-4)
+
+    # metrics as custom properties, as the panel shows them
+    assert coll["jampacked_count"] == packing.n
+    assert list(coll["jampacked_count_per_type"]) == packing.metrics["count_per_type"]
+    assert coll["jampacked_density"] == pytest.approx(packing.metrics["density"])
+    assert coll["jampacked_tvd"] == pytest.approx(packing.metrics["tvd"])
+    assert list(coll["jampacked_type_names"]) == ["P5", "P4"]
+    rows = dict(addon.summary.panel_lines(coll))
+    assert rows["Objects"] == str(packing.n) and rows["Certified"] == "yes"
+    assert "Packed" in bpy.context.window_manager.jampacked_job.last_message
+    assert not addon.worker.busy()
+
+
+def test_modal_path_and_second_pack_blocked(bpy, addon, scene):
+    run = runner(addon)
+    assert run.begin(bpy.context)
+    try:
+        assert addon.worker.busy()
+        assert not bpy.ops.jampacked.pack.poll()
+        second = runner(addon)
+        assert not second.begin(bpy.context)
+        assert "still running" in second.reports[-1][1]
+        assert bpy.context.window_manager.jampacked_job.running
+        # other events pass through to Blender while the job runs
+        assert run.modal(bpy.context, Event('MOUSEMOVE')) == {'PASS_THROUGH'}
+        assert drive(run, bpy.context) == {'FINISHED'}
+    finally:
+        if run._job is not None:
+            run._job.cancel()
+    coll = scene.settings.result
+    assert coll is not None and len(coll.objects) == coll["jampacked_count"] > 0
+    assert not bpy.context.window_manager.jampacked_job.running
+    assert not addon.worker.busy()
+
+
+def test_blender_stays_responsive_while_packing(bpy, addon, scene):
+    """The main thread (Blender's UI) gets its turns while the engine runs in the thread."""
+    scene.box.scale = BIG_BOX
+    run = runner(addon)
+    assert run.begin(bpy.context)
+    gaps = []
+    last = time.perf_counter()
+    try:
+        while time.perf_counter() - last < 60 and len(gaps) < 60:
+            assert run.modal(bpy.context, Event('TIMER')) == {'RUNNING_MODAL'}
+            time.sleep(0.02)
+            now = time.perf_counter()
+            gaps.append(now - last)
+            last = now
+        fraction = bpy.context.window_manager.jampacked_job.fraction
+    finally:
+        assert drive(run, bpy.context, events=[Event('ESC', 'PRESS')]) == {'CANCELLED'}
+    assert max(gaps) < 1.0, f"the main thread waited {max(gaps):.2f} s for the engine"
+    assert 0.0 < fraction < 1.0
+
+
+def test_escape_cancels_and_changes_nothing(bpy, addon, scene):
+    scene.box.scale = BIG_BOX
+    before = scene_state(bpy)
+    run = runner(addon)
+    assert run.begin(bpy.context)
+    assert run.modal(bpy.context, Event('TIMER')) == {'RUNNING_MODAL'}
+    assert drive(run, bpy.context, events=[Event('ESC', 'PRESS')]) == {'CANCELLED'}
+    assert run.reports[-1][0] == 'WARNING' and "cancelled" in run.reports[-1][1]
+    assert scene_state(bpy) == before
+    assert not addon.worker.busy()
+
+
+def test_cancel_button_and_finish_now(bpy, addon, scene):
+    scene.box.scale = BIG_BOX
+    before = scene_state(bpy)
+    run = runner(addon)
+    assert run.begin(bpy.context)
+    assert bpy.ops.jampacked.cancel(action='CANCEL') == {'FINISHED'}
+    assert drive(run, bpy.context) == {'CANCELLED'}
+    assert scene_state(bpy) == before
+
+    # Finish Now keeps the best certified packing so far
+    run = runner(addon)
+    assert run.begin(bpy.context)
+    run.modal(bpy.context, Event('TIMER'))
+    assert bpy.ops.jampacked.cancel(action='FINISH') == {'FINISHED'}
+    assert drive(run, bpy.context) == {'FINISHED'}
+    coll = scene.settings.result
+    packing = _packing(addon, coll)
+    assert packing.certificate["certified"] is True
+    assert packing.params["stopped"] == "cancelled"
+    assert len(coll.objects) == packing.n
+
+
+def test_cancel_in_blocking_mode(bpy, addon, scene):
+    """bpy.ops in background mode runs the same steps in a loop; the cancel flag stops it."""
+    scene.box.scale = BIG_BOX
+    before = scene_state(bpy)
+    timer = threading.Timer(1.0, lambda: addon.worker.active_job().cancel())
+    timer.start()
+    try:
+        assert bpy.ops.jampacked.pack() == {'CANCELLED'}
+    finally:
+        timer.cancel()
+    assert scene_state(bpy) == before
+
+
+def test_non_mesh_and_missing_container_are_clear_errors(bpy, addon, scene):
+    empty = bpy.data.objects.new("Empty Box", None)
+    bpy.context.scene.collection.objects.link(empty)
+    scene.settings.container = empty  # a script can bypass the picker's mesh-only poll
+    before = scene_state(bpy)
+    with pytest.raises(RuntimeError,
+                       match=r"'Empty Box' is not a mesh object \(its type is Empty\)"):
+        bpy.ops.jampacked.pack()
+    assert scene_state(bpy) == before
+    scene.settings.container = None
+    with pytest.raises(RuntimeError, match="Pick a container: a closed mesh object"):
+        bpy.ops.jampacked.pack()
+    assert scene_state(bpy) == before
+    assert not addon.worker.busy()
+
+
+def test_open_container_is_a_clear_error(bpy, addon, scene):
+    holed = cube_object(bpy, "Holed Box", faces=CUBE_FACES[:-1],
+                        scale=(15.0, 15.0, 15.0))
+    scene.settings.container = holed
+    before = scene_state(bpy)
+    with pytest.raises(RuntimeError, match="Holed Box.*not closed"):
+        bpy.ops.jampacked.pack()
+    assert scene_state(bpy) == before
+    state = bpy.context.window_manager.jampacked_job
+    assert state.last_level == 'ERROR' and "Holed Box" in state.last_message
+    assert not addon.worker.busy()
+
+
+def test_input_moved_while_packing_changes_nothing(bpy, addon, scene):
+    run = runner(addon)
+    assert run.begin(bpy.context)
+    scene.box.location.x += 1.0
+    before = scene_state(bpy)
+    assert drive(run, bpy.context) == {'CANCELLED'}
+    assert "moved or edited while packing" in run.reports[-1][1]
+    assert scene_state(bpy) == before
+
+
+def test_one_undo_step_removes_the_result(bpy, addon, scene):
+    bpy.ops.ed.undo_push(message="before pack")  # background mode: start the undo system
+    before = scene_state(bpy)
+    assert bpy.ops.jampacked.pack('EXEC_DEFAULT', True) == {'FINISHED'}
+    assert bpy.context.scene.jampacked.result is not None
+    assert scene_state(bpy) != before
+    bpy.ops.ed.undo()
+    assert scene_state(bpy) == before
+    assert bpy.context.scene.jampacked.result is None

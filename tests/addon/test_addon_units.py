@@ -1,0 +1,205 @@
+"""The add-on's bpy-free modules: worker thread, engine calls, metrics, manifest and build.
+
+These run without Blender.
+"""
+
+from __future__ import annotations
+
+import ast
+import threading
+import time
+import tomllib
+import zipfile
+from pathlib import Path
+
+import pytest
+from addon_helpers import ADDON, load_standalone
+
+from jampacked.core.errors import InputError, MeshError
+
+worker = load_standalone("worker")
+summary = load_standalone("summary")
+build = load_standalone("build")
+
+
+def test_thread_side_modules_never_import_bpy():
+    for name in ("worker.py", "engine.py", "summary.py", "build.py"):
+        tree = ast.parse((ADDON / name).read_text(encoding="utf-8"))
+        imported = {alias.name.split(".")[0] for node in ast.walk(tree)
+                    if isinstance(node, ast.Import) for alias in node.names}
+        imported |= {(node.module or "").split(".")[0] for node in ast.walk(tree)
+                     if isinstance(node, ast.ImportFrom)}
+        assert not imported & {"bpy", "mathutils", "bmesh"}, name
+
+
+def _job(fn) -> object:
+    job = worker.Job("Test", fn)
+    job.start()
+    assert job.wait(10.0)
+    job.release()
+    return job
+
+
+def test_job_reports_progress_result_and_errors():
+    seen = []
+
+    def ok(progress, should_cancel):
+        progress(0.5, "half")
+        seen.append(should_cancel())
+        return 42
+
+    job = _job(ok)
+    snap = job.snapshot()
+    assert (snap.state, snap.fraction, snap.message, job.result) == ("done", 1.0, "half", 42)
+    assert seen == [False]
+
+    def bad_input(progress, should_cancel):
+        raise MeshError("Container mesh 'Box' is not closed.")
+
+    job = _job(bad_input)
+    assert job.snapshot().state == "failed" and job.error == "Container mesh 'Box' is not closed."
+
+    def bug(progress, should_cancel):
+        raise ZeroDivisionError("oops")
+
+    job = _job(bug)
+    assert job.snapshot().state == "failed"
+    assert "internal error (ZeroDivisionError: oops)" in job.error
+    assert not worker.busy()
+
+
+def _waiting(progress, should_cancel):
+    while not should_cancel():
+        time.sleep(0.01)
+    return "best so far"
+
+
+def test_cancel_discards_and_finish_early_keeps():
+    job = worker.Job("Test", _waiting).start()
+    assert worker.busy() and job.snapshot().state == "running"
+    job.cancel()
+    assert job.wait(5.0)
+    assert job.snapshot().state == "cancelled" and job.result is None
+    job.release()
+
+    job = worker.Job("Test", _waiting).start()
+    job.finish_early()
+    assert job.snapshot().stopping or job.wait(5.0)
+    assert job.wait(5.0)
+    assert job.snapshot().state == "done" and job.result == "best so far"
+    job.release()
+    assert not worker.busy()
+
+
+def test_one_job_at_a_time():
+    first = worker.Job("First", _waiting).start()
+    try:
+        with pytest.raises(worker.BusyError, match="First is still running"):
+            worker.Job("Second", _waiting).start()
+        assert worker.active_job() is first
+    finally:
+        worker.abandon(timeout=5.0)
+    assert not worker.busy() and first.snapshot().state == "cancelled"
+    second = worker.Job("Second", lambda p, c: threading.current_thread().name).start()
+    second.wait(5.0)
+    second.release()
+    assert second.result == "jampacked Second"
+
+
+def test_collection_properties_and_panel_lines():
+    props = summary.collection_properties(
+        {"count": 3, "count_per_type": [2, 1], "density": 0.41, "tvd": 0.02,
+         "nni_per_type": [1.2, None], "nni_mean": 1.2},
+        {"certified": True, "worst_overlap": 1e-5, "worst_outside": 0.0,
+         "min_pair_gap": None},
+        {"fidelity": "low", "stopped": None, "clearance": 0.0}, {"total": 2.5},
+        ["apple", "lemon"], [0.5, 0.5], 7)
+    assert props["nni_per_type"] == [1.2, -1.0]
+    assert "min_pair_gap" not in props and props["certified"] is True
+    assert all(isinstance(v, (bool, int, float, str, list)) for v in props.values())
+    rows = dict(summary.panel_lines({summary.PREFIX + k: v for k, v in props.items()}))
+    assert rows["Density"] == "41.0%" and rows["Certified"] == "yes"
+    assert rows["apple"].startswith("2  (66.7% / 50.0%)  NNI 1.20")
+    assert rows["lemon"].endswith("NNI -")
+    colours = {summary.type_colour(i) for i in range(8)}
+    assert len(colours) == 8
+
+
+def test_export_options_from_the_panel():
+    engine = load_standalone("engine")
+    opts = engine.export_options("PARTS", 2.0, "PLANE", "+z", 0.7, 0.0, 1.0, 0.0, 0.0, True)
+    assert opts.mode == "parts" and opts.shell is None and opts.opening is None
+    assert opts.split_files
+    opts = engine.export_options("CONNECT", 1.5, "WINDOW", "-x", 0.7, 8.0, 2.0, 0.0, 0.1, True)
+    assert (opts.shell, opts.opening.kind, opts.opening.axis, opts.opening.size) == \
+        (1.5, "window", "-x", 8.0)
+    assert opts.drain == 2.0 and opts.connector is None and opts.resolution == 0.1
+    assert not opts.split_files
+    with pytest.raises(InputError):
+        engine.export_options("UNION", 1.0, "WINDOW", "+z", 0.5, 0.0, 0.0, 0.0, 0.0, False)
+
+
+# ------------------------------------------------------------------------------ manifest
+
+
+def _manifest() -> dict:
+    return tomllib.loads((ADDON / "blender_manifest.toml").read_text(encoding="utf-8"))
+
+
+def test_manifest_is_valid():
+    data = _manifest()
+    # the wheels it lists (written by build.py) need not be downloaded for this check
+    assert build.validate_manifest(data, ADDON, check_files=False) == []
+    assert data["schema_version"] == "1.0.0" and data["id"] == "jampacked"
+    assert data["blender_version_min"] == "4.2.0" and data["license"] == ["SPDX:MIT"]
+    assert "files" in data["permissions"]
+    assert not any("numpy" in w for w in data["wheels"])
+    init = ast.parse((ADDON / "__init__.py").read_text(encoding="utf-8"))
+    assigned = {t.id for node in init.body if isinstance(node, ast.Assign)
+                for t in node.targets if isinstance(t, ast.Name)}
+    assert "bl_info" not in assigned  # an extension has a manifest instead
+
+
+def test_manifest_validation_catches_mistakes(tmp_path):
+    data = _manifest()
+    bad = dict(data, tagline="Packs things.", id="jam-packed", blender_version_min="4.1.0",
+               permissions={"files": "Writes files."},
+               wheels=["./wheels/numpy-1.26.4-cp311-cp311-win_amd64.whl"])
+    del bad["license"]
+    problems = "\n".join(build.validate_manifest(bad, tmp_path))
+    assert "missing required field 'license'" in problems
+    bad["license"] = ["SPDX:MIT"]
+    problems = "\n".join(build.validate_manifest(bad, tmp_path))
+    for text in ("tagline must not end with punctuation", "id 'jam-packed'",
+                 "older than 4.2.0", "permission 'files'", "numpy must not be bundled",
+                 "does not exist", "no wheel of jampacked", "no linux-x64 wheel of numba"):
+        assert text in problems, text
+
+
+def test_wheel_names_and_manifest_list():
+    wheels = [Path(n) for n in (
+        "jampacked-0.1.0-py3-none-any.whl",
+        "numba-0.68.1-cp311-cp311-manylinux_2_27_x86_64.manylinux_2_28_x86_64.whl",
+        "scipy-1.17.1-cp311-cp311-win_amd64.whl",
+        "llvmlite-0.50.0-cp311-cp311-macosx_12_0_arm64.whl")]
+    parsed = [build.Wheel.parse(w) for w in wheels]
+    assert [w.platform() for w in parsed] == [None, "linux-x64", "windows-x64", "macos-arm64"]
+    assert parsed[1].distribution == "numba" and parsed[1].version == "0.68.1"
+    text = build.with_wheels((ADDON / "blender_manifest.toml").read_text(), wheels,
+                             ["linux-x64"])
+    data = tomllib.loads(text)
+    assert data["wheels"] == [f"./wheels/{w.name}" for w in wheels]
+    assert data["platforms"] == ["linux-x64"] and "permissions" in data
+
+
+def test_build_without_wheels(tmp_path):
+    (out,) = build.build(["linux-x64"], wheels=False, output_dir=tmp_path,
+                         blender_check=False)
+    assert out.name == f"jampacked-{_manifest()['version']}.zip"
+    with zipfile.ZipFile(out) as zf:
+        names = set(zf.namelist())
+        manifest = tomllib.loads(zf.read("blender_manifest.toml").decode())
+    assert {"__init__.py", "operators.py", "bridge.py", "worker.py", "ui.py", "props.py",
+            "engine.py", "summary.py", "blender_manifest.toml"} <= names
+    assert "build.py" not in names and not any(n.startswith("wheels/") for n in names)
+    assert manifest["wheels"] == [] and manifest["platforms"] == ["linux-x64"]
