@@ -253,7 +253,7 @@ def _source_name(source: MeshSource, mesh: MeshData) -> str:
     if mesh.path:
         return str(Path(mesh.path).resolve())
     if isinstance(source, MeshData):
-        return "<in memory>"
+        return "memory:container"  # a spec, not a path: saved verbatim, never looked up
     return os.fspath(source)
 
 

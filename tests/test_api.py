@@ -173,3 +173,21 @@ def test_repair_time_cap_removes_what_still_fails():
     assert not rep["first"]["certified"]  # the scene really needs repair
     assert rep["timed_out"] and rep["moved"] == 0 and rep["removed"] >= 1
     assert p.certificate["certified"]
+
+
+def test_in_memory_container_round_trips_without_a_missing_file(tmp_path):
+    """A container given as MeshData (e.g. from Blender) is named by a spec, which the
+    packing file keeps verbatim and verify_sources does not look for on disk."""
+    from jampacked.core.api import _source_name
+    from jampacked.core.meshes import box_mesh
+    from jampacked.core.packing import Packing, verify_sources
+
+    mesh = box_mesh((10.0, 10.0, 10.0))
+    name = _source_name(mesh, mesh)
+    p = Packing(container_path=name, container_sha256=None, frame_from_file=np.eye(4),
+                container_volume=1000.0, types=[], type_index=np.zeros(0, int),
+                rotations=np.zeros((0, 4)), translations=np.zeros((0, 3)),
+                scales=np.zeros(0))
+    save_packing(p, tmp_path / "p.json")
+    back = load_packing(tmp_path / "p.json")
+    assert back.container_path == name and verify_sources(back) == []
