@@ -1,12 +1,14 @@
-"""Remove zero-area faces from a closed mesh without changing its shape.
+"""Remove zero-area faces from a closed mesh, changing its shape by at most a needle's
+length (1e-3 of that face's size).
 
 manifold3d's booleans can leave a few zero-area faces where intersection curves meet
 (vertices that coincide, or a vertex on the far edge), and float32 files (STL) merge
 vertices closer than float32 resolution. Two local, shape-preserving repairs fix them:
 
-* a *needle* (two corners at the same position) is removed by collapsing that edge: its two
-  faces go, one vertex replaces the other (allowed only when the two vertices share exactly
-  those two neighbours, so the surface stays a 2-manifold);
+* a *needle* (two corners at, or within 1e-3 of the face's size of, the same position) is
+  removed by collapsing that edge: its two faces go, one vertex replaces the other (allowed
+  only when the two vertices share exactly those two neighbours, so the surface stays a
+  2-manifold);
 * a *cap* (a corner on the opposite edge ab) is removed by flipping ab: faces (a, b, c) and
   (b, a, d) become (c, a, d) and (d, b, c), the same region split at c.
 
@@ -21,6 +23,11 @@ import numpy as np
 #: a face whose height is at most this fraction of the bounding-box diagonal has zero area
 #: (export.validate.DEGENERATE_REL, repeated to keep this module free of numba imports)
 ZERO_HEIGHT_REL = 1e-9
+
+
+#: a zero-area face whose shortest edge is at most this fraction of its longest is a needle
+#: (collapsing that edge moves the surface by that edge's length at most)
+NEEDLE_REL = 1e-3
 
 
 def _zero_area(p: np.ndarray, f: np.ndarray) -> np.ndarray:
@@ -97,10 +104,11 @@ def remove_degenerate_faces(v: np.ndarray, f: np.ndarray, max_steps: int = 1000
         tried.add(tuple(tri))
         edges = [(tri[k], tri[(k + 1) % 3]) for k in range(3)]
         lengths = [float(np.linalg.norm(p32[a] - p32[b])) for a, b in edges]
+        new = None
         k = int(np.argmin(lengths))
-        if lengths[k] == 0.0:
+        if lengths[k] <= NEEDLE_REL * max(lengths):  # a needle: its short edge goes
             new = _collapse(f, *edges[k])
-        else:
+        if new is None:  # a cap (or a needle that cannot collapse): flip the long edge
             k = int(np.argmax(lengths))
             a, b = edges[k]
             new = _flip(f, i, a, b, tri[(k + 2) % 3])
