@@ -38,7 +38,7 @@ SCENES = {
     },
     "fruit-in-bunny": {
         "container": "containers/bunny.obj", "types": FRUIT,
-        "kwargs": {"container_size": 200.0, "type_scale": 300.0, "time_budget": 240.0},
+        "kwargs": {"container_size": 200.0, "type_scale": 300.0, "time_budget": 280.0},
         "bars": {"density": 0.50, "tvd": 0.1, "nni": 1.0, "seconds": 300.0},
         "reference": "issue bar: >= 50% certified, TVD <= 0.1, NNI >= 1.0, <= 5 min",
     },
