@@ -9,7 +9,6 @@ from __future__ import annotations
 import argparse
 import contextlib
 import json
-import math
 
 from rich.markup import escape
 from rich.progress import BarColumn, Progress, TaskProgressColumn, TextColumn, TimeElapsedColumn
@@ -50,19 +49,6 @@ interrupted (nothing written).
 """
 
 
-def _length(what: str):
-    def parse(text: str) -> float:
-        try:
-            value = float(text)
-        except ValueError:
-            raise argparse.ArgumentTypeError(f"{what} must be a number, got {text!r}") from None
-        if not math.isfinite(value) or value <= 0:
-            raise argparse.ArgumentTypeError(f"{what} must be greater than 0, got {text!r}")
-        return value
-
-    return parse
-
-
 def _axis_at(text: str, default: float | None, what: str) -> tuple[str, float]:
     axis, _, value = text.partition("@")
     axis = axis.strip().lower()
@@ -101,7 +87,7 @@ def parse_window(text: str) -> Opening:
 
 
 def add_export_parser(sub: argparse._SubParsersAction) -> None:
-    from jampacked.cli.main import _FORMATTER, _fill
+    from jampacked.cli.main import _FORMATTER, _fill, _positive_float
 
     p = sub.add_parser(
         "export",
@@ -118,22 +104,22 @@ def add_export_parser(sub: argparse._SubParsersAction) -> None:
                    help="output file (.3mf, .stl, .obj, .ply); repeat for several formats")
     p.add_argument("--mode", choices=MODES, default="connect",
                    help="union, connect (default: one printable body) or parts")
-    p.add_argument("--shell", type=_length("--shell"), metavar="MM",
+    p.add_argument("--shell", type=_positive_float("--shell"), metavar="MM",
                    help="add a shell of the container with this wall thickness")
     opening = p.add_mutually_exclusive_group()
     opening.add_argument("--open-plane", type=parse_open_plane, metavar="AXIS[@FRACTION]",
                          help="cut the shell open beyond a plane, e.g. +z@0.75")
     opening.add_argument("--window", type=parse_window, metavar="AXIS@DIAMETER",
                          help="cut a round window through the shell's side, e.g. +y@30")
-    p.add_argument("--drain", type=_length("--drain"), metavar="MM",
+    p.add_argument("--drain", type=_positive_float("--drain"), metavar="MM",
                    help="drainage hole of this diameter through the shell's lowest point")
     p.add_argument("--up", default="+z", choices=AXES, metavar="AXIS",
                    help="the axis pointing up when printed (default +z; +y for Y-up models): "
                         "the drain goes through the lowest point along it")
-    p.add_argument("--connector", type=_length("--connector"), metavar="MM",
+    p.add_argument("--connector", type=_positive_float("--connector"), metavar="MM",
                    help="strut diameter for --mode connect (default: 0.2 x the smallest "
                         "object's equivalent diameter)")
-    p.add_argument("--resolution", type=_length("--resolution"), metavar="MM",
+    p.add_argument("--resolution", type=_positive_float("--resolution"), metavar="MM",
                    help="simplify meshes to the printer's resolution (surfaces move by at "
                         "most this much)")
     p.add_argument("--split", action="store_true",

@@ -971,13 +971,19 @@ def load_mesh(path: str | os.PathLike, *, role: str = "object") -> MeshData:
         )
     vertices, faces = _read_arrays(path_str, data, _cap(label))
     obj_data = data if _extension(path_str) == "obj" else None
+    return _checked(vertices, faces, label, role, obj_data, path_str, digest)
+
+
+def _checked(vertices: np.ndarray, faces: np.ndarray, label: str, role: str,
+             obj_data: bytes | None, path: str | None, digest: str | None) -> MeshData:
+    """Check and repair (logging each repair) and freeze the result as MeshData."""
     vertices, faces, volume, warns = _check_and_repair(vertices, faces, label, role, obj_data)
     for message in warns:
         logger.warning(message)
     return MeshData(
         vertices=_frozen(np.ascontiguousarray(vertices, dtype=np.float64)),
         faces=_frozen(np.ascontiguousarray(faces, dtype=np.int64)),
-        path=path_str,
+        path=path,
         sha256=digest,
         volume=volume,
         warnings=warns,
@@ -1015,15 +1021,4 @@ def mesh_from_arrays(vertices: np.ndarray, faces: np.ndarray, *, name: str,
                    or f.max() >= len(v)):
         raise InputError(f"{role} mesh '{name}': face indices must be integers in "
                          f"[0, {len(v) - 1}].")
-    label = f"{role} mesh '{name}'"
-    v, f, volume, warns = _check_and_repair(v, f.astype(np.int64), label, role)
-    for message in warns:
-        logger.warning(message)
-    return MeshData(
-        vertices=_frozen(np.ascontiguousarray(v, dtype=np.float64)),
-        faces=_frozen(np.ascontiguousarray(f, dtype=np.int64)),
-        path=None,
-        sha256=None,
-        volume=volume,
-        warnings=warns,
-    )
+    return _checked(v, f.astype(np.int64), f"{role} mesh '{name}'", role, None, None, None)

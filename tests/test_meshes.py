@@ -445,3 +445,19 @@ def test_volume_centroid_offset_and_inverted():
     assert np.allclose(centroid, [1e3, -5.0, 7.0])
     volume, _ = mesh_volume_centroid(box.vertices, np.asarray(box.faces)[:, ::-1])
     assert volume == pytest.approx(-6.0, rel=1e-12)
+
+
+def test_mesh_from_arrays_checks_and_repairs_like_load_mesh():
+    """Meshes from memory (Blender objects) get the same checks, named by their name."""
+    from jampacked.core.meshes import mesh_from_arrays
+
+    sphere = trimesh.creation.icosphere(subdivisions=2)
+    m = mesh_from_arrays(sphere.vertices, sphere.faces[:, ::-1], name="Sphere.001")
+    assert m.path is None and m.sha256 is None and m.volume > 0
+    assert len(m.warnings) == 1 and "Sphere.001" in m.warnings[0]
+    with pytest.raises(MeshError, match="Cup.*not closed"):
+        mesh_from_arrays(sphere.vertices, sphere.faces[:-2], name="Cup", role="container")
+    with pytest.raises(InputError, match="face indices"):
+        mesh_from_arrays(sphere.vertices, sphere.faces + 10_000, name="Bad")
+    with pytest.raises(InputError, match="triangles"):
+        mesh_from_arrays(sphere.vertices, np.zeros((2, 4), int), name="Quads")
