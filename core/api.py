@@ -109,7 +109,8 @@ def pack(container: MeshSource, types: Sequence[MeshSource],
     (normalised; default uniform). container_size: scale the container so its largest
     bounding-box extent is this (container units, e.g. mm); type_scale multiplies the object
     files' coordinates. clearance: minimum gap between objects and to the wall (container
-    units). time_budget (s) bounds placement; certification runs after it. progress(fraction,
+    units). time_budget (s) bounds placement (phases 1 and 2, after loading, approximation
+    and numba's compilation); certification runs after it. progress(fraction,
     message) and should_cancel() are polled; cancel or the budget returns the best certified
     packing so far. Raises JampackedError subclasses on bad input.
     """
@@ -174,7 +175,9 @@ def pack(container: MeshSource, types: Sequence[MeshSource],
         wall_margin=params.wall_safety * cont.grid.spacing))
     margin = np.array([params.safety * t.grid.spacing for t in objtypes])
     rng = np.random.default_rng(seed)
-    deadline = None if time_budget is None else t_start + float(time_budget)
+    solver.warm_up()
+    # the budget bounds placement (loading, approximation and compiling come before it)
+    deadline = None if time_budget is None else time.perf_counter() + float(time_budget)
     stop = Stop(deadline, should_cancel)
     s1 = (float(np.sum(q * volumes)) / params.phase1_density) ** (1 / 3)
     st1 = phase1(solver, q, s1, rng, stop, iters=params.phase1_iterations, margin=margin,

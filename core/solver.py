@@ -123,6 +123,14 @@ class Solver:
         self.iterations += int(its)
         return bool(ok)
 
+    def warm_up(self) -> None:
+        """Compile (or load from numba's cache) the kernels the phases call, on empty input,
+        so that a time budget starts with them ready: compiling takes 15-20 s on a fresh
+        install."""
+        self.resolve(np.zeros(0, np.int64), 1, rollback=True)
+        self.free_distances(np.zeros((1, 3)))
+        self.penetrations()
+
     def penetrations(self) -> np.ndarray:
         """(n,2) deepest object and wall penetration of each inserted object (0 if removed)."""
         typ, pos, quat, scale, alive, margin, _ = self.s.view()

@@ -191,3 +191,20 @@ def test_in_memory_container_round_trips_without_a_missing_file(tmp_path):
     save_packing(p, tmp_path / "p.json")
     back = load_packing(tmp_path / "p.json")
     assert back.container_path == name and verify_sources(back) == []
+
+
+def test_fresh_install_compiles_before_the_time_budget_starts(tmp_path):
+    """With an empty numba cache, compiling takes longer than a short budget; the budget
+    starts after the kernels are ready, so a first pack still places objects."""
+    import os
+    import subprocess
+    import sys
+
+    code = ("from jampacked.core.api import pack\n"
+            f"p = pack({BOX!r}, {POLY!r}, seed=1, fidelity='low', time_budget=2.0)\n"
+            "print(p.n, p.certificate['certified'])\n")
+    env = dict(os.environ, NUMBA_CACHE_DIR=str(tmp_path / "numba"),
+               JAMPACKED_CACHE=str(tmp_path / "cache"))
+    out = subprocess.run([sys.executable, "-c", code], env=env, capture_output=True,
+                         text=True, timeout=600, check=True).stdout.split()
+    assert int(out[0]) >= 5 and out[1] == "True"
