@@ -11,7 +11,6 @@ import contextlib
 import json
 
 from rich.markup import escape
-from rich.progress import BarColumn, Progress, TaskProgressColumn, TextColumn, TimeElapsedColumn
 from rich.table import Table
 
 from jampacked.core.errors import Cancelled, InputError
@@ -142,6 +141,7 @@ def cmd_export(args: argparse.Namespace) -> int:
         _consoles,
         _error,
         print_validation,
+        progress_bar,
     )
     from jampacked.export.assemble import export_packing
 
@@ -157,15 +157,7 @@ def cmd_export(args: argparse.Namespace) -> int:
         raise UsageError(str(exc)) from None
     with contextlib.ExitStack() as stack:
         cancel = stack.enter_context(CancelOnInterrupt())
-        progress_cb = None
-        if not args.quiet and not args.json:
-            bar = stack.enter_context(Progress(
-                TextColumn("[bold]{task.description}"), BarColumn(), TaskProgressColumn(),
-                TimeElapsedColumn(), console=err, transient=False))
-            task = bar.add_task("starting", total=1.0)
-
-            def progress_cb(fraction: float, message: str) -> None:
-                bar.update(task, completed=min(max(fraction, 0.0), 1.0), description=message)
+        progress_cb = None if args.quiet or args.json else progress_bar(stack, err)
 
         try:
             report = export_packing(args.packing, args.output, options, progress=progress_cb,

@@ -510,22 +510,29 @@ def _warn(err: Console, message: str) -> None:
     err.print(f"[yellow]warning:[/] {escape(message)}", highlight=False, soft_wrap=True)
 
 
+def progress_bar(stack: contextlib.ExitStack, err: Console,
+                 cancel: CancelOnInterrupt | None = None) -> Callable[[float, str], None]:
+    """A rich progress bar on ``err`` for the life of ``stack``; returns the engine's
+    ``progress(fraction, message)`` callback (noting a pending Ctrl-C when ``cancel``)."""
+    bar = stack.enter_context(Progress(
+        TextColumn("[bold]{task.description}"), BarColumn(), TaskProgressColumn(),
+        TimeElapsedColumn(), console=err, transient=False))
+    task = bar.add_task("starting", total=1.0)
+
+    def update(fraction: float, message: str) -> None:
+        if cancel is not None and cancel.requested:
+            message = f"{message} [yellow](stopping: Ctrl-C)[/]"
+        bar.update(task, completed=min(max(fraction, 0.0), 1.0), description=message)
+
+    return update
+
+
 def _cmd_pack(args: argparse.Namespace) -> int:
     out, err = _consoles()
     with contextlib.ExitStack() as stack:
         scene = resolve_scene(args, stack)
         cancel = stack.enter_context(CancelOnInterrupt())
-        progress_cb = None
-        if not args.quiet:
-            bar = stack.enter_context(Progress(
-                TextColumn("[bold]{task.description}"), BarColumn(), TaskProgressColumn(),
-                TimeElapsedColumn(), console=err, transient=False))
-            task = bar.add_task("starting", total=1.0)
-
-            def progress_cb(fraction: float, message: str) -> None:
-                if cancel.requested:
-                    message = f"{message} [yellow](stopping: Ctrl-C)[/]"
-                bar.update(task, completed=min(max(fraction, 0.0), 1.0), description=message)
+        progress_cb = None if args.quiet else progress_bar(stack, err, cancel)
 
         packing = pack(
             scene.container, scene.types, scene.shares, seed=args.seed,

@@ -16,23 +16,12 @@ import numpy as np
 from jampacked.core.atomic import atomic_output
 from jampacked.core.certify import to_manifold
 from jampacked.core.errors import InputError
-from jampacked.core.meshes import MeshData, box_mesh, load_mesh, parse_box_spec
-from jampacked.core.packing import Packing, is_spec
+from jampacked.core.meshes import load_mesh
+from jampacked.core.packing import Packing, container_mesh
 
 #: outline and fill of the container's section
 _CONTAINER_EDGE = "#7f7f7f"
 _CONTAINER_FILL = "#f2f2f2"
-
-
-def _container_mesh(packing: Packing) -> MeshData:
-    spec = packing.container_path
-    if is_spec(spec):
-        box = parse_box_spec(spec)
-        if box is None:
-            raise InputError(f"cannot draw the container {spec!r}: only box:AxBxC specs and "
-                             "mesh files are known")
-        return box_mesh(box)
-    return load_mesh(spec, role="container")
 
 
 def _transform(vertices: np.ndarray, matrix: np.ndarray) -> np.ndarray:
@@ -85,7 +74,7 @@ def write_preview(packing: Packing, path: str | os.PathLike, *,
                          "create it first")
 
     # container in the container frame
-    cmesh = _container_mesh(packing)
+    cmesh = container_mesh(packing, "draw")
     c_verts = _transform(cmesh.vertices, packing.frame_from_file)
     container = to_manifold(c_verts, cmesh.faces)
     lo, hi = c_verts.min(axis=0), c_verts.max(axis=0)

@@ -247,6 +247,24 @@ def is_spec(path: str) -> bool:
     return bool(_SPEC_RE.match(path))
 
 
+def container_mesh(packing: Packing, action: str = "load"):
+    """The container mesh a packing names (a box spec or a mesh file), in its file frame.
+
+    Raises InputError for other specs (e.g. a container that came from Blender), MeshError
+    for an unusable file. ``action`` words the error ("draw", "export").
+    """
+    from .meshes import box_mesh, load_mesh, parse_box_spec
+
+    spec = packing.container_path
+    if is_spec(spec):
+        box = parse_box_spec(spec)
+        if box is None:
+            raise InputError(f"cannot {action} the container {spec!r}: only box:AxBxC specs "
+                             "and mesh files are known")
+        return box_mesh(box)
+    return load_mesh(spec, role="container")
+
+
 def file_sha256(path: str | os.PathLike) -> str:
     """Hex sha256 digest of a file's bytes."""
     h = hashlib.sha256()

@@ -24,8 +24,14 @@ from scipy.sparse.csgraph import connected_components
 from scipy.spatial import cKDTree
 
 from jampacked.core.errors import Cancelled, InputError, MeshError
-from jampacked.core.meshes import MeshData, box_mesh, load_mesh, parse_box_spec
-from jampacked.core.packing import Packing, is_spec, load_packing, verify_sources
+from jampacked.core.meshes import MeshData, load_mesh
+from jampacked.core.packing import (
+    Packing,
+    container_mesh,
+    is_spec,
+    load_packing,
+    verify_sources,
+)
 
 from .cleanup import remove_degenerate_faces
 from .closest import Surface
@@ -118,11 +124,7 @@ def load_sources(packing: Packing) -> tuple[MeshData, list[MeshData]]:
     problems = verify_sources(packing)
     if problems:
         raise InputError("cannot export: " + "; ".join(problems) + ".")
-    box = parse_box_spec(packing.container_path) if is_spec(packing.container_path) else None
-    if box is not None:
-        container = box_mesh(box)
-    else:
-        container = load_mesh(packing.container_path, role="container")
+    container = container_mesh(packing, "export")
     types = []
     for t in packing.types:
         if t.path is None:
@@ -401,9 +403,10 @@ def _parts(packing: Packing, solids: list[m3.Manifold], out: ExportReport
         near = np.flatnonzero(np.all(lo[i + 1:] <= hi[i], axis=1)
                               & np.all(hi[i + 1:] >= lo[i], axis=1)) + i + 1
         pairs.update((i, int(j)) for j in near)
+    trees = {j: cKDTree(bodies[j][0]) for j in {j for _, j in pairs}}
     worst = None
     for i, j in sorted(pairs):
-        upper = float(cKDTree(bodies[j][0]).query(bodies[i][0])[0].min())
+        upper = float(trees[j].query(bodies[i][0])[0].min())
         g = float(solids[i].min_gap(solids[j], upper * 1.001 + 1e-9))
         if worst is None or g < worst:
             worst = g

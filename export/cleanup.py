@@ -20,10 +20,7 @@ from __future__ import annotations
 
 import numpy as np
 
-#: a face whose height is at most this fraction of the bounding-box diagonal has zero area
-#: (export.validate.DEGENERATE_REL, repeated to keep this module free of numba imports)
-ZERO_HEIGHT_REL = 1e-9
-
+from .validate import DEGENERATE_REL
 
 #: a zero-area face whose shortest edge is at most this fraction of its longest is a needle
 #: (collapsing that edge moves the surface by that edge's length at most)
@@ -35,7 +32,7 @@ def _zero_area(p: np.ndarray, f: np.ndarray) -> np.ndarray:
     area2 = np.linalg.norm(np.cross(tri[:, 1] - tri[:, 0], tri[:, 2] - tri[:, 0]), axis=1)
     longest = np.max(np.linalg.norm(tri - np.roll(tri, 1, axis=1), axis=2), axis=1)
     diagonal = float(np.linalg.norm(np.ptp(p, axis=0)))
-    return area2 <= ZERO_HEIGHT_REL * diagonal * longest
+    return area2 <= DEGENERATE_REL * diagonal * longest
 
 
 def degenerate_faces(v: np.ndarray, f: np.ndarray) -> np.ndarray:
