@@ -1,103 +1,63 @@
-"""Benchmarks of the packing engine: writes JSON and a chart to bench/results/.
+"""The benchmark suite: one command, JSON and PNG in bench/results/.
 
-    python bench/run.py                       # every scene, 3 seeds, plus one cold run each
-    python bench/run.py --scene polyhedra-80 --seeds 1 2 3
+    python bench/run.py                          # every part below (about 1.5-2 h here)
+    python bench/run.py --part scenes --scene polyhedra-80 --seeds 1 2 3
+    python bench/run.py --part fidelity growth   # some parts only
+    python bench/run.py --report-only            # redraw charts and tables, run nothing
 
-Each run is its own process. The cold run starts with empty numba and approximation caches
-(numba compiles, sphere packings are built); warm runs reuse them. Timings are wall-clock
-seconds on this machine (2 cores, noisy): compare medians and ratios from one run only.
-Meshes come from ../shared/meshes (beside the checkout), or --meshes DIR.
+Parts: scenes (bench/scenes.py: every scene, seeds, a cold run each), fidelity (speed
+against accuracy, bench/fidelity_sweep.py), growth (time against object count,
+bench/growth.py), peer (Blender rigid bodies, bench/peer_bullet.py, needs bpy), stability
+(bench/stability.py), paper (tables beside the paper's figures, bench/paper.py; reads the
+other results). Each run is its own process. Timings are wall-clock seconds on this
+machine (2 cores, noisy): compare medians and ratios from one run only.
 """
 
 from __future__ import annotations
 
 import argparse
-import json
-import os
 import statistics
-import subprocess
 import sys
 import tempfile
-import time
 from pathlib import Path
 
-ROOT = Path(__file__).resolve().parents[1]
-RESULTS = ROOT / "bench" / "results"
+sys.path.insert(0, str(Path(__file__).resolve().parent))
 
-POLY = [f"polyhedra/convex5/polytope{i}.obj" for i in range(1, 6)]
-FRUIT = [f"fruit/ycb_lowpoly/{n}.obj" for n in
-         ("011_banana", "012_strawberry", "014_lemon", "015_peach", "017_orange")]
+from scenes import MESHES, RESULTS, SCENES, fresh_cache_env, run_in_child, save_figure, write_json  # noqa: E402
 
-SCENES = {
-    "polyhedra-80": {
-        "container": "box:43.4338x41.8435x45.0059", "types": POLY,
-        "kwargs": {"time_budget": 120.0},
-        "bars": {"density": 0.455, "seconds": 139.0},
-        "reference": "Romanova et al. 2018: 80 objects (60.6%); paper: 78 objects, 45.5%, "
-                     "139 s on 12 cores",
-    },
-    "fruit-in-bunny": {
-        "container": "containers/bunny.obj", "types": FRUIT,
-        "kwargs": {"container_size": 200.0, "type_scale": 300.0, "time_budget": 280.0},
-        "bars": {"density": 0.50, "tvd": 0.1, "nni": 1.0, "seconds": 300.0},
-        "reference": "issue bar: >= 50% certified, TVD <= 0.1, NNI >= 1.0, <= 5 min",
-    },
-}
+PARTS = ("scenes", "fidelity", "growth", "peer", "stability", "paper")
+#: scenes with bars run three seeds, the others one
+BAR_SEEDS = [1, 2, 3]
 
 
-def run_one(scene: str, seed: int, meshes: Path, out: Path) -> None:
-    """Child process: pack one scene with one seed and write a JSON record."""
-    from jampacked.core.api import pack
-
+def summarise(scene: str, cold: dict | None, warm: list[dict]) -> dict:
+    """Medians over the warm runs, bars checked, runs kept."""
     spec = SCENES[scene]
-    container = spec["container"]
-    if not container.startswith("box:"):
-        container = str(meshes / container)
-    types = [str(meshes / t) for t in spec["types"]]
-    t0 = time.perf_counter()
-    p = pack(container, types, seed=seed, **spec["kwargs"])
-    wall = time.perf_counter() - t0
-    rec = {
-        "scene": scene, "seed": seed, "wall_seconds": wall, "timings": p.timings,
-        "metrics": {k: v for k, v in p.metrics.items()},
-        "certificate": p.certificate,
-        "before_certification": p.params["repair"]["first"],
-        "repair": {k: v for k, v in p.params["repair"].items() if k != "first"},
-        "fidelity": p.params["fidelity"],
-        "phase1": p.params["phase1"], "phase2": p.params["phase2"],
-    }
-    out.write_text(json.dumps(rec, indent=1))
-
-
-def _child(scene: str, seed: int, meshes: Path, env: dict) -> dict:
-    with tempfile.NamedTemporaryFile(suffix=".json", delete=False) as f:
-        out = Path(f.name)
-    try:
-        subprocess.run([sys.executable, __file__, "--child", scene, str(seed), str(meshes),
-                        str(out)], check=True, env=env)
-        return json.loads(out.read_text())
-    finally:
-        out.unlink(missing_ok=True)
-
-
-def _summary(scene: str, cold: dict | None, warm: list[dict]) -> dict:
-    spec = SCENES[scene]
-    dens = [r["metrics"]["density"] for r in warm]
-    secs = [r["wall_seconds"] for r in warm]
+    med = statistics.median
     s = {
-        "scene": scene, "reference": spec["reference"], "bars": spec["bars"],
+        "scene": scene, "reference": spec["reference"], "bars": spec.get("bars"),
+        "container": spec["container"], "types": spec["types"], "kwargs": spec["kwargs"],
         "seeds": [r["seed"] for r in warm],
-        "median_density": statistics.median(dens), "median_seconds": statistics.median(secs),
-        "median_count": statistics.median([r["metrics"]["count"] for r in warm]),
-        "median_tvd": statistics.median([r["metrics"]["tvd"] for r in warm]),
-        "median_nni": statistics.median([r["metrics"]["nni_mean"] or 0 for r in warm]),
+        "median_density": med([r["metrics"]["density"] for r in warm]),
+        "median_seconds": med([r["wall_seconds"] for r in warm]),
+        "median_count": med([r["metrics"]["count"] for r in warm]),
+        "median_tvd": med([r["metrics"]["tvd"] for r in warm]),
+        "median_nni": med([r["metrics"]["nni_mean"] or 0.0 for r in warm]),
+        "median_phase_seconds": {k: med([r["timings"][k] for r in warm])
+                                 for k in warm[0]["timings"]},
+        "worst_overlap_before_certification": max(
+            r["before_certification"]["worst_overlap"] for r in warm),
+        "worst_outside_before_certification": max(
+            r["before_certification"]["worst_outside"] for r in warm),
+        "moved": med([r["repair"]["moved"] for r in warm]),
+        "removed": med([r["repair"]["removed"] for r in warm]),
         "all_certified": all(r["certificate"]["certified"] for r in warm),
         "cold_seconds": cold["wall_seconds"] if cold else None,
         "cold_timings": cold["timings"] if cold else None,
         "runs": warm,
     }
-    bars = spec["bars"]
-    s["meets_bars"] = bool(
+    bars = spec.get("bars")
+    s["meets_bars"] = None if not bars else bool(
         s["all_certified"] and s["median_density"] >= bars["density"]
         and s["median_seconds"] <= bars["seconds"]
         and ("tvd" not in bars or s["median_tvd"] <= bars["tvd"])
@@ -105,103 +65,156 @@ def _summary(scene: str, cold: dict | None, warm: list[dict]) -> dict:
     return s
 
 
-def _chart(summaries: list[dict], path: Path) -> None:
+def run_scenes(names: list[str], seeds: list[int] | None, cold: bool, meshes: Path) -> None:
+    with tempfile.TemporaryDirectory() as cache:
+        env = fresh_cache_env(cache)
+        for scene in names:
+            spec = SCENES[scene]
+            args = (spec["container"], spec["types"])
+            first = run_in_child(*args, 0, spec["kwargs"], env=env, meshes=meshes) \
+                if cold else None
+            use = seeds or (BAR_SEEDS if spec.get("bars") else [1])
+            warm = [run_in_child(*args, s, spec["kwargs"], env=env, meshes=meshes)
+                    for s in use]
+            s = summarise(scene, first, warm)
+            write_json(RESULTS / f"{scene}.json", s)
+            print(f"{scene}: {s['median_count']:.0f} objects, density "
+                  f"{s['median_density']:.1%}, {s['median_seconds']:.1f} s warm (cold "
+                  f"{s['cold_seconds'] or 0:.1f} s), TVD {s['median_tvd']:.3f}, NNI "
+                  f"{s['median_nni']:.2f}, certified {s['all_certified']}, bars met: "
+                  f"{s['meets_bars']}", flush=True)
+
+
+def load_summaries() -> list[dict]:
+    import json
+
+    out = []
+    for name in SCENES:
+        f = RESULTS / f"{name}.json"
+        if f.exists():
+            out.append(json.loads(f.read_text()))
+    return out
+
+
+def chart(summaries: list[dict], path: Path) -> None:
+    """One panel per scene: certified density against wall time, each seed a point."""
     import matplotlib
 
     matplotlib.use("Agg")
     import matplotlib.pyplot as plt
 
-    fig, axes = plt.subplots(1, len(summaries), figsize=(5.5 * len(summaries), 4.2),
-                             squeeze=False)
-    for ax, s in zip(axes[0], summaries, strict=True):
-        for r in s["runs"]:
-            ax.scatter(r["wall_seconds"], 100 * r["metrics"]["density"], color="tab:blue")
-            ax.annotate(f"seed {r['seed']}", (r["wall_seconds"], 100 * r["metrics"]["density"]),
-                        fontsize=7, xytext=(3, 3), textcoords="offset points")
-        if s["cold_seconds"]:
-            ax.axvline(s["cold_seconds"], color="tab:orange", ls=":", label="cold run time")
-        ax.axhline(100 * s["bars"]["density"], color="tab:red", ls="--", label="density bar")
-        ax.axvline(s["bars"]["seconds"], color="tab:red", ls="-.", label="time bar")
+    cols = 3
+    rows = (len(summaries) + cols - 1) // cols
+    fig, axes = plt.subplots(rows, cols, figsize=(5.2 * cols, 3.9 * rows), squeeze=False)
+    for ax in axes.ravel()[len(summaries):]:
+        ax.axis("off")
+    for ax, s in zip(axes.ravel(), summaries, strict=False):
+        xs = [r["wall_seconds"] for r in s["runs"]]
+        ys = [100 * r["metrics"]["density"] for r in s["runs"]]
+        ax.scatter(xs, ys, color="tab:blue", label="warm run (seed)")
+        for r, x, y in zip(s["runs"], xs, ys, strict=True):
+            ax.annotate(f"{r['seed']}", (x, y), fontsize=7, xytext=(3, 3),
+                        textcoords="offset points")
+        if s.get("cold_seconds"):
+            ax.axvline(s["cold_seconds"], color="tab:orange", ls=":", label="cold run")
+        bars = s.get("bars")
+        if bars:
+            ax.axhline(100 * bars["density"], color="tab:red", ls="--", label="density bar")
+            ax.axvline(bars["seconds"], color="tab:red", ls="-.", label="time bar")
+            ys = ys + [100 * bars["density"]]
+        ax.set_title(f"{s['scene']} ({s['median_count']:.0f} objects)", fontsize=10)
         ax.set_xlabel("wall time (s)")
         ax.set_ylabel("certified density (%)")
-        ax.set_title(s["scene"])
         ax.set_xlim(left=0)
-        ys = [100 * r["metrics"]["density"] for r in s["runs"]] + [100 * s["bars"]["density"]]
-        ax.set_ylim(min(ys) - 3.0, max(ys) + 1.5)
+        ax.set_ylim(min(ys) - 3.0, max(ys) + 2.0)
         ax.legend(fontsize=7, loc="lower left")
     fig.tight_layout()
-    tmp = path.with_suffix(".tmp.png")
-    fig.savefig(tmp, dpi=110)
-    os.replace(tmp, path)
+    save_figure(fig, path)
+
+
+def write_table(summaries: list[dict], path: Path) -> None:
+    """bench/results/README.md: the scene table, then links to every other part's output."""
+    lines = [
+        "# Benchmark results", "",
+        "Written by `python bench/run.py` on this project's 2-core machine. Medians over the "
+        "warm seeds; cold = the first run with empty numba and approximation caches. "
+        "\"Before cert.\" is the worst exact overlap (pair intersection volume over the "
+        "smaller object's) and wall violation (volume outside over the object's) of the "
+        "placement the solver produced; certification then moved or removed objects until "
+        "every check passed.", "",
+        "| scene | seeds | objects | certified density | TVD | NNI | phase 1 / 2 / extra / "
+        "certify (s) | warm time (s) | cold time (s) | before cert.: overlap, outside | moved, "
+        "removed | bars met |",
+        "|---|---|---|---|---|---|---|---|---|---|---|---|"]
+    for s in summaries:
+        ph = s["median_phase_seconds"]
+        met = {None: "no bars", True: "yes", False: "no"}[s["meets_bars"]]
+        lines.append(
+            f"| {s['scene']} | {' '.join(map(str, s['seeds']))} | {s['median_count']:.0f} | "
+            f"{s['median_density']:.1%} | {s['median_tvd']:.3f} | {s['median_nni']:.2f} | "
+            f"{ph['phase1']:.0f} / {ph['phase2']:.0f} / {ph.get('extra', 0):.0f} / "
+            f"{ph['certify']:.1f} | "
+            f"{s['median_seconds']:.1f} | {s['cold_seconds'] or 0:.1f} | "
+            f"{s['worst_overlap_before_certification']:.1e}, "
+            f"{s['worst_outside_before_certification']:.1e} | {s['moved']:.0f}, "
+            f"{s['removed']:.0f} | {met} |")
+    lines += ["", "Bars: " + "; ".join(
+        f"{s['scene']}: " + ", ".join(f"{k} {v}" for k, v in s["bars"].items())
+        for s in summaries if s.get("bars")), "",
+        "![certified density against time, per scene](speed_density.png)", "",
+        "Other parts of the suite:", "",
+        "- speed against accuracy: [fidelity.md](fidelity.md), "
+        "![speed against accuracy](fidelity.png)",
+        "- growth: [growth.json](growth.json), ![time against objects](growth.png)",
+        "- the paper's tables beside ours: [paper.md](paper.md)",
+        "- Blender rigid bodies as a peer: [peer_bullet.json](peer_bullet.json), "
+        "![peer](peer_bullet.png)",
+        "- stability map: [stability.md](stability.md), ![stability](stability.png)",
+        "- export: [export.json](export.json); shell accuracy: "
+        "[shell_accuracy.json](shell_accuracy.json)", ""]
+    tmp = path.with_name(path.name + ".tmp")
+    tmp.write_text("\n".join(lines))
+    tmp.replace(path)
 
 
 def main(argv: list[str] | None = None) -> int:
     ap = argparse.ArgumentParser(description=__doc__,
                                  formatter_class=argparse.RawDescriptionHelpFormatter)
-    ap.add_argument("--scene", action="append", choices=sorted(SCENES))
-    ap.add_argument("--seeds", type=int, nargs="+", default=[1, 2, 3])
-    ap.add_argument("--meshes", type=Path, default=ROOT.parent / "shared" / "meshes")
-    ap.add_argument("--no-cold", action="store_true", help="skip the cold-start run")
+    ap.add_argument("--part", nargs="+", choices=PARTS, default=list(PARTS))
+    ap.add_argument("--scene", action="append", choices=list(SCENES),
+                    help="scenes part: only these scenes (repeatable; default all)")
+    ap.add_argument("--seeds", type=int, nargs="+",
+                    help="scenes part: seeds (default 1 2 3 for scenes with bars, else 1)")
+    ap.add_argument("--meshes", type=Path, default=MESHES)
+    ap.add_argument("--no-cold", action="store_true", help="skip the cold-start runs")
     ap.add_argument("--report-only", action="store_true",
-                    help="redraw the chart and table from bench/results/*.json, run nothing")
-    ap.add_argument("--child", nargs=4, help=argparse.SUPPRESS)
+                    help="redraw the charts and tables from bench/results, run nothing")
     a = ap.parse_args(argv)
-    if a.child:
-        run_one(a.child[0], int(a.child[1]), Path(a.child[2]), Path(a.child[3]))
-        return 0
     RESULTS.mkdir(parents=True, exist_ok=True)
-    if a.report_only:
-        summaries = [json.loads(f.read_text()) for f in sorted(RESULTS.glob("*.json"))
-                     if f.stem in SCENES]
-        _chart(summaries, RESULTS / "speed_density.png")
-        _write_table(summaries, RESULTS / "README.md")
-        return 0
-    summaries = []
-    with tempfile.TemporaryDirectory() as cache:
-        env = dict(os.environ, NUMBA_CACHE_DIR=os.path.join(cache, "numba"),
-                   JAMPACKED_CACHE=os.path.join(cache, "jampacked"))
-        for scene in a.scene or list(SCENES):
-            cold = None if a.no_cold else _child(scene, 0, a.meshes, env)
-            warm = [_child(scene, s, a.meshes, env) for s in a.seeds]
-            s = _summary(scene, cold, warm)
-            summaries.append(s)
-            (RESULTS / f"{scene}.json").write_text(json.dumps(s, indent=1))
-            print(f"{scene}: median density {s['median_density']:.1%}, median "
-                  f"{s['median_seconds']:.1f} s warm (cold {s['cold_seconds'] or 0:.1f} s), "
-                  f"TVD {s['median_tvd']:.3f}, NNI {s['median_nni']:.2f}, "
-                  f"certified {s['all_certified']}, bars met: {s['meets_bars']}", flush=True)
-    _chart(summaries, RESULTS / "speed_density.png")
-    _write_table(summaries, RESULTS / "README.md")
+    parts = [] if a.report_only else a.part
+    if "scenes" in parts:
+        run_scenes(a.scene or list(SCENES), a.seeds, not a.no_cold, a.meshes)
+    for part in ("fidelity", "growth", "peer", "stability"):
+        if part in parts:
+            _run_part(part, a.meshes)
+    summaries = load_summaries()
+    if summaries:
+        chart(summaries, RESULTS / "speed_density.png")
+        write_table(summaries, RESULTS / "README.md")
+    import paper
+
+    paper.main([])
     return 0
 
 
-def _write_table(summaries: list[dict], path: Path) -> None:
-    """Markdown summary of the latest run (merged with scenes run earlier)."""
-    lines = ["# Benchmark results", "",
-             "Written by `python bench/run.py` on this project's 2-core machine; medians over "
-             "the warm seeds, cold = first run with empty numba and approximation caches.", "",
-             "| scene | seeds | objects | certified density | TVD | NNI | warm time (s) | "
-             "cold time (s) | bars | bars met |", "|---|---|---|---|---|---|---|---|---|---|"]
-    known = {}
-    for f in sorted(RESULTS.glob("*.json")):
-        if f.stem not in SCENES:  # other benchmarks' results live here too
-            continue
-        try:
-            known[f.stem] = json.loads(f.read_text())
-        except (OSError, ValueError):
-            continue
-    for s in summaries:
-        known[s["scene"]] = s
-    for name in sorted(known):
-        s = known[name]
-        bars = ", ".join(f"{k} {v}" for k, v in s["bars"].items())
-        lines.append(
-            f"| {name} | {' '.join(map(str, s['seeds']))} | {s['median_count']:.0f} | "
-            f"{s['median_density']:.1%} | {s['median_tvd']:.3f} | {s['median_nni']:.2f} | "
-            f"{s['median_seconds']:.1f} | {s['cold_seconds'] or 0:.1f} | {bars} | "
-            f"{'yes' if s['meets_bars'] else 'no'} |")
-    lines += ["", "![speed against density](speed_density.png)", ""]
-    path.write_text("\n".join(lines))
+def _run_part(part: str, meshes: Path) -> None:
+    """Each part is its own script (and its own --help); run it as a child process."""
+    import subprocess
+
+    script = {"fidelity": "fidelity_sweep.py", "growth": "growth.py",
+              "peer": "peer_bullet.py", "stability": "stability.py"}[part]
+    subprocess.run([sys.executable, str(Path(__file__).with_name(script)), "--meshes",
+                    str(meshes)], check=True)
 
 
 if __name__ == "__main__":

@@ -756,9 +756,11 @@ def print_summary(packing: Packing, console: Console, title: str | None = None) 
     phases.add_column("time", justify="right")
     phases.add_column("objects", justify="right")
     phases.add_column("density", justify="right")
-    after = {"phase1": m.get("after_phase1"), "phase2": m.get("after_phase2")}
+    after = {"phase1": m.get("after_phase1"), "phase2": m.get("after_phase2"),
+             "extra": m.get("after_extra")}
     labels = {"load": "load meshes", "approximate": "approximate", "phase1": "1 place & grow",
-              "phase2": "2 fill cavities", "certify": "certify & repair"}
+              "phase2": "2 fill cavities", "extra": "more cavity passes",
+              "certify": "certify & repair"}
     for key, label in labels.items():
         if key not in timings:
             continue

@@ -10,7 +10,7 @@ from __future__ import annotations
 import os
 import time
 from collections.abc import Callable, Sequence
-from dataclasses import asdict, dataclass
+from dataclasses import asdict, dataclass, replace
 from pathlib import Path
 
 import numpy as np
@@ -18,9 +18,10 @@ import numpy as np
 from .certify import DEFAULT_TOL, Certifier
 from .container import Container, build_container
 from .errors import InputError, PackingError
+from .fidelity import PRESETS, Fidelity, choose_fidelity
 from .meshes import MeshData, box_mesh, load_mesh, parse_box_spec
 from .metrics import compute_metrics
-from .objects import FIDELITY, ObjectType, build_type
+from .objects import ObjectType, build_type
 from .packing import Packing, TypeRecord, matrix_to_quat, placement_matrices, quat_to_matrix
 from .phases import Stop, equivalent_radius, phase1, phase2
 from .solver import PackState, Solver, SolverParams, TypeTable
@@ -28,9 +29,6 @@ from .spheres import sphere_coverage
 
 Progress = Callable[[float, str], None]
 MeshSource = str | os.PathLike | MeshData
-
-#: container grid spacing = smallest type's equivalent radius / this, per fidelity
-_CONTAINER_CELLS_PER_RADIUS = {"low": 3.0, "medium": 4.0, "high": 6.0}
 
 
 @dataclass
@@ -42,7 +40,11 @@ class PackParams:
     phase2_spacing: float = 0.5  # phase 2 lattice spacing, fraction of phase 1's
     phase2_iterations: int = 80  # per growth step (paper: 55-150)
     phase2_retries: int = 2  # random smaller types tried after a failure
-    surface_points: int | None = None  # override the fidelity's surface points per type
+    # overrides of the fidelity's choices (None: the fidelity decides)
+    spheres: int | None = None  # inner spheres per type
+    grid_cells: int | None = None  # object distance grid cells across its largest extent
+    surface_points: int | None = None  # surface points per type
+    container_cells: float | None = None  # container grid cells per smallest f(V)
     safety: float = 0.1  # contact margin per object, in cells of its distance grid
     wall_safety: float = 0.25  # extra wall distance, in cells of the container grid
     # cavity passes beyond the paper: threshold = factor * smallest f(V), lattice spacing
@@ -88,13 +90,6 @@ def _normalise_shares(shares: Sequence[float] | None, n: int) -> np.ndarray:
     return q / q.sum()
 
 
-def auto_fidelity(n_types: int, expected_objects: float) -> str:
-    """Fidelity chosen from the scene: fewer spheres when there are many objects."""
-    if expected_objects > 2500:
-        return "low"
-    return "medium"
-
-
 def pack(container: MeshSource, types: Sequence[MeshSource],
          shares: Sequence[float] | None = None, *, seed: int = 0, clearance: float = 0.0,
          fidelity: str = "auto", time_budget: float | None = None,
@@ -121,7 +116,7 @@ def pack(container: MeshSource, types: Sequence[MeshSource],
         raise InputError(f"clearance must be >= 0 (container units), got {clearance}.")
     if type_scale <= 0 or not np.isfinite(type_scale):
         raise InputError(f"type scale must be > 0, got {type_scale}.")
-    if fidelity not in ("auto", *FIDELITY):
+    if fidelity not in ("auto", *PRESETS):
         raise InputError(f"fidelity must be auto, low, medium or high, got {fidelity!r}.")
     q = _normalise_shares(shares, len(types))
     if names is not None and len(names) != len(types):
@@ -144,19 +139,10 @@ def pack(container: MeshSource, types: Sequence[MeshSource],
     # --- approximate
     volumes = np.array([m.volume for m in meshes]) * type_scale ** 3
     expected = 0.5 * c_volume / float(np.sum(q * volumes))
-    fid = auto_fidelity(len(types), expected) if fidelity == "auto" else fidelity
-    report(0.02, f"approximating {len(types)} object types ({fid} fidelity)")
-    objtypes: list[ObjectType] = []
-    for i, m in enumerate(meshes):
-        name = names[i] if names is not None else (
-            Path(m.path).stem if m.path else f"type{i}")
-        objtypes.append(build_type(name, m.vertices, m.faces, path=m.path, sha256=m.sha256,
-                                   share=float(q[i]), type_scale=type_scale, fidelity=fid,
-                                   surface_points=params.surface_points,
-                                   use_cache=use_cache))
     f_min = float(equivalent_radius(volumes.min()))
-    spacing = f_min / _CONTAINER_CELLS_PER_RADIUS[fid]
-    cont: Container = build_container(c_vertices, cmesh.faces, c_volume, spacing)
+    fid = PRESETS["medium"] if fidelity == "auto" else PRESETS[fidelity]
+    cont: Container = build_container(c_vertices, cmesh.faces, c_volume,
+                                      f_min / fid.container_cells)
     depth = float(cont.grid.values.max())
     if depth <= f_min * 0.5 + clearance:
         raise PackingError(
@@ -164,6 +150,20 @@ def pack(container: MeshSource, types: Sequence[MeshSource],
             f"from its wall, the smallest object's equivalent radius is {f_min:.4g}"
             f"{f' plus clearance {clearance:g}' if clearance else ''}. Scale the container "
             "up (--container-size) or the objects down (--type-scale).")
+    if fidelity == "auto":
+        fid = choose_fidelity([(m.vertices - m.vertices.mean(axis=0)) * type_scale
+                               for m in meshes], expected, clearance, depth / f_min)
+    fid = _with_overrides(fid, params)
+    if cont.grid.spacing != f_min / fid.container_cells:
+        cont = build_container(c_vertices, cmesh.faces, c_volume, f_min / fid.container_cells)
+    report(0.02, f"approximating {len(types)} object types ({fid.name} fidelity)")
+    objtypes: list[ObjectType] = []
+    for i, m in enumerate(meshes):
+        name = names[i] if names is not None else (
+            Path(m.path).stem if m.path else f"type{i}")
+        objtypes.append(build_type(name, m.vertices, m.faces, path=m.path, sha256=m.sha256,
+                                   share=float(q[i]), type_scale=type_scale, fidelity=fid,
+                                   use_cache=use_cache))
     t_approx = time.perf_counter()
 
     # --- phases
@@ -187,6 +187,8 @@ def pack(container: MeshSource, types: Sequence[MeshSource],
     st2 = phase2(solver, q, s1 * params.phase2_spacing, rng, stop,
                  iters=params.phase2_iterations, margin=margin, retries=params.phase2_retries,
                  progress=lambda f, m: report(0.6 + 0.2 * f, m))
+    after2 = _snapshot_metrics(state, table, q, c_volume)
+    t_p2 = time.perf_counter()
     # beyond the paper: further cavity passes at lower thresholds (objects grown there push
     # their neighbours aside), while the time budget allows
     extra = []
@@ -201,8 +203,8 @@ def pack(container: MeshSource, types: Sequence[MeshSource],
             threshold=factor * f_min, fit_factor=factor, patience=params.extra_patience,
             max_tvd=params.extra_max_tvd,
             progress=lambda f, m, lo=lo: report(lo + 0.1 * f / n_extra, m))))
-    after2 = _snapshot_metrics(state, table, q, c_volume)
-    t_p2 = time.perf_counter()
+    after_extra = _snapshot_metrics(state, table, q, c_volume)
+    t_extra = time.perf_counter()
 
     # --- certify (never skipped, also after cancel)
     report(0.9, "certifying on the real meshes")
@@ -220,14 +222,17 @@ def pack(container: MeshSource, types: Sequence[MeshSource],
     quat = state.quat[idx].copy()
     quat = matrix_to_quat(quat_to_matrix(quat))  # canonical sign (w >= 0), unit length
     metrics = compute_metrics(typ, pos, table.volume, q, c_volume)
-    metrics.update({"after_phase1": after1, "after_phase2": after2})
+    metrics.update({"after_phase1": after1, "after_phase2": after2,
+                    "after_extra": after_extra})
     timings = {
         "load": t_load - t_start, "approximate": t_approx - t_load, "phase1": t_p1 - t_approx,
-        "phase2": t_p2 - t_p1, "certify": t_cert - t_p2, "total": t_cert - t_start,
+        "phase2": t_p2 - t_p1, "extra": t_extra - t_p2, "certify": t_cert - t_extra,
+        "total": t_cert - t_start,
     }
     all_params = asdict(params)
     all_params.update({
-        "clearance": clearance, "fidelity": fid, "fidelity_requested": fidelity,
+        "clearance": clearance, "fidelity": fid.name, "fidelity_requested": fidelity,
+        "fidelity_detail": fid.as_dict(),
         "time_budget": time_budget, "container_size": container_size,
         "type_scale": type_scale, "container_grid_spacing": cont.grid.spacing,
         "phase1_spacing": s1, "stopped": stop.reason or None,
@@ -250,6 +255,17 @@ def pack(container: MeshSource, types: Sequence[MeshSource],
         params=all_params, seed=int(seed), metrics=metrics, timings=timings,
         certificate=cert,
     )
+
+
+def _with_overrides(fid: Fidelity, params: PackParams) -> Fidelity:
+    """The fidelity with PackParams' explicit overrides applied (benchmarks sweep these)."""
+    over = {k: getattr(params, k) for k in ("spheres", "grid_cells", "surface_points",
+                                              "container_cells")
+            if getattr(params, k) is not None}
+    if not over:
+        return fid
+    return replace(fid, reasons=(*fid.reasons, "overridden: " + ", ".join(
+        f"{k} {v}" for k, v in over.items())), **over)
 
 
 def _source_name(source: MeshSource, mesh: MeshData) -> str:

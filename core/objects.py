@@ -21,15 +21,10 @@ from pathlib import Path
 import numpy as np
 
 from .distance import DistanceGrid, distance_grid
+from .fidelity import PRESETS, Fidelity
 from .meshes import mesh_volume_centroid
 from .spheres import inner_spheres
 
-#: per fidelity: (sphere count, distance grid cells across the largest extent, surface points)
-FIDELITY = {
-    "low": (24, 28, 96),
-    "medium": (64, 40, 384),
-    "high": (160, 64, 384),
-}
 _CACHE_VERSION = "1"
 
 
@@ -125,18 +120,17 @@ def _geometry_key(vertices: np.ndarray, faces: np.ndarray, params: tuple) -> str
 
 def build_type(name: str, vertices_file: np.ndarray, faces: np.ndarray, *, path: str | None,
                sha256: str | None, share: float, type_scale: float = 1.0,
-               fidelity: str = "medium", surface_points: int | None = None,
-               use_cache: bool = True) -> ObjectType:
+               fidelity: str | Fidelity = "medium", use_cache: bool = True) -> ObjectType:
     """Move a mesh into its local frame and build its approximations.
 
     vertices_file: (V,3) in file units; type_scale multiplies them into container units.
-    surface_points overrides the fidelity's surface point count.
+    fidelity: a preset name or a `Fidelity` (spheres, grid cells, surface points).
     """
-    if fidelity not in FIDELITY:
-        raise ValueError(f"unknown fidelity {fidelity!r}")
-    n_spheres, cells, n_points = FIDELITY[fidelity]
-    if surface_points is not None:
-        n_points = int(surface_points)
+    if isinstance(fidelity, str):
+        if fidelity not in PRESETS:
+            raise ValueError(f"unknown fidelity {fidelity!r}")
+        fidelity = PRESETS[fidelity]
+    n_spheres, cells, n_points = fidelity.spheres, fidelity.grid_cells, fidelity.surface_points
     v = np.asarray(vertices_file, np.float64) * float(type_scale)
     faces = np.ascontiguousarray(faces, np.int64)
     volume, centroid = mesh_volume_centroid(v, faces)

@@ -12,9 +12,6 @@ import numpy as np
 
 from .distance import DistanceGrid
 
-#: sphere counts per named fidelity level
-FIDELITY_SPHERES = {"low": 24, "medium": 64, "high": 160}
-
 
 def inner_spheres(grid: DistanceGrid, max_spheres: int, *,
                   min_radius_fraction: float = 0.04) -> tuple[np.ndarray, np.ndarray]:

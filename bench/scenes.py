@@ -1,0 +1,152 @@
+"""Benchmark scenes and the one-run record every benchmark writes.
+
+Each run is its own process (`run_in_child`), so numba's and the approximation cache's state
+is explicit: the caller passes the cache folders in the environment. A run record holds the
+wall time per phase, objects per type, density, TVD, NNI, the worst exact overlap and wall
+violation before certification, and how many objects certification moved or removed.
+Meshes come from ../shared/meshes beside the checkout (or --meshes DIR).
+"""
+
+from __future__ import annotations
+
+import json
+import os
+import re
+import subprocess
+import sys
+import tempfile
+import time
+from pathlib import Path
+
+_DENSITY = re.compile(r"density ([0-9.]+)%")
+ROOT = Path(__file__).resolve().parents[1]
+RESULTS = ROOT / "bench" / "results"
+MESHES = ROOT.parent / "shared" / "meshes"
+
+POLY = [f"polyhedra/convex5/polytope{i}.obj" for i in range(1, 6)]
+NONCONVEX = [f"polyhedra/nonconvex10/polytope{i}.obj" for i in range(1, 11)]
+FRUIT = [f"fruit/ycb_lowpoly/{n}.obj" for n in
+         ("011_banana", "012_strawberry", "014_lemon", "015_peach", "017_orange")]
+
+#: name -> container, types, pack() keyword arguments, bars, what the numbers compare with.
+#: Budgets bound placement (pack's time_budget); loading, compiling and certifying come on top.
+SCENES: dict[str, dict] = {
+    "polyhedra-80": {
+        "container": "box:43.4338x41.8435x45.0059", "types": POLY,
+        "kwargs": {"time_budget": 50.0},
+        "bars": {"density": 0.50, "seconds": 60.0},
+        "reference": "Romanova et al. 2018: 80 objects (60.6%); paper (Table 2): 78 objects, "
+                     "45.5%, 139 s on 12 cores",
+        "paper": {"objects": 78, "density": 0.455, "seconds": 139.0},
+    },
+    "fruit-in-bunny": {
+        "container": "containers/bunny.obj", "types": FRUIT,
+        "kwargs": {"container_size": 200.0, "type_scale": 300.0, "time_budget": 160.0},
+        "bars": {"density": 0.55, "tvd": 0.05, "nni": 1.1, "seconds": 180.0},
+        "reference": "issue 5 bar: >= 55% certified, TVD <= 0.05, NNI >= 1.1, <= 3 min",
+    },
+    "fruit-in-torus": {
+        "container": "containers/torus.obj", "types": FRUIT,
+        "kwargs": {"container_size": 200.0, "type_scale": 300.0, "time_budget": 90.0},
+        "reference": "genus 1: 200 mm torus, 40 mm tube; five fruit x300",
+    },
+    "fruit-in-knight": {
+        "container": "containers/knight.obj", "types": FRUIT,
+        "kwargs": {"container_size": 200.0, "type_scale": 300.0, "time_budget": 120.0},
+        "reference": "thin features (ears, mane): 200 mm knight; five fruit x300",
+    },
+    "nonconvex10-box": {
+        "container": "box:35x30x40", "types": NONCONVEX,
+        "kwargs": {"time_budget": 60.0},
+        "reference": "the ten non-convex polyhedra of Stoyan et al. 2004 (ESICUP Examples "
+                     "2-5 use a 35 x 30 base), uniform shares; 5 of each would fill 48%",
+    },
+    "large-2000": {
+        "container": "containers/bunny.obj", "types": FRUIT,
+        "kwargs": {"container_size": 200.0, "type_scale": 140.0, "time_budget": 420.0},
+        "reference": "five fruit x140 in the 200 mm bunny: about 2000 objects",
+    },
+}
+
+
+def run_record(container: str, types: list[str], seed: int, kwargs: dict,
+               params: dict | None = None, meshes: Path = MESHES) -> dict:
+    """Pack one scene in this process and return its record (see the module doc)."""
+    from jampacked.core.api import PackParams, pack
+
+    if not container.startswith("box:"):
+        container = str(meshes / container)
+    type_paths = [str(meshes / t) for t in types]
+    pp = PackParams(**{k: tuple(v) if isinstance(v, list) else v
+                       for k, v in (params or {}).items()})
+    trace: list[tuple[float, float]] = []
+
+    def progress(fraction: float, message: str) -> None:
+        # the phases report "density 41.2%" (full-size objects, before certification)
+        m = _DENSITY.search(message)
+        if m:
+            trace.append((time.perf_counter() - t0, float(m.group(1)) / 100))
+
+    t0 = time.perf_counter()
+    p = pack(container, type_paths, seed=seed, params=pp, progress=progress, **kwargs)
+    wall = time.perf_counter() - t0
+    rep = p.params["repair"]
+    return {
+        "seed": seed, "wall_seconds": wall, "timings": p.timings,
+        "metrics": dict(p.metrics),
+        "count_per_type": dict(zip([t.name for t in p.types],
+                                   p.metrics["count_per_type"], strict=True)),
+        "certificate": p.certificate,
+        "before_certification": rep["first"],
+        "repair": {k: v for k, v in rep.items() if k != "first"},
+        "fidelity": p.params["fidelity"], "fidelity_detail": p.params["fidelity_detail"],
+        "spheres_per_type": p.params["spheres_per_type"],
+        "container_grid_spacing": p.params["container_grid_spacing"],
+        "phase1": p.params["phase1"], "phase2": p.params["phase2"],
+        "stopped": p.params["stopped"], "kwargs": kwargs, "params": params or {},
+        "density_trace": trace,
+    }
+
+
+def run_in_child(container: str, types: list[str], seed: int, kwargs: dict,
+                 params: dict | None = None, *, env: dict | None = None,
+                 meshes: Path = MESHES) -> dict:
+    """`run_record` in a fresh Python process (own numba state); returns its record."""
+    job = {"container": container, "types": types, "seed": seed, "kwargs": kwargs,
+           "params": params, "meshes": str(meshes)}
+    with tempfile.NamedTemporaryFile(suffix=".json", delete=False) as f:
+        out = Path(f.name)
+    try:
+        subprocess.run([sys.executable, __file__, json.dumps(job), str(out)], check=True,
+                       env=env)
+        return json.loads(out.read_text())
+    finally:
+        out.unlink(missing_ok=True)
+
+
+def fresh_cache_env(folder: str) -> dict:
+    """Environment whose numba and approximation caches live (empty) under `folder`."""
+    return dict(os.environ, NUMBA_CACHE_DIR=os.path.join(folder, "numba"),
+                JAMPACKED_CACHE=os.path.join(folder, "jampacked"))
+
+
+def write_json(path: Path, data) -> None:
+    """Atomic JSON write (temporary file + rename)."""
+    path.parent.mkdir(parents=True, exist_ok=True)
+    tmp = path.with_name(path.name + ".tmp")
+    tmp.write_text(json.dumps(data, indent=1))
+    os.replace(tmp, path)
+
+
+def save_figure(fig, path: Path) -> None:
+    """Atomic PNG write of a matplotlib figure."""
+    tmp = path.with_name(path.stem + ".tmp.png")
+    fig.savefig(tmp, dpi=110)
+    os.replace(tmp, path)
+
+
+if __name__ == "__main__":  # child process of run_in_child
+    job = json.loads(sys.argv[1])
+    rec = run_record(job["container"], job["types"], job["seed"], job["kwargs"],
+                     job["params"], Path(job["meshes"]))
+    Path(sys.argv[2]).write_text(json.dumps(rec))

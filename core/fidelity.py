@@ -1,0 +1,98 @@
+"""How finely the solver models a scene: sphere counts, grid resolutions, surface points.
+
+Three presets (low, medium, high) and `choose_fidelity`, which picks the resolution from the
+scene ("model no more than the scene needs"). Certification and export always use the real
+meshes; only the solver's approximations depend on the fidelity. Lengths in container units.
+"""
+
+from __future__ import annotations
+
+from dataclasses import dataclass, replace
+
+import numpy as np
+
+
+@dataclass(frozen=True)
+class Fidelity:
+    """Resolution of the solver's approximations.
+
+    spheres: inner spheres per type; grid_cells: cells of a type's distance grid across its
+    largest extent; surface_points: surface samples per type; container_cells: container
+    grid cells per equivalent radius f(V) of the smallest type.
+    """
+
+    name: str
+    spheres: int
+    grid_cells: int
+    surface_points: int
+    container_cells: float
+    reasons: tuple[str, ...] = ()
+
+    def as_dict(self) -> dict:
+        return {"name": self.name, "spheres": self.spheres, "grid_cells": self.grid_cells,
+                "surface_points": self.surface_points,
+                "container_cells": self.container_cells, "reasons": list(self.reasons)}
+
+
+PRESETS = {
+    "low": Fidelity("low", 24, 28, 96, 3.0),
+    "medium": Fidelity("medium", 64, 40, 384, 4.0),
+    "high": Fidelity("high", 160, 64, 384, 6.0),
+}
+
+#: above this many expected objects the auto choice uses fewer spheres per object
+MANY_OBJECTS = 1500
+#: a type this many times longer than thick gets a finer grid (its thickness in >= 8 cells)
+CELLS_ACROSS_THICKNESS = 8
+#: a container whose deepest point is within this many smallest radii of its wall is tight
+TIGHT_DEPTH = 2.0
+
+
+def thickness_ratio(vertices: np.ndarray) -> float:
+    """Largest over smallest extent along the principal axes of a vertex cloud (V,3)."""
+    v = vertices - vertices.mean(axis=0)
+    _, _, axes = np.linalg.svd(v, full_matrices=False)
+    ext = np.ptp(v @ axes.T, axis=0)
+    return float(ext.max() / max(ext.min(), 1e-12 * ext.max()))
+
+
+def choose_fidelity(type_vertices: list[np.ndarray], expected_objects: float,
+                    clearance: float, depth_over_radius: float) -> Fidelity:
+    """The automatic fidelity for a scene.
+
+    type_vertices: each type's vertices in container units (local frame).
+    expected_objects: objects a half-full container would hold. clearance: container units.
+    depth_over_radius: the container's deepest interior distance over the smallest type's
+    equivalent radius (how much room the tightest object has).
+    Starts from `medium` (the paper's resolution) and moves each knob for a reason:
+    - many objects: fewer spheres (the solver's cost per contact is spheres squared; with
+      thousands of objects, time per object matters more than the last percent);
+    - elongated or flat types (banana): a finer grid, so their thickness spans enough cells;
+    - a clearance smaller than a grid cell: a finer grid, so the grid's error stays below it;
+    - a tight container (the smallest object only just fits its deepest point): a finer
+      container grid, since every contact there is a wall contact.
+    """
+    base = PRESETS["medium"]
+    reasons = []
+    spheres = base.spheres
+    if expected_objects > MANY_OBJECTS:
+        spheres = PRESETS["low"].spheres
+        reasons.append(f"about {expected_objects:.0f} objects: {spheres} spheres per type")
+    cells = base.grid_cells
+    extents = [float(np.ptp(v, axis=0).max()) for v in type_vertices]
+    ratio = max(thickness_ratio(v) for v in type_vertices)
+    want = int(np.ceil(CELLS_ACROSS_THICKNESS * ratio))
+    if want > cells:
+        cells = min(want, PRESETS["high"].grid_cells)
+        reasons.append(f"a type {ratio:.1f} times longer than thick: {cells} grid cells")
+    if clearance > 0:
+        want = int(np.ceil(max(extents) / clearance))
+        if want > cells:
+            cells = min(want, PRESETS["high"].grid_cells)
+            reasons.append(f"clearance {clearance:g}: {cells} grid cells")
+    container_cells = base.container_cells
+    if depth_over_radius < TIGHT_DEPTH:
+        container_cells = PRESETS["high"].container_cells
+        reasons.append("tight container: a finer container grid")
+    return replace(base, name="auto", spheres=spheres, grid_cells=cells,
+                   container_cells=container_cells, reasons=tuple(reasons))

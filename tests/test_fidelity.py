@@ -1,0 +1,70 @@
+"""The automatic fidelity: each knob moves for its reason, and pack() records what it used."""
+
+from __future__ import annotations
+
+from pathlib import Path
+
+import numpy as np
+import pytest
+import trimesh
+
+from jampacked.core.api import PackParams, pack
+from jampacked.core.fidelity import PRESETS, choose_fidelity, thickness_ratio
+
+MESHES = Path(__file__).resolve().parents[2] / "shared" / "meshes"
+
+
+def _box(x: float, y: float, z: float, turn: bool = False) -> np.ndarray:
+    v = trimesh.creation.box((x, y, z)).vertices
+    if turn:  # the principal axes, not the coordinate axes, measure thickness
+        rot = trimesh.transformations.rotation_matrix(0.7, [1.0, 2.0, 3.0])[:3, :3]
+        v = v @ rot.T
+    return v
+
+
+def test_thickness_ratio_uses_principal_axes():
+    assert thickness_ratio(_box(10, 1, 1)) == pytest.approx(10.0)
+    assert thickness_ratio(_box(10, 2, 1, turn=True)) == pytest.approx(10.0, rel=1e-6)
+    assert thickness_ratio(_box(3, 3, 3)) == pytest.approx(1.0)
+
+
+def test_plain_scene_gets_medium_knobs():
+    f = choose_fidelity([_box(20, 18, 16)], 200, 0.0, 6.0)
+    med = PRESETS["medium"]
+    assert f.name == "auto" and f.reasons == ()
+    assert (f.spheres, f.grid_cells, f.surface_points, f.container_cells) == (
+        med.spheres, med.grid_cells, med.surface_points, med.container_cells)
+
+
+def test_many_objects_use_fewer_spheres():
+    f = choose_fidelity([_box(20, 18, 16)], 4000, 0.0, 6.0)
+    assert f.spheres < PRESETS["medium"].spheres
+    assert "objects" in f.reasons[0]
+
+
+def test_elongated_type_gets_a_finer_grid():
+    f = choose_fidelity([_box(20, 18, 16), _box(60, 4, 4)], 200, 0.0, 6.0)
+    assert f.grid_cells > PRESETS["medium"].grid_cells
+    assert f.grid_cells <= PRESETS["high"].grid_cells
+
+
+def test_small_clearance_gets_a_finer_grid_but_large_does_not():
+    assert choose_fidelity([_box(20, 18, 16)], 200, 0.4, 6.0).grid_cells == 50
+    assert choose_fidelity([_box(20, 18, 16)], 200, 2.0, 6.0).grid_cells == 40
+
+
+def test_tight_container_gets_a_finer_container_grid():
+    f = choose_fidelity([_box(20, 18, 16)], 200, 0.0, 1.5)
+    assert f.container_cells > PRESETS["medium"].container_cells
+
+
+@pytest.mark.skipif(not MESHES.is_dir(), reason="../shared/meshes not present")
+def test_pack_records_the_fidelity_and_applies_overrides():
+    poly = [str(MESHES / "polyhedra" / "convex5" / f"polytope{i}.obj") for i in (1, 3)]
+    p = pack("box:34x30x32", poly, seed=1, time_budget=2.0,
+             params=PackParams(spheres=12, container_cells=3.5, extra_passes=()))
+    d = p.params["fidelity_detail"]
+    assert d["name"] == "auto" and d["spheres"] == 12 and d["container_cells"] == 3.5
+    assert max(p.params["spheres_per_type"]) <= 12
+    assert any("overridden" in r for r in d["reasons"])
+    assert p.certificate["certified"]
