@@ -205,8 +205,10 @@ def _add_pack_parser(sub: argparse._SubParsersAction) -> None:
     p.add_argument(
         "--fidelity", choices=("auto", "low", "medium", "high"), default="auto",
         help="how closely the engine models object shapes while packing: low is fastest, "
-             "high packs tightest; auto picks from the number of objects expected (default: "
-             "auto). Certification always uses the exact meshes")
+             "high packs tightest; auto chooses from the scene: fewer spheres per object when "
+             "thousands are expected, finer grids for elongated objects, a small clearance "
+             "or a tight container (default: auto; the summary says what it chose). "
+             "Certification always uses the exact meshes")
     p.add_argument(
         "--time-budget", type=_positive_float("--time-budget"), metavar="S",
         help="stop placing objects after S seconds and certify what is there (default: no "
@@ -717,6 +719,12 @@ def print_summary(packing: Packing, console: Console, title: str | None = None) 
     summary.add_row("NNI mean", _num(m.get("nni_mean"), "{:.2f}")
                     + "  (<1 clumped, ≈1 random, >1 regular)")
     summary.add_row("seed / fidelity", f"{packing.seed} / {params.get('fidelity', '-')}")
+    fd = params.get("fidelity_detail")
+    if fd:
+        summary.add_row("resolution", f"{fd['spheres']} spheres, {fd['grid_cells']} grid cells, "
+                        f"{fd['surface_points']} surface points per type; container grid "
+                        f"{fd['container_cells']:g} cells per smallest radius"
+                        + "".join(f"\n{r}" for r in fd.get("reasons", [])))
     stopped = params.get("stopped")
     if stopped:
         why = {"deadline": "time budget reached", "cancelled": "interrupted"}.get(stopped,

@@ -51,6 +51,7 @@ class PackParams:
     # scaled by the factor too
     extra_passes: tuple[float, ...] = (0.8, 0.6, 0.5, 0.4)
     extra_retries: int = 1
+    extra_rounds: int = 8  # with a time budget: rounds of extra passes while they add objects
     extra_patience: int = 60  # an extra pass ends after this many fruitless points in a row
     extra_max_tvd: float = 0.03  # extra passes add no object that pushes TVD above this
     repair_rounds: int = 3  # certify -> push apart rounds before removing offenders
@@ -164,6 +165,19 @@ def pack(container: MeshSource, types: Sequence[MeshSource],
         objtypes.append(build_type(name, m.vertices, m.faces, path=m.path, sha256=m.sha256,
                                    share=float(q[i]), type_scale=type_scale, fidelity=fid,
                                    use_cache=use_cache))
+    # a type whose largest inscribed sphere (plus the clearance) is deeper than the container
+    # fits nowhere: the grid's depth is within a cell of the true depth, the spheres' radii
+    # never exceed the true inscribed radius
+    depth = float(cont.grid.values.max())
+    no_room = [t.name for t in objtypes if t.share > 0
+               and float(t.sphere_radii.max()) + clearance > depth + cont.grid.spacing]
+    if no_room:
+        raise PackingError(
+            f"object type{'s' if len(no_room) > 1 else ''} {', '.join(no_room)} cannot fit: "
+            f"the container's deepest interior point is {depth:.4g} units from its wall, less "
+            f"than the type's largest inscribed sphere{' plus the clearance' if clearance else ''}"
+            ". Scale the container up (--container-size) or the objects down (--type-scale)"
+            f"{', lower the clearance' if clearance else ''}, or remove the type.")
     t_approx = time.perf_counter()
 
     # --- phases
@@ -190,19 +204,28 @@ def pack(container: MeshSource, types: Sequence[MeshSource],
     after2 = _snapshot_metrics(state, table, q, c_volume)
     t_p2 = time.perf_counter()
     # beyond the paper: further cavity passes at lower thresholds (objects grown there push
-    # their neighbours aside), while the time budget allows
+    # their neighbours aside), while the time budget allows. Each pass ends after
+    # `extra_patience` fruitless points; with time left, the passes run again on freshly
+    # jittered lattices (other holes), for as long as a round still adds objects.
     extra = []
     n_extra = max(len(params.extra_passes), 1)
-    for i, factor in enumerate(params.extra_passes):
-        if stop():
+    rounds = params.extra_rounds if deadline is not None else 1
+    for rnd in range(rounds):
+        grown = 0
+        for i, factor in enumerate(params.extra_passes):
+            if stop():
+                break
+            lo = 0.8 + 0.1 * (i + rnd * n_extra) / (n_extra * rounds)
+            st = phase2(
+                solver, q, s1 * params.phase2_spacing * factor, rng, stop,
+                iters=params.phase2_iterations, margin=margin, retries=params.extra_retries,
+                threshold=factor * f_min, fit_factor=factor, patience=params.extra_patience,
+                max_tvd=params.extra_max_tvd,
+                progress=lambda f, m, lo=lo: report(lo + 0.1 * f / (n_extra * rounds), m))
+            grown += st.grown
+            extra.append({**asdict(st), "round": rnd, "factor": factor})
+        if grown == 0 or stop():
             break
-        lo = 0.8 + 0.1 * i / n_extra
-        extra.append(asdict(phase2(
-            solver, q, s1 * params.phase2_spacing * factor, rng, stop,
-            iters=params.phase2_iterations, margin=margin, retries=params.extra_retries,
-            threshold=factor * f_min, fit_factor=factor, patience=params.extra_patience,
-            max_tvd=params.extra_max_tvd,
-            progress=lambda f, m, lo=lo: report(lo + 0.1 * f / n_extra, m))))
     after_extra = _snapshot_metrics(state, table, q, c_volume)
     t_extra = time.perf_counter()
 
@@ -217,6 +240,14 @@ def pack(container: MeshSource, types: Sequence[MeshSource],
     t_cert = time.perf_counter()
 
     idx = state.alive_indices()
+    if len(idx) == 0 and not stop.reason:
+        gap = f", the clearance {clearance:g}" if clearance else ""
+        raise PackingError(
+            f"no object could be placed: the container's deepest interior point is "
+            f"{depth:.4g} units from its wall, the smallest type's equivalent radius is "
+            f"{f_min:.4g}{gap}, and no object fitted anywhere. Scale the container up "
+            "(--container-size) or the objects down (--type-scale)"
+            f"{' or lower the clearance' if clearance else ''}.")
     typ = state.typ[idx].copy()
     pos = state.pos[idx].copy()
     quat = state.quat[idx].copy()

@@ -14,6 +14,7 @@ from dataclasses import dataclass, field
 import numpy as np
 
 from .container import interior_points
+from .kernels import sample_grid_many
 from .solver import Solver
 
 START_SCALE = 0.05
@@ -34,6 +35,17 @@ def _tvd(counts: np.ndarray, shares: np.ndarray) -> float:
     if n <= 0:
         return 0.5 * float(np.abs(shares).sum())
     return 0.5 * float(np.abs(counts / n - shares).sum())
+
+
+def best_tvd(shares: np.ndarray, n: int) -> float:
+    """The smallest TVD any n objects can have against target shares (T,): counts rounded
+    by largest remainders."""
+    want = shares * n
+    counts = np.floor(want)
+    short = int(n - counts.sum())
+    if short > 0:
+        counts[np.argsort(-(want - counts), kind="stable")[:short]] += 1
+    return _tvd(counts, shares)
 
 
 def random_quaternions(rng: np.random.Generator, n: int) -> np.ndarray:
@@ -126,8 +138,20 @@ def phase1(solver: Solver, shares: np.ndarray, spacing: float, rng: np.random.Ge
     for p, t, q in zip(pts, types, quats, strict=True):
         queue.append(solver.s.add(int(t), p, q, START_SCALE, float(margin[t])))
     st.inserted = len(pts)
-    # tiny objects near each other or the wall: settle them before growing anything
-    solver.resolve(np.asarray(queue, np.int64), 50, rollback=False)
+    # tiny objects near each other or the wall: settle them before growing anything. A
+    # resolve pass costs (objects it starts from) x (all objects): on a lattice wider than
+    # two shrunken objects only those near the wall can touch anything, so only they start
+    # it (100000 lattice objects took a minute otherwise); none once the budget is spent.
+    focus = np.asarray(queue, np.int64)
+    r0 = START_SCALE * table.radius.max()
+    if len(pts) and 2 * (r0 + margin.max()) + solver.p.clearance < spacing:
+        g = solver.c.grid
+        depth = sample_grid_many(g.values, g.origin, g.spacing, pts)
+        # trilinear depth changes by at most sqrt(3) per unit length: 2 * r0 covers it
+        near = min_depth + 2 * r0 + solver.p.wall_margin + g.spacing
+        focus = focus[depth < near]
+    if len(focus) and not stop():
+        solver.resolve(focus, 50, rollback=False)
     counts = np.zeros(n_types)
     order_by_volume = np.argsort(-table.volume)
     total = len(queue)
@@ -141,7 +165,9 @@ def phase1(solver: Solver, shares: np.ndarray, spacing: float, rng: np.random.Ge
         if below:
             t = below[0]
         else:
-            t = int(np.argmin(counts / np.maximum(shares, 1e-12)))
+            # a type with a zero target share is never placed
+            t = int(np.argmin(np.where(shares > 0, counts / np.maximum(shares, 1e-12),
+                                       np.inf)))
         # the first ungrown object takes the type the mix needs now (the paper draws types
         # up front; typing on demand keeps the mix when big types fail more often)
         solver.s.typ[k] = t
@@ -180,6 +206,9 @@ def phase2(solver: Solver, shares: np.ndarray, spacing: float, rng: np.random.Ge
     """
     t0 = time.perf_counter()
     st = PhaseStats()
+    if stop():  # the candidate search below costs (points x objects): not after the budget
+        st.stopped = stop.reason
+        return st
     table = solver.t
     f = equivalent_radius(table.volume)
     vbar = float(np.exp(np.sum(shares * np.log(table.volume))))
@@ -194,7 +223,7 @@ def phase2(solver: Solver, shares: np.ndarray, spacing: float, rng: np.random.Ge
     pts, d = pts[keep], d[keep]
     order = np.argsort(-d, kind="stable")
     pts = pts[order]
-    by_size = np.argsort(-f)
+    by_size = [int(t) for t in np.argsort(-f) if shares[t] > 0]  # zero share: never placed
     clear = solver.p.clearance
     misses = 0
     n = solver.s.n
@@ -217,7 +246,8 @@ def phase2(solver: Solver, shares: np.ndarray, spacing: float, rng: np.random.Ge
             # extra passes: only types that keep the mix within max_tvd (or improve it),
             # the one the mix lacks most first, larger first on ties
             cur = _tvd(counts, shares)
-            cap = max(max_tvd, cur - 1e-12)
+            # with few objects no count reaches max_tvd: allow the best the next count can do
+            cap = max(max_tvd, cur - 1e-12, best_tvd(shares, int(counts.sum()) + 1) + 1e-12)
             fits = [t for t in fits if _tvd(counts + np.eye(len(shares))[t], shares) <= cap]
             n_now = counts.sum() + 1.0
             need = sorted(fits, key=lambda t: (counts[t] - shares[t] * n_now, -f[t]))

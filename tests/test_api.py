@@ -10,7 +10,7 @@ import numpy as np
 import pytest
 import trimesh
 
-from jampacked.core.api import pack
+from jampacked.core.api import PackParams, pack
 from jampacked.core.errors import InputError, MeshError, PackingError
 from jampacked.core.metrics import compute_metrics
 from jampacked.core.packing import load_packing, save_packing
@@ -208,3 +208,21 @@ def test_fresh_install_compiles_before_the_time_budget_starts(tmp_path):
     out = subprocess.run([sys.executable, "-c", code], env=env, capture_output=True,
                          text=True, timeout=600, check=True).stdout.split()
     assert int(out[0]) >= 5 and out[1] == "True"
+
+
+def test_extra_passes_repeat_while_they_add_objects_and_time_is_left():
+    """With a time budget the extra cavity passes run again on new lattices as long as a
+    round adds objects; without one they run once (so an unbudgeted pack ends)."""
+    p = pack(BOX, POLY, seed=2, fidelity="low", time_budget=20.0,
+             params=PackParams(extra_patience=4))  # short passes: round 0 ends early
+    extra = p.params["extra_passes"]
+    rounds = sorted({e["round"] for e in extra})
+    assert rounds == list(range(len(rounds))) and len(rounds) >= 2
+    for r in rounds[:-1]:  # every round but the last added something
+        assert sum(e["grown"] for e in extra if e["round"] == r) > 0
+    last = [e for e in extra if e["round"] == rounds[-1]]
+    ended = (sum(e["grown"] for e in last) == 0 or p.params["stopped"] == "deadline"
+             or len(rounds) == 8)
+    assert ended
+    q = pack(BOX, POLY, seed=2, fidelity="low", params=PackParams(extra_rounds=8))
+    assert {e["round"] for e in q.params["extra_passes"]} == {0}

@@ -149,3 +149,17 @@ def test_compute_metrics_empty():
 def test_compute_metrics_volume_count_mismatch():
     with pytest.raises(InputError):
         compute_metrics(np.array([0]), np.zeros((1, 3)), np.array([1.0]), np.array([1, 1]), 5.0)
+
+
+def test_best_tvd_is_the_smallest_over_all_count_vectors():
+    """best_tvd (the extra passes' floor on the mix cap) against brute force."""
+    import itertools
+
+    from jampacked.core.phases import _tvd, best_tvd
+
+    for shares in ([0.2] * 5, [0.5, 0.3, 0.2], [0.99, 0.01]):
+        q = np.array(shares)
+        for n in range(1, 9):
+            brute = min(_tvd(np.array(c, float), q)
+                        for c in itertools.product(range(n + 1), repeat=len(q)) if sum(c) == n)
+            assert best_tvd(q, n) == pytest.approx(brute, abs=1e-12), (shares, n)

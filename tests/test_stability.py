@@ -1,0 +1,260 @@
+"""How pack() ends where methods fail (the stability map's cases, small and fast).
+
+Each case must end in a certified packing or a clear JampackedError: never NaN, an object
+outside the container, a hang or a crash. Checks here are independent of the engine's own:
+centres by the generalised winding number of the container mesh, volume outside by
+manifold3d on the placed mesh files. bench/stability.py runs the same cases at full size.
+"""
+
+from __future__ import annotations
+
+import json
+import sys
+from pathlib import Path
+
+import manifold3d as m3
+import numpy as np
+import pytest
+import trimesh
+
+from jampacked.core.api import pack
+from jampacked.core.errors import PackingError
+from jampacked.core.meshes import load_mesh, mesh_from_arrays
+
+ROOT = Path(__file__).resolve().parents[1]
+MESHES = ROOT.parent / "shared" / "meshes"
+pytestmark = pytest.mark.skipif(not MESHES.is_dir(), reason="../shared/meshes not present")
+
+FRUIT = [str(MESHES / "fruit" / "ycb_lowpoly" / f"{n}.obj") for n in
+         ("011_banana", "012_strawberry", "014_lemon", "015_peach", "017_orange")]
+BANANA, STRAWBERRY, LEMON, PEACH, ORANGE = FRUIT
+
+
+def _winding_inside(vertices: np.ndarray, faces: np.ndarray, points: np.ndarray) -> np.ndarray:
+    """(N,) bool: inside a closed mesh by the generalised winding number."""
+    tri = np.asarray(vertices, float)[np.asarray(faces)]
+    r = tri[None] - np.asarray(points, float).reshape(-1, 1, 1, 3)  # (N,F,3,3)
+    a, b, c = r[:, :, 0], r[:, :, 1], r[:, :, 2]
+    la, lb, lc = (np.linalg.norm(x, axis=2) for x in (a, b, c))
+    det = np.einsum("nfi,nfi->nf", a, np.cross(b, c))
+    den = (la * lb * lc + np.einsum("nfi,nfi->nf", a, b) * lc
+           + np.einsum("nfi,nfi->nf", b, c) * la + np.einsum("nfi,nfi->nf", c, a) * lb)
+    return np.abs(np.arctan2(det, den).sum(axis=1) / (2 * np.pi)) > 0.5
+
+
+def _container(p, spec_or_path: str) -> trimesh.Trimesh:
+    """The container in the packing's frame, rebuilt from the spec or file."""
+    if spec_or_path.startswith("box:"):
+        ext = [float(x) for x in spec_or_path[4:].split("x")]
+        m = trimesh.creation.box(extents=ext)
+    else:
+        m = trimesh.load(spec_or_path, force="mesh", process=True)
+    f = p.frame_from_file
+    return trimesh.Trimesh(m.vertices @ f[:3, :3].T + f[:3, 3], m.faces, process=False)
+
+
+def _assert_sane(p, container: str, *, min_objects: int = 1, exact_outside: bool = False):
+    """Certified, every number finite, unit rotations, full scale, centres inside the
+    container; with exact_outside, each placed mesh's volume outside (manifold3d) too."""
+    cert = p.certificate
+    assert cert["certified"], cert
+    assert cert["worst_overlap"] <= 1e-4 and cert["worst_outside"] <= 1e-4, cert
+    assert p.n >= min_objects, p.n
+    for arr in (p.translations, p.rotations, p.scales):
+        assert np.all(np.isfinite(arr))
+    numbers = [p.metrics["density"], p.metrics["tvd"]] + [
+        cert[k] for k in ("worst_overlap", "worst_outside", "min_pair_gap", "min_wall_gap")
+        if cert[k] is not None]
+    if p.metrics.get("nni_mean") is not None:
+        numbers.append(p.metrics["nni_mean"])
+    assert np.all(np.isfinite(numbers)), numbers
+    assert np.allclose(np.linalg.norm(p.rotations, axis=1), 1.0)
+    assert np.allclose(p.scales, 1.0)
+    cm = _container(p, container)
+    inside = _winding_inside(cm.vertices, cm.faces, p.translations)
+    assert inside.all(), np.flatnonzero(~inside)
+    if exact_outside:
+        lo, hi = cm.bounds
+        box = m3.Manifold.cube((hi - lo + 20).tolist(), True).translate(((lo + hi) / 2).tolist())
+        outside = box - m3.Manifold(m3.Mesh(vert_properties=cm.vertices.astype(np.float32),
+                                            tri_verts=cm.faces.astype(np.uint32)))
+        mats = p.matrices()
+        for k in range(p.n):
+            t = p.types[p.type_index[k]]
+            m = mats[k] @ t.local_from_file
+            mesh = load_mesh(t.path)
+            v = mesh.vertices @ m[:3, :3].T + m[:3, 3]
+            solid = m3.Manifold(m3.Mesh(vert_properties=v.astype(np.float32),
+                                        tri_verts=mesh.faces.astype(np.uint32)))
+            assert (solid ^ outside).volume() <= 1e-4 * t.volume * 1.01, k
+
+
+# --- clear errors -------------------------------------------------------------------------
+
+
+def test_objects_larger_than_the_container_raise_packing_error():
+    """Lemons and oranges (x300: 17-22 mm across) in a 6 mm box: refused up front, with the
+    sizes and the fix in the message."""
+    with pytest.raises(PackingError, match="no object fits") as e:
+        pack("box:6x6x6", [LEMON, ORANGE], type_scale=300.0, fidelity="low", time_budget=2.0)
+    msg = str(e.value)
+    assert "equivalent radius is 8.537" in msg and "--type-scale" in msg, msg
+
+
+def test_clearance_too_large_is_a_clear_error():
+    """A 40 mm box is 20 mm deep: a 20 mm clearance leaves no room for any lemon."""
+    with pytest.raises(PackingError, match="plus clearance 20"):
+        pack("box:40x40x40", [LEMON], type_scale=300.0, clearance=20.0, fidelity="low",
+             time_budget=2.0)
+
+
+@pytest.mark.parametrize("container,kwargs", [
+    ("box:80x80x80", {"clearance": 32.0}),  # depth 40 > 4.3 + 32, yet no lemon fits
+    (str(MESHES / "containers" / "bunny.obj"), {"container_size": 30.0}),
+])
+def test_nothing_fits_past_the_up_front_check_is_a_clear_error(container, kwargs):
+    """The first check (depth against half the smallest equivalent radius) passes here; the
+    per-type check (largest inner sphere plus clearance against the depth) must catch it
+    (stability map: clearance-32, too-large-all)."""
+    with pytest.raises(PackingError, match="cannot fit|no object could be placed"):
+        pack(container, [LEMON, ORANGE] if "box" in container else FRUIT, type_scale=300.0,
+             fidelity="low", time_budget=3.0, **kwargs)
+
+
+# --- certified packings where methods struggle ----------------------------------------------
+
+
+def test_one_type_that_fits_nowhere_is_named():
+    """A 16 mm slab holds strawberries (about 10 mm thick) but no orange (about 21 mm):
+    instead of a packing with the orange silently missing, the error names the orange
+    (stability map: too-large-one)."""
+    with pytest.raises(PackingError, match=r"017_orange cannot fit") as e:
+        pack("box:16x80x80", [STRAWBERRY, ORANGE], type_scale=300.0, fidelity="low",
+             time_budget=2.0)
+    assert "012_strawberry" not in str(e.value)
+
+
+def test_extreme_shares_99_to_1_keep_the_mix():
+    box = "box:50x50x50"
+    p = pack(box, [LEMON, ORANGE], [0.99, 0.01], type_scale=300.0, seed=2, fidelity="low",
+             time_budget=3.0)
+    _assert_sane(p, box, min_objects=10)
+    counts = np.bincount(p.type_index, minlength=2)
+    assert counts[0] >= 10 * max(counts[1], 1), counts
+    # phase 1 keeps the mix; the paper's phase 2 inserts the largest type that fits, so the
+    # 1% type gains a little there
+    assert p.metrics["tvd"] <= 0.1, p.metrics["tvd"]
+
+
+@pytest.mark.parametrize("shares", [[1.0, 0.0], [0.0, 1.0]])
+def test_a_zero_share_type_is_never_placed(shares):
+    """100/0: phase 1's fallback and the paper's phase 2 (largest type that fits) placed one
+    object of the 0% type before; now the mix is exact."""
+    box = "box:60x60x60"
+    p = pack(box, [LEMON, ORANGE], shares, type_scale=300.0, seed=1, fidelity="low",
+             time_budget=3.0)
+    _assert_sane(p, box, min_objects=8)
+    assert set(p.type_index.tolist()) == {int(np.argmax(shares))}
+    assert p.metrics["tvd"] == 0.0
+
+
+def test_one_type_fills_the_box():
+    box = "box:50x50x50"
+    p = pack(box, [ORANGE], type_scale=300.0, seed=2, fidelity="low", time_budget=3.0)
+    _assert_sane(p, box, min_objects=6)
+    assert set(p.type_index.tolist()) == {0}
+    assert p.metrics["tvd"] == 0.0
+    assert p.metrics["density"] > 0.25, p.metrics["density"]
+
+
+def test_size_ratio_1_to_20_is_certified_with_both_types():
+    """An orange (22 mm) and a strawberry scaled to a twentieth of its equivalent radius:
+    the container grid is capped (220 cells across; a flat box keeps it small), the small
+    type still gets placed and certified. The type mix is not kept (the paper's phase 2
+    fills cavities with whatever fits: here the small type), so TVD is not asserted."""
+    straw = load_mesh(STRAWBERRY)
+    ratio = (202.0e-6 / 48.0e-6) ** (1 / 3) / 20.0  # f(orange) / f(strawberry) / 20
+    small = mesh_from_arrays(straw.vertices * ratio, straw.faces, name="strawberry/20")
+    box = "box:48x26x26"
+    p = pack(box, [ORANGE, small], type_scale=300.0, seed=1, fidelity="low",
+             time_budget=2.0)
+    _assert_sane(p, box, min_objects=6)
+    counts = np.bincount(p.type_index, minlength=2)
+    assert counts.min() >= 2, counts
+    v = [t.volume for t in p.types]
+    assert 7000 < v[0] / v[1] < 9000  # 20^3 = 8000 by equivalent radius
+
+
+def test_elongated_banana_alone_is_certified():
+    box = "box:60x60x60"
+    p = pack(box, [BANANA], type_scale=300.0, seed=1, fidelity="low", time_budget=3.0)
+    _assert_sane(p, box, min_objects=4, exact_outside=True)
+
+
+def test_thin_features_hand_is_certified_nothing_outside():
+    """A 150 mm hand: fruit (13-22 mm) fit the palm, not the fingers; every placed mesh is
+    inside the hand (exact volume outside, manifold3d) and every centre too."""
+    hand = str(MESHES / "containers" / "hand.obj")
+    p = pack(hand, FRUIT, container_size=150.0, type_scale=300.0, seed=1, fidelity="low",
+             time_budget=4.0)
+    _assert_sane(p, hand, min_objects=5, exact_outside=True)
+    assert 0.1 < p.metrics["density"] < 0.6
+
+
+def test_tiny_budget_with_thousands_expected_ends_certified_with_what_it_placed():
+    """About 10000 strawberries (x60, 2.7 mm) would fill a 60 mm box; with a 1 s budget the
+    run stops on the deadline, certifies what it placed and says it stopped. Nothing runs
+    after the deadline but certification: phase 2's candidate search (points x objects, half
+    a second here) is skipped."""
+    box = "box:60x60x60"
+    p = pack(box, [STRAWBERRY], type_scale=60.0, seed=1, fidelity="low", time_budget=1.0)
+    assert p.params["stopped"] == "deadline"
+    assert p.params["phase1"]["inserted"] > 5000
+    _assert_sane(p, box, min_objects=20)
+    assert p.n < 5000
+    assert p.params["phase2"]["stopped"] == "deadline"
+    assert p.params["phase2"]["seconds"] < 0.2, p.params["phase2"]
+    assert p.timings["total"] < 60.0, p.timings
+
+
+def test_tens_of_thousands_of_lattice_objects_keep_the_budget():
+    """46000 strawberries (x20) start in phase 1's lattice of a flat box: settling them used to
+    cost (objects x objects), 4.5 s past a 1 s budget with nothing placed; only objects near
+    the wall start the settling now, and placement stops on time."""
+    box = "box:60x60x10"
+    p = pack(box, [STRAWBERRY], type_scale=20.0, seed=1, fidelity="low", time_budget=1.0)
+    assert p.params["phase1"]["inserted"] > 40000
+    assert p.params["stopped"] == "deadline"
+    assert p.params["phase1"]["seconds"] < 2.0, p.params["phase1"]
+    assert p.certificate["certified"] and np.all(np.isfinite(p.translations))
+
+
+# --- the stability bench's own runner: a hang and a crash are recorded, not fatal -----------
+
+
+@pytest.fixture(scope="module")
+def stability():
+    sys.path.insert(0, str(ROOT / "bench"))
+    try:
+        import stability
+    finally:
+        sys.path.remove(str(ROOT / "bench"))
+    return stability
+
+
+def _fake_case(stability, container: str) -> dict:
+    return stability._case("fake", "runner", "none", 0, container, [LEMON], 1.0, timeout=3.0)
+
+
+def test_bench_records_a_hang(stability):
+    rec = stability.run_in_child(_fake_case(stability, "__hang__"), MESHES)
+    assert rec["outcome"] == "hang"
+    assert 3.0 <= rec["wall_seconds"] < 30.0
+    assert stability.problems(rec) == ["expected certified, got hang"]
+
+
+def test_bench_records_a_crash_with_its_stderr(stability):
+    rec = stability.run_in_child(_fake_case(stability, "__crash__"), MESHES, timeout=120.0)
+    assert rec["outcome"] == "crash" and rec["exit_code"] != 0
+    assert "deliberate crash" in rec["stderr_tail"]
+    json.dumps(rec)  # what the bench writes
