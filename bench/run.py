@@ -157,7 +157,8 @@ def write_table(summaries: list[dict], path: Path) -> None:
             f"{s['median_density']:.1%} | {s['median_tvd']:.3f} | {s['median_nni']:.2f} | "
             f"{ph['phase1']:.0f} / {ph['phase2']:.0f} / {ph.get('extra', 0):.0f} / "
             f"{ph['certify']:.1f} | "
-            f"{s['median_seconds']:.1f} | {s['cold_seconds'] or 0:.1f} | "
+            f"{s['median_seconds']:.1f} | "
+            f"{'-' if s['cold_seconds'] is None else format(s['cold_seconds'], '.1f')} | "
             f"{s['worst_overlap_before_certification']:.1e}, "
             f"{s['worst_outside_before_certification']:.1e} | {s['moved']:.0f}, "
             f"{s['removed']:.0f} | {met} |")

@@ -152,8 +152,9 @@ def pack(container: MeshSource, types: Sequence[MeshSource],
             f"{f' plus clearance {clearance:g}' if clearance else ''}. Scale the container "
             "up (--container-size) or the objects down (--type-scale).")
     if fidelity == "auto":
-        fid = choose_fidelity([(m.vertices - m.vertices.mean(axis=0)) * type_scale
-                               for m in meshes], expected, clearance, depth / f_min)
+        local = [(m.vertices - m.vertices.mean(axis=0)) * type_scale for m in meshes]
+        r_max = max(float(np.sqrt((v ** 2).sum(axis=1)).max()) for v in local)
+        fid = choose_fidelity(local, expected, clearance, depth / f_min, depth / r_max)
     fid = _with_overrides(fid, params)
     if cont.grid.spacing != f_min / fid.container_cells:
         cont = build_container(c_vertices, cmesh.faces, c_volume, f_min / fid.container_cells)

@@ -57,23 +57,29 @@ def thickness_ratio(vertices: np.ndarray) -> float:
 
 
 def choose_fidelity(type_vertices: list[np.ndarray], expected_objects: float,
-                    clearance: float, depth_over_radius: float) -> Fidelity:
+                    clearance: float, depth_over_radius: float,
+                    depth_over_largest: float = np.inf) -> Fidelity:
     """The automatic fidelity for a scene.
 
     type_vertices: each type's vertices in container units (local frame).
     expected_objects: objects a half-full container would hold. clearance: container units.
     depth_over_radius: the container's deepest interior distance over the smallest type's
-    equivalent radius (how much room the tightest object has).
-    Starts from `medium` (the paper's resolution) and moves each knob for a reason:
+    equivalent radius (how much room the tightest object has); depth_over_largest: the same
+    depth over the largest type's bounding radius (below 1 the largest objects cannot turn
+    freely anywhere).
+    Starts from `medium` and moves each knob for a reason:
     - many objects: fewer spheres (the solver's cost per contact is spheres squared; with
       thousands of objects, time per object matters more than the last percent);
     - elongated or flat types (banana): a finer grid, so their thickness spans enough cells;
     - a clearance smaller than a grid cell: a finer grid, so the grid's error stays below it;
-    - a tight container (the smallest object only just fits its deepest point): a finer
-      container grid, since every contact there is a wall contact.
+    - a tight container (the smallest object only just fits its deepest point, or the
+      largest cannot turn freely anywhere, like fruit in a torus's tube): high's resolution,
+      since nearly every contact is a wall contact and the objects must turn to fit; on the
+      torus this reached medium's density in a third of the time (bench/results/fidelity.md).
     """
-    base = PRESETS["medium"]
-    reasons = []
+    tight = depth_over_radius < TIGHT_DEPTH or depth_over_largest < 1.0
+    base = PRESETS["high"] if tight else PRESETS["medium"]
+    reasons = ["tight container: high resolution"] if tight else []
     spheres = base.spheres
     if expected_objects > MANY_OBJECTS:
         spheres = PRESETS["low"].spheres
@@ -90,9 +96,5 @@ def choose_fidelity(type_vertices: list[np.ndarray], expected_objects: float,
         if want > cells:
             cells = min(want, PRESETS["high"].grid_cells)
             reasons.append(f"clearance {clearance:g}: {cells} grid cells")
-    container_cells = base.container_cells
-    if depth_over_radius < TIGHT_DEPTH:
-        container_cells = PRESETS["high"].container_cells
-        reasons.append("tight container: a finer container grid")
     return replace(base, name="auto", spheres=spheres, grid_cells=cells,
-                   container_cells=container_cells, reasons=tuple(reasons))
+                   reasons=tuple(reasons))
