@@ -48,6 +48,16 @@ def best_tvd(shares: np.ndarray, n: int) -> float:
     return _tvd(counts, shares)
 
 
+def mix_cap(counts: np.ndarray, shares: np.ndarray, max_tvd: float) -> float:
+    """The largest TVD an extra-pass insertion may leave: max_tvd, or the current TVD (an
+    insertion may always improve the mix), or, with few objects, where one object moves
+    the TVD by about 1/n, anything within one object of the best mix the next count allows.
+    """
+    n_next = int(counts.sum()) + 1
+    return max(max_tvd, _tvd(counts, shares) - 1e-12,
+               best_tvd(shares, n_next) + 1.0 / n_next)
+
+
 def random_quaternions(rng: np.random.Generator, n: int) -> np.ndarray:
     """(n,4) uniformly distributed unit quaternions w,x,y,z (Shoemake)."""
     u1, u2, u3 = rng.random((3, n))
@@ -245,9 +255,7 @@ def phase2(solver: Solver, shares: np.ndarray, spacing: float, rng: np.random.Ge
         if fit_factor < 1.0:
             # extra passes: only types that keep the mix within max_tvd (or improve it),
             # the one the mix lacks most first, larger first on ties
-            cur = _tvd(counts, shares)
-            # with few objects no count reaches max_tvd: allow the best the next count can do
-            cap = max(max_tvd, cur - 1e-12, best_tvd(shares, int(counts.sum()) + 1) + 1e-12)
+            cap = mix_cap(counts, shares, max_tvd)
             fits = [t for t in fits if _tvd(counts + np.eye(len(shares))[t], shares) <= cap]
             n_now = counts.sum() + 1.0
             need = sorted(fits, key=lambda t: (counts[t] - shares[t] * n_now, -f[t]))

@@ -163,3 +163,18 @@ def test_best_tvd_is_the_smallest_over_all_count_vectors():
             brute = min(_tvd(np.array(c, float), q)
                         for c in itertools.product(range(n + 1), repeat=len(q)) if sum(c) == n)
             assert best_tvd(q, n) == pytest.approx(brute, abs=1e-12), (shares, n)
+
+
+def test_mix_cap_lets_small_scenes_take_the_best_next_object():
+    """57 fruit of 5 types (11, 13, 11, 11, 11): any next object leaves TVD 0.0305, just
+    over 0.03; a fixed cap stopped the extra passes there (the default scene stalled at 57
+    fruit). With many objects the cap is max_tvd itself."""
+    from jampacked.core.phases import _tvd, mix_cap
+
+    q = np.full(5, 0.2)
+    counts = np.array([11.0, 13, 11, 11, 11])
+    after = _tvd(counts + np.eye(5)[0], q)
+    assert after > 0.03 and mix_cap(counts, q, 0.03) >= after
+    assert mix_cap(counts * 20, q, 0.03) == pytest.approx(0.03)
+    # never looser than one object beyond the best mix of the next count
+    assert mix_cap(counts, q, 0.03) <= 0.0207 + 1 / 58 + 1e-3
