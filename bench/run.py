@@ -74,7 +74,10 @@ def run_scenes(names: list[str], seeds: list[int] | None, cold: bool, meshes: Pa
             args = (spec["container"], spec["types"])
             # the cold run (numba compiling, approximations built) for the scenes with bars
             first = run_in_child(*args, 0, spec["kwargs"], env=env, meshes=meshes) \
-                if cold and (spec.get("bars") or not compiled) else None
+                if cold and spec.get("bars") else None
+            if not compiled and first is None:  # warm runs only: compile numba first
+                run_in_child("box:30x30x30", SCENES["polyhedra-80"]["types"][:1], 0,
+                             {"time_budget": 1.0}, env=env, meshes=meshes)
             compiled = True
             use = seeds or (BAR_SEEDS if spec.get("bars") else [1])
             warm = [run_in_child(*args, s, spec["kwargs"], env=env, meshes=meshes)

@@ -766,7 +766,8 @@ def print_summary(packing: Packing, console: Console, title: str | None = None) 
     phases.add_column("density", justify="right")
     after = {"phase1": m.get("after_phase1"), "phase2": m.get("after_phase2"),
              "extra": m.get("after_extra")}
-    labels = {"load": "load meshes", "approximate": "approximate", "phase1": "1 place & grow",
+    labels = {"load": "load meshes", "approximate": "approximate",
+              "compile": "compile kernels", "phase1": "1 place & grow",
               "phase2": "2 fill cavities", "extra": "more cavity passes",
               "certify": "certify & repair"}
     for key, label in labels.items():
