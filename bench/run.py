@@ -178,7 +178,9 @@ def write_table(summaries: list[dict], path: Path) -> None:
         "![peer](peer_bullet.png)",
         "- stability map: [stability.md](stability.md), ![stability](stability.png)",
         "- export: [export.json](export.json); shell accuracy: "
-        "[shell_accuracy.json](shell_accuracy.json)", ""]
+        "[shell_accuracy.json](shell_accuracy.json)",
+        "- the engine issue's runs (polyhedra-80 with 120 s, fruit-in-bunny with 280 s "
+        "budgets; earlier code): [issue2/](issue2/)", ""]
     tmp = path.with_name(path.name + ".tmp")
     tmp.write_text("\n".join(lines))
     tmp.replace(path)
