@@ -75,7 +75,8 @@ def choose_fidelity(type_vertices: list[np.ndarray], expected_objects: float,
     - a tight container (the smallest object only just fits its deepest point, or the
       largest cannot turn freely anywhere, like fruit in a torus's tube): high's resolution,
       since nearly every contact is a wall contact and the objects must turn to fit; on the
-      torus this reached medium's density in a third of the time (bench/results/fidelity.md).
+      torus it reached the earlier automatic choice's density in a third of the time and
+      ended 1-3 points higher over 3 seeds (bench/results/fidelity.md).
     """
     tight = depth_over_radius < TIGHT_DEPTH or depth_over_largest < 1.0
     base = PRESETS["high"] if tight else PRESETS["medium"]
