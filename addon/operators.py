@@ -61,6 +61,14 @@ class JobRunner:
     _job = None  # the worker.Job being followed
     _timer = None  # the window manager timer of the modal UI
 
+    @classmethod
+    def poll(cls, context: bpy.types.Context) -> bool:
+        """One job at a time (shared by every operator that runs a job)."""
+        if worker.busy():
+            cls.poll_message_set("A Jampacked job is running")
+            return False
+        return context.scene is not None
+
     # ---------------------------------------------------------------- to implement
     def make_job(self, context: bpy.types.Context) -> worker.Job:
         raise NotImplementedError
@@ -235,13 +243,6 @@ class JAMPACKED_OT_pack(PackRunner, bpy.types.Operator):
     bl_label = "Pack"
     bl_options = {'REGISTER', 'UNDO'}
 
-    @classmethod
-    def poll(cls, context: bpy.types.Context) -> bool:
-        if worker.busy():
-            cls.poll_message_set("A Jampacked job is running")
-            return False
-        return context.scene is not None
-
 
 class ExportRunner(JobRunner):
     """Export: read the result and meshes, export in the thread, report the validation."""
@@ -277,13 +278,6 @@ class JAMPACKED_OT_export(ExportRunner, bpy.types.Operator):
     bl_idname = "jampacked.export"
     bl_label = "Export"
     bl_options = {'REGISTER'}
-
-    @classmethod
-    def poll(cls, context: bpy.types.Context) -> bool:
-        if worker.busy():
-            cls.poll_message_set("A Jampacked job is running")
-            return False
-        return context.scene is not None
 
 
 class JAMPACKED_OT_cancel(bpy.types.Operator):
