@@ -16,15 +16,16 @@ from __future__ import annotations
 import argparse
 import json
 import statistics
+import sys
 import tempfile
 import time
 from pathlib import Path
 
-ROOT = Path(__file__).resolve().parents[1]
-RESULTS = ROOT / "bench" / "results"
+sys.path.insert(0, str(Path(__file__).resolve().parent))
+
+from scenes import FRUIT, MESHES, RESULTS  # noqa: E402
+
 PACKING = RESULTS / "packing-bunny-500-fruit.json"
-FRUIT = [f"fruit/ycb_lowpoly/{n}.obj" for n in
-         ("011_banana", "012_strawberry", "014_lemon", "015_peach", "017_orange")]
 BARS = {"union_seconds": 10.0, "validate_seconds": 2.0}
 
 
@@ -40,7 +41,7 @@ def _make_packing(meshes: Path) -> None:
 
 def main(argv: list[str] | None = None) -> int:
     ap = argparse.ArgumentParser(description=__doc__.splitlines()[0])
-    ap.add_argument("--meshes", type=Path, default=ROOT.parent / "shared" / "meshes")
+    ap.add_argument("--meshes", type=Path, default=MESHES)
     ap.add_argument("--repeats", type=int, default=3)
     ap.add_argument("--shell", type=float, default=2.0)
     args = ap.parse_args(argv)

@@ -38,6 +38,7 @@ from scenes import (  # noqa: E402
     run_in_child,
     save_figure,
     write_json,
+    write_text,
 )
 
 #: name -> (fidelity argument, PackParams overrides)
@@ -231,9 +232,7 @@ def table(rows: list[dict], summary: dict, path: Path) -> None:
         reasons = s.get("auto_reasons")
         if reasons is not None:
             lines.append(f"  - auto chose: {'; '.join(reasons) or 'medium, unchanged'}.")
-    tmp = path.with_name(path.name + ".tmp")
-    tmp.write_text("\n".join(lines) + "\n")
-    tmp.replace(path)
+    write_text(path, "\n".join(lines) + "\n")
 
 
 def summarise(rows: list[dict]) -> dict:

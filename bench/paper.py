@@ -18,7 +18,7 @@ from pathlib import Path
 
 sys.path.insert(0, str(Path(__file__).resolve().parent))
 
-from scenes import RESULTS, SCENES, save_figure  # noqa: E402
+from scenes import RESULTS, SCENES, save_figure, write_text  # noqa: E402
 
 STAGES = (("after_phase1", "phase 1"), ("after_phase2", "phase 2"),
           ("after_extra", "extra passes"), (None, "certified"))
@@ -77,9 +77,7 @@ def write(rs: list[dict], path: Path) -> None:
                   else "n/a | n/a | n/a")
         lines.append(f"| {r['scene']} | {r['objects']:.0f} | {r['seconds']:.0f} | "
                      f"{r['density']:.1%} | {theirs} |")
-    tmp = path.with_name(path.name + ".tmp")
-    tmp.write_text("\n".join(lines) + "\n")
-    tmp.replace(path)
+    write_text(path, "\n".join(lines) + "\n")
 
 
 def chart(rs: list[dict], path: Path) -> None:

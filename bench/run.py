@@ -23,7 +23,16 @@ from pathlib import Path
 
 sys.path.insert(0, str(Path(__file__).resolve().parent))
 
-from scenes import MESHES, RESULTS, SCENES, fresh_cache_env, run_in_child, save_figure, write_json  # noqa: E402
+from scenes import (  # noqa: E402
+    MESHES,
+    RESULTS,
+    SCENES,
+    fresh_cache_env,
+    run_in_child,
+    save_figure,
+    write_json,
+    write_text,
+)
 
 PARTS = ("scenes", "fidelity", "growth", "peer", "stability", "paper")
 #: scenes with bars run three seeds, the others one
@@ -181,9 +190,7 @@ def write_table(summaries: list[dict], path: Path) -> None:
         "[shell_accuracy.json](shell_accuracy.json)",
         "- the engine issue's runs (polyhedra-80 with 120 s, fruit-in-bunny with 280 s "
         "budgets; earlier code): [issue2/](issue2/)", ""]
-    tmp = path.with_name(path.name + ".tmp")
-    tmp.write_text("\n".join(lines))
-    tmp.replace(path)
+    write_text(path, "\n".join(lines))
 
 
 def main(argv: list[str] | None = None) -> int:

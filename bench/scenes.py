@@ -130,12 +130,17 @@ def fresh_cache_env(folder: str) -> dict:
                 JAMPACKED_CACHE=os.path.join(folder, "jampacked"))
 
 
-def write_json(path: Path, data) -> None:
-    """Atomic JSON write (temporary file + rename)."""
+def write_text(path: Path, text: str) -> None:
+    """Atomic text write (temporary file + rename)."""
     path.parent.mkdir(parents=True, exist_ok=True)
     tmp = path.with_name(path.name + ".tmp")
-    tmp.write_text(json.dumps(data, indent=1))
+    tmp.write_text(text)
     os.replace(tmp, path)
+
+
+def write_json(path: Path, data, default=None) -> None:
+    """Atomic JSON write; default converts what json cannot (as in json.dumps)."""
+    write_text(path, json.dumps(data, indent=1, default=default))
 
 
 def save_figure(fig, path: Path) -> None:

@@ -43,12 +43,11 @@ import tempfile
 import time
 from pathlib import Path
 
-ROOT = Path(__file__).resolve().parents[1]
-RESULTS = ROOT / "bench" / "results"
-MESHES = ROOT.parent / "shared" / "meshes"
+sys.path.insert(0, str(Path(__file__).resolve().parent))
 
-FRUIT = [f"fruit/ycb_lowpoly/{n}.obj" for n in
-         ("011_banana", "012_strawberry", "014_lemon", "015_peach", "017_orange")]
+from scenes import FRUIT, MESHES, RESULTS, save_figure, write_text  # noqa: E402
+from scenes import write_json as _write_json  # noqa: E402
+
 LEMON = "fruit/ycb_lowpoly/014_lemon.obj"
 ORANGE = "fruit/ycb_lowpoly/017_orange.obj"
 STRAWBERRY = "fruit/ycb_lowpoly/012_strawberry.obj"
@@ -447,9 +446,7 @@ def write_markdown(summary: dict, path: Path) -> None:
             lines.append(f"- {r['name']}: {r['thin']['unreachable']:.1%} unreachable "
                          f"(radius {r['thin']['inscribed_radius']:.1f} mm)")
     lines += ["", "![stability map](" + path.with_suffix(".png").name + ")", ""]
-    tmp = path.with_name(path.name + ".tmp")
-    tmp.write_text("\n".join(lines))
-    os.replace(tmp, path)
+    write_text(path, "\n".join(lines))
 
 
 COLOURS = {"certified": "#b7e1b0", "clear error": "#bcd7f0", "invalid": "#f4a6a6",
@@ -522,16 +519,12 @@ def chart(summary: dict, path: Path) -> None:
     fig.suptitle("jampacked stability map" + (" (quick)" if summary["quick"] else ""),
                  fontsize=11)
     fig.tight_layout()
-    tmp = path.with_name(path.stem + ".tmp.png")
-    fig.savefig(tmp, dpi=110)
+    save_figure(fig, path)
     plt.close(fig)
-    os.replace(tmp, path)
 
 
 def write_json(path: Path, data) -> None:
-    tmp = path.with_name(path.name + ".tmp")
-    tmp.write_text(json.dumps(data, indent=1, default=_jsonable))
-    os.replace(tmp, path)
+    _write_json(path, data, default=_jsonable)
 
 
 def write_outputs(summary: dict, stem: Path) -> None:
