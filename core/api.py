@@ -141,6 +141,8 @@ def pack(container: MeshSource, types: Sequence[MeshSource],
     volumes = np.array([m.volume for m in meshes]) * type_scale ** 3
     expected = 0.5 * c_volume / float(np.sum(q * volumes))
     f_min = float(equivalent_radius(volumes.min()))
+    # the container's depth decides the automatic fidelity, which decides the container
+    # grid: build at medium's (or the preset's) resolution, again only if that changes
     fid = PRESETS["medium"] if fidelity == "auto" else PRESETS[fidelity]
     cont: Container = build_container(c_vertices, cmesh.faces, c_volume,
                                       f_min / fid.container_cells)
