@@ -37,6 +37,7 @@ class PackParams:
 
     phase1_density: float = 0.5  # lattice spacing = (mean type volume / this)^(1/3)
     phase1_iterations: int = 30  # solver iterations per growth step (paper: 25-30)
+    phase1_growth_steps: int = 30  # growth steps from scale 0 to 1 (the paper: 30)
     phase2_spacing: float = 0.5  # phase 2 lattice spacing, fraction of phase 1's
     phase2_iterations: int = 80  # per growth step (paper: 55-150)
     phase2_retries: int = 2  # random smaller types tried after a failure
@@ -54,6 +55,11 @@ class PackParams:
     extra_rounds: int = 8  # with a time budget: rounds of extra passes while they add objects
     extra_patience: int = 60  # an extra pass ends after this many fruitless points in a row
     extra_max_tvd: float = 0.03  # extra passes add no object that pushes TVD above this
+    # growth steps from scale 0 to 1 in the extra passes: objects there start at the free
+    # radius of their hole (scale ~0.5), and coarser steps cost fewer solver calls per try
+    # (fruit-in-bunny: 22 fruit in 18 s instead of 25 in 59 s in the 0.6 pass)
+    extra_growth_steps: int = 12
+    extra_iterations: int = 80  # solver iterations per growth step in the extra passes
     repair_rounds: int = 3  # certify -> push apart rounds before removing offenders
     repair_margin: float = 0.01  # margin added per repair round, fraction of bounding radius
     repair_iterations: int = 100
@@ -199,6 +205,7 @@ def pack(container: MeshSource, types: Sequence[MeshSource],
     stop = Stop(deadline, should_cancel)
     s1 = (float(np.sum(q * volumes)) / params.phase1_density) ** (1 / 3)
     st1 = phase1(solver, q, s1, rng, stop, iters=params.phase1_iterations, margin=margin,
+                 growth_steps=params.phase1_growth_steps,
                  progress=lambda f, m: report(0.05 + 0.55 * f, m))
     after1 = _snapshot_metrics(state, table, q, c_volume)
     t_p1 = time.perf_counter()
@@ -222,7 +229,8 @@ def pack(container: MeshSource, types: Sequence[MeshSource],
             lo = 0.8 + 0.1 * (i + rnd * n_extra) / (n_extra * rounds)
             st = phase2(
                 solver, q, s1 * params.phase2_spacing * factor, rng, stop,
-                iters=params.phase2_iterations, margin=margin, retries=params.extra_retries,
+                iters=params.extra_iterations, margin=margin, retries=params.extra_retries,
+                growth_steps=params.extra_growth_steps,
                 threshold=factor * f_min, fit_factor=factor, patience=params.extra_patience,
                 max_tvd=params.extra_max_tvd,
                 progress=lambda f, m, lo=lo: report(lo + 0.1 * f / (n_extra * rounds), m))

@@ -104,8 +104,9 @@ class Stop:
         return bool(self.reason)
 
 
-def grow(solver: Solver, k: int, start: float, iters: int, stop: Stop) -> bool:
-    """Grow object k from `start` to scale 1 in steps of 1/GROWTH_STEPS, resolving overlaps.
+def grow(solver: Solver, k: int, start: float, iters: int, stop: Stop,
+         steps: int = GROWTH_STEPS) -> bool:
+    """Grow object k from `start` to scale 1 in steps of 1/steps, resolving overlaps.
 
     On failure (or stop) object k is removed and every other object is back in its last
     overlap-free state. Returns True if k reached full size.
@@ -117,7 +118,9 @@ def grow(solver: Solver, k: int, start: float, iters: int, stop: Stop) -> bool:
         if stop():
             s.alive[k] = 0
             return False
-        scale = min(1.0, scale + 1.0 / GROWTH_STEPS)
+        scale = scale + 1.0 / steps
+        if scale > 1.0 - 1e-9:  # float sums of 1/steps fall just short of 1
+            scale = 1.0
         s.scale[k] = scale
         if not solver.resolve(focus, iters, rollback=True):
             s.alive[k] = 0
@@ -127,6 +130,7 @@ def grow(solver: Solver, k: int, start: float, iters: int, stop: Stop) -> bool:
 
 def phase1(solver: Solver, shares: np.ndarray, spacing: float, rng: np.random.Generator,
            stop: Stop, *, iters: int = 30, margin: np.ndarray,
+           growth_steps: int = GROWTH_STEPS,
            progress: Callable[[float, str], None] | None = None) -> PhaseStats:
     """Place one shrunken object per interior lattice point and grow them one at a time.
 
@@ -182,7 +186,7 @@ def phase1(solver: Solver, shares: np.ndarray, spacing: float, rng: np.random.Ge
         # up front; typing on demand keeps the mix when big types fail more often)
         solver.s.typ[k] = t
         solver.s.margin[k] = margin[t]
-        if grow(solver, k, solver.s.scale[k], iters, stop):
+        if grow(solver, k, solver.s.scale[k], iters, stop, growth_steps):
             counts[t] += 1
             st.grown += 1
         else:
@@ -203,6 +207,7 @@ def phase2(solver: Solver, shares: np.ndarray, spacing: float, rng: np.random.Ge
            stop: Stop, *, iters: int = 80, margin: np.ndarray, retries: int = 2,
            threshold: float | None = None, fit_factor: float = 1.0,
            patience: int | None = None, max_tvd: float = 0.03,
+           growth_steps: int = GROWTH_STEPS,
            progress: Callable[[float, str], None] | None = None) -> PhaseStats:
     """Fill cavities: at lattice points far enough from every object and the wall, insert
     the largest type whose equivalent radius f(V) is below that distance and grow it; on
@@ -277,7 +282,7 @@ def phase2(solver: Solver, shares: np.ndarray, spacing: float, rng: np.random.Ge
                 solver.s.alive[k] = 0
                 st.failed += 1
                 continue
-            if start >= 1.0 or grow(solver, k, start, iters, stop):
+            if start >= 1.0 or grow(solver, k, start, iters, stop, growth_steps):
                 st.grown += 1
                 counts[t] += 1
                 misses = 0

@@ -701,3 +701,15 @@ def test_inner_spheres(types, which):
     more_c, more_r = inner_spheres(grid, 80)
     np.testing.assert_array_equal(more_r[:len(radii)], radii)  # greedy: a prefix
     assert sphere_coverage(grid, more_c, more_r) >= cov[-1]
+
+
+@pytest.mark.parametrize("steps,calls", [(30, 15), (12, 6)])
+def test_grow_takes_the_requested_growth_steps(table, container, steps, calls):
+    """grow() from scale 0.5 to 1 resolves once per step of 1/steps (the extra passes use
+    coarser steps than phase 1's 1/30)."""
+    from jampacked.core.phases import Stop, grow
+
+    state = make_state([0], np.zeros((1, 3)), np.array([[1.0, 0, 0, 0]]), scale=[0.5])
+    sv = solver.Solver(container, table, state, solver.SolverParams())
+    assert grow(sv, 0, 0.5, 20, Stop(None, None), steps)
+    assert state.scale[0] == 1.0 and sv.calls == calls
