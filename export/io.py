@@ -33,6 +33,7 @@ from jampacked.core.errors import InputError, MeshError
 from jampacked.core.meshes import _extension, _read_arrays, _read_bytes
 
 from .validate import ValidationReport, validate_file
+from .xmlmesh import POW5, scan_triangles, scan_vertices
 
 __all__ = ["WRITE_FORMATS", "read_mesh_arrays", "write_mesh"]
 
@@ -131,51 +132,145 @@ def _plain_numbers(block: bytes, tag: bytes, attributes: tuple[bytes, bytes, byt
     return values if len(values) == 3 * block.count(b"<" + tag) else None
 
 
-def _element_text(xml: bytes, tag: bytes, start: int, stop: int) -> tuple[bytes, int] | None:
-    """Content of the first <tag>...</tag> in xml[start:stop] and the index after it."""
+def _element_span(xml: bytes, tag: bytes, start: int, stop: int
+                  ) -> tuple[int, int, int] | None:
+    """Start and stop of the content of the first <tag>...</tag> in xml[start:stop], and the
+    index after it."""
     i = xml.find(b"<" + tag + b">", start, stop)
     if i < 0:
         return None
     i += len(tag) + 2
     j = xml.find(b"</" + tag + b">", i, stop)
-    return (xml[i:j], j + len(tag) + 3) if j >= 0 else None
+    return (i, j, j + len(tag) + 3) if j >= 0 else None
 
 
-def _fast_meshes(xml: bytes) -> list[Body] | None:
-    """Vertices and triangles of each <mesh> element, in document order, parsed without
-    building an element tree; None unless every mesh, vertex and triangle element has the
-    plain form this module (and most slicers) write: then the general parser is used."""
+_VERTEX_WORDS = tuple(np.frombuffer(w, np.uint8)
+                      for w in (b'<vertex x="', b'" y="', b'" z="', b'"/>'))
+_TRIANGLE_WORDS = tuple(np.frombuffer(w, np.uint8)
+                        for w in (b'<triangle v1="', b'" v2="', b'" v3="', b'"/>'))
+
+
+def _scanned_vertices(xml: bytes, buf: np.ndarray, start: int, stop: int) -> np.ndarray | None:
+    """The numbers of xml[start:stop] if it holds only plain vertex elements (numba scan, the
+    few numbers it leaves converted by numpy as :func:`_plain_numbers` does), else None."""
+    values, spans, end, ok = scan_vertices(buf, start, stop, *_VERTEX_WORDS, POW5)
+    if not ok or end != stop:
+        return None
+    return _fill_spans(xml, values, spans)
+
+
+def _fill_spans(xml: bytes, values: np.ndarray, spans: np.ndarray) -> np.ndarray:
+    """The numbers the scanner left (NaN, at ``spans``) converted as
+    :func:`_plain_numbers` converts them."""
+    if len(spans):
+        nan = np.flatnonzero(np.isnan(values))  # in order, one per span
+        values[nan] = np.array([xml[a:b] for a, b in spans], dtype=np.float64)
+    return values
+
+
+def _skip_space(xml: bytes, i: int) -> int:
+    while i < len(xml) and xml[i] in b" \t\r\n":
+        i += 1
+    return i
+
+
+def _strict_meshes(xml: bytes, buf: np.ndarray
+                   ) -> tuple[list[Body], list[tuple[int, int]]] | None:
+    """What :func:`_fast_meshes` gives, and the span of each mesh element, for documents
+    whose every <mesh> holds exactly what this module writes: whitespace, <vertices> of
+    plain vertex elements, whitespace, <triangles> of plain triangle elements, whitespace.
+    Each mesh is scanned once (no searches through the whole document for its closing
+    tags); None for anything else (then :func:`_fast_meshes` goes on)."""
     out: list[Body] = []
-    n_meshes = xml.count(b"<mesh")
-    pos = 0
-    while True:
-        mesh = _element_text(xml, b"mesh", pos, len(xml))
-        if mesh is None:
-            break
-        body, pos = mesh
-        vs = _element_text(body, b"vertices", 0, len(body))
-        ts = _element_text(body, b"triangles", 0, len(body))
-        if vs is None or ts is None:
-            return None
-        v = _plain_numbers(vs[0], b"vertex", (b"x", b"y", b"z"))
-        f = _plain_numbers(ts[0], b"triangle", (b"v1", b"v2", b"v3"))
-        if v is None or f is None or np.any(f != np.floor(f)):
-            return None
-        out.append((v.reshape(-1, 3), f.astype(np.int64).reshape(-1, 3)))
-    return out if len(out) == n_meshes else None
-
-
-def _strip_meshes(xml: bytes) -> bytes:
-    """The document with every <mesh>...</mesh> emptied (to parse only its structure)."""
-    parts = []
+    spans: list[tuple[int, int]] = []
+    n_tags = 0  # "<mesh" in the document, as _fast_meshes counts them
     pos = 0
     while True:
         i = xml.find(b"<mesh>", pos)
         if i < 0:
+            n_tags += xml.count(b"<mesh", pos)
             break
-        j = xml.find(b"</mesh>", i)
+        n_tags += xml.count(b"<mesh", pos, i) + 1
+        k = _skip_space(xml, i + len(b"<mesh>"))
+        if not xml.startswith(b"<vertices>", k):
+            return None
+        v, v_spans, end, ok = scan_vertices(buf, k + len(b"<vertices>"), len(xml),
+                                            *_VERTEX_WORDS, POW5)
+        if not ok or not xml.startswith(b"</vertices>", end):
+            return None
+        k = _skip_space(xml, end + len(b"</vertices>"))
+        if not xml.startswith(b"<triangles>", k):
+            return None
+        f, end, ok = scan_triangles(buf, k + len(b"<triangles>"), len(xml), *_TRIANGLE_WORDS)
+        if not ok or not xml.startswith(b"</triangles>", end):
+            return None
+        k = _skip_space(xml, end + len(b"</triangles>"))
+        if not xml.startswith(b"</mesh>", k):
+            return None
+        pos = k + len(b"</mesh>")
+        spans.append((i, pos))
+        out.append((_fill_spans(xml, v, v_spans).reshape(-1, 3), f.reshape(-1, 3)))
+    return (out, spans) if len(out) == n_tags else None
+
+
+def _fast_meshes(xml: bytes) -> tuple[list[Body], list[tuple[int, int]] | None] | None:
+    """Vertices and triangles of each <mesh> element, in document order, parsed without
+    building an element tree, and where the mesh elements are (None: not known); None
+    unless every mesh, vertex and triangle element has the plain form this module (and most
+    slicers) write: then the general parser is used.
+
+    The numba scanners of :mod:`jampacked.export.xmlmesh` read the strict form this module
+    writes (:func:`_strict_meshes`); other spacing or attribute order falls back to
+    :func:`_plain_numbers`."""
+    buf = np.frombuffer(xml, np.uint8)
+    strict = _strict_meshes(xml, buf)
+    if strict is not None:
+        return strict
+    out: list[Body] = []
+    n_meshes = xml.count(b"<mesh")
+    pos = 0
+    while True:
+        mesh = _element_span(xml, b"mesh", pos, len(xml))
+        if mesh is None:
+            break
+        m0, m1, pos = mesh
+        vs = _element_span(xml, b"vertices", m0, m1)
+        ts = _element_span(xml, b"triangles", m0, m1)
+        if vs is None or ts is None:
+            return None
+        v = _scanned_vertices(xml, buf, vs[0], vs[1])
+        if v is None:
+            v = _plain_numbers(xml[vs[0]:vs[1]], b"vertex", (b"x", b"y", b"z"))
+        f_int, end, ok = scan_triangles(buf, ts[0], ts[1], *_TRIANGLE_WORDS)
+        if ok and end == ts[1]:
+            f = f_int
+        else:
+            f = _plain_numbers(xml[ts[0]:ts[1]], b"triangle", (b"v1", b"v2", b"v3"))
+            if f is not None and np.any(f != np.floor(f)):
+                return None
+        if v is None or f is None:
+            return None
+        out.append((v.reshape(-1, 3), f.astype(np.int64, copy=False).reshape(-1, 3)))
+    return (out, None) if len(out) == n_meshes else None
+
+
+def _strip_meshes(xml: bytes, spans: list[tuple[int, int]] | None = None) -> bytes:
+    """The document with every <mesh>...</mesh> emptied (to parse only its structure);
+    ``spans``: where the mesh elements are, if known."""
+    if spans is None:
+        spans = []
+        pos = 0
+        while True:
+            i = xml.find(b"<mesh>", pos)
+            if i < 0:
+                break
+            pos = xml.find(b"</mesh>", i) + len(b"</mesh>")
+            spans.append((i, pos))
+    parts = []
+    pos = 0
+    for i, j in spans:
         parts.append(xml[pos:i] + b"<mesh/>")
-        pos = j + len(b"</mesh>")
+        pos = j
     parts.append(xml[pos:])
     return b"".join(parts)
 
@@ -191,8 +286,8 @@ def _read_3mf(data: bytes) -> tuple[np.ndarray, np.ndarray]:
     fast = _fast_meshes(xml)
     if fast is not None:
         # parse the structure without the mesh bodies (the bulk of the file)
-        it = iter(fast)
-        xml = _strip_meshes(xml)
+        it = iter(fast[0])
+        xml = _strip_meshes(xml, fast[1])
     root = ElementTree.fromstring(xml)
     ns = root.tag[1:].split("}")[0] if root.tag.startswith("{") else ""
 
@@ -232,7 +327,11 @@ def _read_3mf(data: bytes) -> tuple[np.ndarray, np.ndarray]:
             raise ValueError("components nest more than 32 deep (a cycle?)")
         if oid in meshes:
             v, f = meshes[oid]
-            out_v.append(v @ transform[:3, :3].T + transform[:3, 3])
+            if np.array_equal(transform, np.eye(4)) and np.all(np.isfinite(v)):
+                # what the product with the identity gives for finite numbers (-0.0 -> 0.0)
+                out_v.append(v + 0.0)
+            else:
+                out_v.append(v @ transform[:3, :3].T + transform[:3, 3])
             out_f.append(f + offset)
             offset += len(v)
         for child, m in components.get(oid, []):
@@ -244,6 +343,8 @@ def _read_3mf(data: bytes) -> tuple[np.ndarray, np.ndarray]:
             emit(item.get("objectid"), _matrix(item.get("transform")), 0)
     if not out_f:
         return np.zeros((0, 3)), np.zeros((0, 3), np.int64)
+    if len(out_f) == 1:  # already new arrays
+        return out_v[0], out_f[0]
     return np.concatenate(out_v), np.concatenate(out_f)
 
 

@@ -20,11 +20,14 @@ What is checked, per body (an edge-connected set of faces):
   tolerance). Contacts count: two faces that touch beyond their shared vertices or edge.
 
 And over the whole file: the number of bodies; bodies whose surfaces intersect or touch
-(``overlapping_bodies``); nesting (generalised winding number of a point of each closed body
-with respect to the closed bodies whose boxes contain it), so that a body is *outward* when it
-is a solid (volume > 0, outside every other solid) or a cavity (volume < 0, inside exactly
-one solid). An inside-out body, or a solid inside a solid, fails. manifold3d's status of the
-whole mesh is recorded as an independent check.
+(``overlapping_bodies``); nesting (the winding number of a point of each closed body with
+respect to the closed bodies whose boxes contain it: signed crossings of a ray where that
+body's every edge is used once each way, else, or where the ray grazes an edge or the point
+lies on the surface, the generalised winding number from solid angles; the two agree on such
+bodies), so that a body is *outward* when it is a solid (volume > 0, outside every other
+solid) or a cavity (volume < 0, inside exactly one solid). An inside-out body, or a solid
+inside a solid, fails. manifold3d's status of the whole mesh is recorded as an independent
+check (``check_manifold3d=False`` skips it: the report then says "skipped").
 
 Reading: vertices at exactly identical positions are merged (STL is a triangle soup; that is
 how a slicer reads it). Nothing else is merged, removed or repaired. Offending elements are
@@ -47,17 +50,16 @@ import numpy as np
 from numba import njit
 
 from jampacked.core.errors import InputError
-from jampacked.core.meshes import (
-    MERGE_TOLERANCE,
-    ZERO_VOLUME_FRACTION,
-    _directed_edges,
-    _edge_keys,
-    _face_areas2,
-    _manifold_status,
-    _signed_six_volumes,
-)
+from jampacked.core.meshes import MERGE_TOLERANCE, ZERO_VOLUME_FRACTION, _manifold_status
 
-from .intersect import TOL_REL, intersecting_pairs, winding_numbers
+from . import meshcheck
+from .intersect import (
+    TOL_REL,
+    intersecting_pairs,
+    ray_winding_numbers,
+    start_intersecting_pairs,
+    winding_numbers,
+)
 
 __all__ = ["BodyReport", "ValidationReport", "validate_arrays", "validate_file"]
 
@@ -298,80 +300,29 @@ def merge_identical(vertices: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
     v = np.ascontiguousarray(vertices, dtype=np.float64) + 0.0  # turns -0.0 into 0.0
     if len(v) == 0:
         return np.zeros(0, np.int64), np.zeros(0, np.int64)
-    bits = v.view(np.uint64).reshape(-1, 3)
-    # sort by a 64-bit hash of the coordinates' bits (one sort instead of three) ...
-    with np.errstate(over="ignore"):
-        h = bits[:, 0] * np.uint64(0x9E3779B97F4A7C15)
-        h ^= bits[:, 1] * np.uint64(0xC2B2AE3D27D4EB4F) + (h >> np.uint64(29))
-        h ^= bits[:, 2] * np.uint64(0x165667B19E3779F9) + (h >> np.uint64(32))
-    order = np.argsort(h, kind="stable")
-    sorted_bits = bits[order]
-    new = np.ones(len(v), bool)
-    new[1:] = h[order][1:] != h[order][:-1]
-    same_row = np.all(sorted_bits[1:] == sorted_bits[:-1], axis=1)
-    if not np.all(same_row[~new[1:]]):  # ... unless two positions share a hash: sort fully
-        order = np.lexsort((bits[:, 2], bits[:, 1], bits[:, 0]))
-        sorted_bits = bits[order]
-        new[1:] = np.any(sorted_bits[1:] != sorted_bits[:-1], axis=1)
-    group = np.cumsum(new) - 1
-    first_of_group = order[new]  # stable sorts: the smallest original index of each group
-    rank = np.empty(len(first_of_group), np.int64)
-    by_first = np.argsort(first_of_group, kind="stable")
-    rank[by_first] = np.arange(len(first_of_group))
-    remap = np.empty(len(v), np.int64)
-    remap[order] = rank[group]
-    return first_of_group[by_first], remap
+    # a hash table on the coordinates' bits: one pass, groups numbered as they appear
+    return meshcheck.merge_bits(v.view(np.uint64).reshape(-1, 3))
 
 
 @dataclass
 class _Topology:
-    """Edge structure. Half-edges: those of all faces except self-loops (a->a); edge-use
-    counts and pairing from the faces with three distinct vertices ("proper" faces) only."""
+    """Edge structure (see :func:`jampacked.export.meshcheck.edge_structure`). Corner
+    c = 3 * face + slot starts the half-edge to the next vertex of its face; self-loops
+    (a->a) have no edge. Use counts and pairing come from the faces with three distinct
+    vertices ("proper" faces) only."""
 
-    half_corner: np.ndarray  # (H,) 3*face + slot of each half-edge's start corner
-    half_face: np.ndarray  # (H,) face of each half-edge
-    directed: np.ndarray  # (H, 2) vertex pair of each half-edge
-    edge: np.ndarray  # (H,) undirected edge id
+    corner_edge: np.ndarray  # (3F,) edge of each corner, -1 for a self-loop
     edge_vertices: np.ndarray  # (E, 2) smaller, larger vertex
     counts: np.ndarray  # (E,) proper faces using each edge
-    first_half: np.ndarray  # (E,) first proper half-edge of edges used twice, else -1
-    second_half: np.ndarray  # (E,) second proper half-edge of edges used twice, else -1
+    first_corner: np.ndarray  # (E,) first proper corner of edges used twice, else -1
+    second_corner: np.ndarray  # (E,) second proper corner of edges used twice, else -1
     inconsistent: np.ndarray  # (E,) bool: used by two faces running the same way
+    face_of_edge: np.ndarray  # (E,) the face of each edge's last corner
 
 
 def _topology(faces: np.ndarray, proper: np.ndarray, n_vertices: int) -> _Topology:
-    """Undirected edges, their use counts, and the two half-edges of each edge used twice."""
-    directed = _directed_edges(faces)
-    keep = directed[:, 0] != directed[:, 1]
-    directed = directed[keep]
-    half_corner = np.flatnonzero(keep)
-    half_face = half_corner // 3
-    keys = _edge_keys(directed, n_vertices, False)
-    order = np.argsort(keys, kind="stable")
-    sorted_keys = keys[order]
-    new = np.ones(len(keys), bool)
-    new[1:] = sorted_keys[1:] != sorted_keys[:-1]
-    edge_sorted = np.cumsum(new) - 1
-    edge = np.empty(len(keys), np.int64)
-    edge[order] = edge_sorted
-    n_edges = int(edge_sorted[-1]) + 1 if len(keys) else 0
-    edge_vertices = np.sort(directed[order[new]], axis=1)
-    is_proper = proper[half_face]
-    counts = np.bincount(edge[is_proper], minlength=n_edges)
-    # proper half-edges grouped by edge (stable): the two of an edge used twice are adjacent
-    sel = is_proper[order]
-    order_p, edge_p = order[sel], edge_sorted[sel]
-    two = np.flatnonzero(counts == 2)
-    start = np.searchsorted(edge_p, two)
-    h1, h2 = order_p[start], order_p[start + 1]
-    first_half = np.full(n_edges, -1, np.int64)
-    second_half = np.full(n_edges, -1, np.int64)
-    first_half[two] = h1
-    second_half[two] = h2
-    inconsistent = np.zeros(n_edges, bool)
-    inconsistent[two] = directed[h1, 0] == directed[h2, 0]
-    return _Topology(half_corner, half_face, directed, edge, edge_vertices, counts, first_half,
-                     second_half, inconsistent)
+    """Undirected edges, their use counts, and the two corners of each edge used twice."""
+    return _Topology(*meshcheck.edge_structure(faces, proper, n_vertices))
 
 
 @njit(cache=True)
@@ -403,27 +354,11 @@ def _bodies(faces: np.ndarray, proper: np.ndarray, topo: _Topology) -> tuple[int
     Proper faces sharing an edge are in one body. A face with a repeated vertex (a line or a
     point) joins the body of a proper face at one of its vertices, or is a body of its own.
     """
-    n_faces = len(faces)
-    if n_faces == 0:
+    if len(faces) == 0:
         return 0, np.zeros(0, np.int64)
-    hp = proper[topo.half_face]
-    root = _roots(n_faces + len(topo.counts), topo.half_face[hp],
-                  topo.edge[hp] + n_faces)[:n_faces]
-    if not np.all(proper):
-        vertex_root = np.full(int(faces.max()) + 1, -1, np.int64)
-        vertex_root[faces[proper].reshape(-1)] = np.repeat(root[proper], 3)
-        lines = np.flatnonzero(~proper)
-        owner = vertex_root[faces[lines]].max(axis=1)
-        root[lines[owner >= 0]] = owner[owner >= 0]
-    is_root = np.zeros(n_faces, bool)
-    is_root[root] = True
-    rank = np.cumsum(is_root) - 1
-    return int(is_root.sum()), rank[root]
-
-
-def _end_corner(corner: np.ndarray) -> np.ndarray:
-    """Corner of the next vertex around the same face (the end of a half-edge)."""
-    return corner - corner % 3 + (corner % 3 + 1) % 3
+    n, body = meshcheck.face_bodies(len(faces), proper, faces, topo.corner_edge,
+                                    len(topo.counts))
+    return int(n), body
 
 
 def _fans(faces: np.ndarray, proper: np.ndarray, topo: _Topology) -> tuple[np.ndarray, np.ndarray]:
@@ -431,55 +366,21 @@ def _fans(faces: np.ndarray, proper: np.ndarray, topo: _Topology) -> tuple[np.nd
 
     Returns (vertex of each fan, a proper face of each fan).
     """
-    two = np.flatnonzero(topo.first_half >= 0)
-    h1, h2 = topo.first_half[two], topo.second_half[two]
-    s1, s2 = topo.half_corner[h1], topo.half_corner[h2]
-    e1, e2 = _end_corner(s1), _end_corner(s2)
-    same = topo.inconsistent[two]
-    # h1 runs a->b; h2 runs b->a (consistent) or a->b (same way)
-    rows = np.concatenate([s1, e1])
-    cols = np.concatenate([np.where(same, s2, e2), np.where(same, e2, s2)])
-    root = _roots(3 * len(faces), rows, cols)
-    corners = np.flatnonzero(np.repeat(proper, 3))
-    fan_corners = corners[root[corners] == corners]
-    return faces.reshape(-1)[fan_corners], fan_corners // 3
+    return meshcheck.fans(faces, proper, topo.first_corner, topo.second_corner,
+                          topo.inconsistent)
 
 
 def _flipped(n_faces: int, topo: _Topology) -> tuple[np.ndarray, np.ndarray]:
     """Faces whose winding disagrees with the majority of their patch, and faces on
     non-orientable patches. A patch: faces joined across edges used by exactly two faces."""
-    two = np.flatnonzero(topo.first_half >= 0)
-    f1 = topo.half_face[topo.first_half[two]]
-    f2 = topo.half_face[topo.second_half[two]]
-    same = topo.inconsistent[two]
-    # double cover: node f = "f as is", f + F = "f flipped"
-    a = np.concatenate([f1, f1 + n_faces])
-    b = np.concatenate([np.where(same, f2 + n_faces, f2), np.where(same, f2, f2 + n_faces)])
-    root = _roots(2 * n_faces, a, b)
-    keep, flip = root[:n_faces], root[n_faces:]
-    bad = keep == flip
-    patch = np.minimum(keep, flip)
-    flipped = (keep != patch) & ~bad
-    size = np.bincount(patch, minlength=2 * n_faces)
-    minority = np.bincount(patch, weights=flipped, minlength=2 * n_faces) * 2 > size
-    flipped ^= minority[patch] & ~bad
-    return np.flatnonzero(flipped), np.flatnonzero(bad)
+    return meshcheck.flipped_faces(n_faces, topo.first_corner, topo.second_corner,
+                                   topo.inconsistent)
 
 
-def _duplicates(faces: np.ndarray, proper: np.ndarray) -> np.ndarray:
+def _duplicates(faces: np.ndarray, proper: np.ndarray, topo: _Topology) -> np.ndarray:
     """Indices of proper faces on the same three vertices as an earlier face (any winding)."""
-    index = np.flatnonzero(proper)
-    if len(index) < 2:
-        return np.zeros(0, np.int64)
-    srt = np.sort(faces[index], axis=1)
-    n = np.int64(int(srt.max()) + 1)
-    if n < 2_000_000:  # n**3 fits in int64
-        _, first = np.unique((srt[:, 0] * n + srt[:, 1]) * n + srt[:, 2], return_index=True)
-    else:
-        _, first = np.unique(srt, axis=0, return_index=True)
-    is_first = np.zeros(len(index), bool)
-    is_first[first] = True
-    return index[~is_first]
+    return meshcheck.duplicate_faces(faces, proper, topo.corner_edge, topo.counts,
+                                     topo.first_corner, topo.second_corner)
 
 
 def _holes(topo: _Topology, face_body: np.ndarray, n_bodies: int) -> np.ndarray:
@@ -492,11 +393,26 @@ def _holes(topo: _Topology, face_body: np.ndarray, n_bodies: int) -> np.ndarray:
     local = local.reshape(-1, 2)
     loop = _roots(len(used), local[:, 0], local[:, 1])[local[:, 0]]
     # the body of an open edge: the body of a face using it
-    face_of_edge = np.zeros(len(topo.counts), np.int64)
-    face_of_edge[topo.edge] = topo.half_face
-    body = face_body[face_of_edge[open_edges]]
+    body = face_body[topo.face_of_edge[open_edges]]
     keys = np.unique(body * np.int64(len(used)) + loop)
     return np.bincount(keys // len(used), minlength=n_bodies)
+
+
+@njit(cache=True)
+def _largest_faces(face_body: np.ndarray, areas: np.ndarray, n_bodies: int) -> np.ndarray:
+    """The largest face of each body (the first of equal ones; NaN counts as smallest;
+    -1 for a body without faces)."""
+    best = np.full(n_bodies, -1, np.int64)
+    for f in range(face_body.shape[0]):
+        b = face_body[f]
+        k = best[b]
+        if k < 0:
+            best[b] = f
+            continue
+        a, m = areas[f], areas[k]
+        if a > m or (m != m and a == a):
+            best[b] = f
+    return best
 
 
 def _nesting(
@@ -504,12 +420,16 @@ def _nesting(
     faces: np.ndarray,
     face_body: np.ndarray,
     closed: np.ndarray,
-    proper: np.ndarray,
+    oriented: np.ndarray,
+    areas: np.ndarray,
     box_lo: np.ndarray,
     box_hi: np.ndarray,
 ) -> tuple[list[list[int]], np.ndarray, bool]:
     """For each closed body: the closed bodies containing it, and the winding number just
-    outside it (sum over the others). Returns (inside lists, winding_outside, checked)."""
+    outside it (sum over the others). Returns (inside lists, winding_outside, checked).
+
+    ``oriented``: bodies whose every edge is used once each way (their winding numbers come
+    from ray crossings); ``areas``: (F,) face areas (any scale), 0 for improper faces."""
     n = len(closed)
     inside: list[list[int]] = [[] for _ in range(n)]
     outside = np.zeros(n, np.int64)
@@ -528,15 +448,24 @@ def _nesting(
     if int(n_faces_body[idx[jj]].sum()) > NESTING_BUDGET:
         return inside, outside, False
     # a query point on each inner body: the centroid of its largest proper face
-    areas = _face_areas2(vertices, faces) * proper
-    order = np.lexsort((-areas, face_body))
-    first = order[np.searchsorted(face_body[order], np.arange(n))]
+    first = _largest_faces(face_body, areas, n)
     points = vertices[faces[first]].mean(axis=1)
+    by_body = np.argsort(face_body, kind="stable")  # each body's faces, in order
+    starts = np.searchsorted(face_body[by_body], np.arange(n + 1))
     for j in np.unique(jj):
         outer = idx[j]
         inner = idx[kk[jj == j]]
-        w = np.rint(winding_numbers(points[inner], vertices, faces[face_body == outer]))
-        for k, wk in zip(inner, w.astype(np.int64), strict=True):
+        outer_faces = faces[by_body[starts[outer]:starts[outer + 1]]]
+        if oriented[outer]:
+            # ray crossings give the same integer as the generalised winding number on a
+            # closed, consistently wound surface, at a fraction of the cost; ambiguous rays
+            # (grazing an edge, or a point on the surface) fall back to the solid angles
+            w, ok = ray_winding_numbers(points[inner], vertices, outer_faces)
+            if not np.all(ok):
+                w[~ok] = np.rint(winding_numbers(points[inner[~ok]], vertices, outer_faces))
+        else:
+            w = np.rint(winding_numbers(points[inner], vertices, outer_faces)).astype(np.int64)
+        for k, wk in zip(inner, w, strict=True):
             if wk != 0:
                 inside[int(k)].append(int(outer))
                 outside[int(k)] += wk
@@ -610,6 +539,24 @@ def _finish_empty(path: str | None, n_vertices: int, n_faces: int, problem: str,
         face_body=np.full(n_faces, -1, np.int64), seconds=seconds)
 
 
+def _spare_core() -> bool:
+    """Whether a second thread is likely to get a core of its own: two or more CPUs and a
+    1-minute load average (this process included) below their number by a quarter CPU; True
+    where there is no load average (Windows). On a busy machine the intersection test and
+    manifold3d only slow each other down, so they then run one after the other."""
+    try:
+        cpus = len(os.sched_getaffinity(0))
+    except AttributeError:
+        cpus = os.cpu_count() or 1
+    if cpus < 2:
+        return False
+    try:
+        load = os.getloadavg()[0]
+    except (AttributeError, OSError):
+        return True
+    return load < cpus - 0.25
+
+
 def _as_arrays(vertices: Any, faces: Any) -> tuple[np.ndarray, np.ndarray]:
     try:
         v = np.asarray(vertices, dtype=np.float64)
@@ -636,6 +583,7 @@ def validate_arrays(
     *,
     path: str | os.PathLike | None = None,
     check_intersections: bool = True,
+    check_manifold3d: bool = True,
 ) -> ValidationReport:
     """Validate a triangle mesh given as arrays (see the module docstring for the checks).
 
@@ -644,6 +592,9 @@ def validate_arrays(
         faces: (F, 3) vertex indices; counter-clockwise seen from outside is outward.
         path: the file the arrays came from, for messages and the report (optional).
         check_intersections: run the self-intersection test (the slowest check).
+        check_manifold3d: ask manifold3d for its status of the whole mesh (an independent
+            second opinion; about a third of the time on large meshes). With False the
+            report's ``manifold_status`` is "skipped".
 
     Returns:
         A :class:`ValidationReport`; ``report.passed`` says whether it is watertight.
@@ -662,7 +613,7 @@ def validate_arrays(
     if faces.min() < 0 or faces.max() >= n_vertices:
         return _finish_empty(path_str, n_vertices, n_faces, "faces refer to vertices that do "
                              "not exist (the file is damaged)", seconds)
-    used = np.unique(faces)
+    used, local = meshcheck.used_vertices(faces, n_vertices)  # np.unique, searchsorted
     if not np.all(np.isfinite(vertices[used])):
         bad = int(np.sum(~np.all(np.isfinite(vertices[used]), axis=1)))
         return _finish_empty(path_str, n_vertices, n_faces, f"{_plural(bad, 'vertex', 'vertices')} "
@@ -672,34 +623,49 @@ def validate_arrays(
     first_used, remap = merge_identical(vertices[used])
     first = used[first_used]
     positions = vertices[first]
-    mf = remap[np.searchsorted(used, faces)]
+    mf = remap[local]
     seconds["merge"] = time.perf_counter() - t0
 
     t = time.perf_counter()
     lo_all, hi_all = positions.min(axis=0), positions.max(axis=0)
     diagonal = float(np.linalg.norm(hi_all - lo_all))
-    repeated = (mf[:, 0] == mf[:, 1]) | (mf[:, 1] == mf[:, 2]) | (mf[:, 2] == mf[:, 0])
+    # repeated vertex, |cross| (as _face_areas2), longest edge, 6 x signed volume (as
+    # _signed_six_volumes, about the box centre)
+    repeated, area2, longest, six = meshcheck.face_geometry(positions, mf,
+                                                           0.5 * (lo_all + hi_all))
     proper = ~repeated
-    tri = positions[mf]
-    area2 = _face_areas2(positions, mf)
-    longest = np.linalg.norm(tri[:, [1, 2, 0]] - tri, axis=2).max(axis=1)
     height = area2 / np.maximum(longest, np.finfo(float).tiny)
     degenerate = repeated | (height <= DEGENERATE_REL * diagonal)
-    duplicates = _duplicates(mf, proper)
 
     topo = _topology(mf, proper, len(positions))
+    duplicates = _duplicates(mf, proper, topo)
+    seconds["topology"] = time.perf_counter() - t
+
+    # self-intersections. Where a core is free the test (numba, without the GIL) runs in a
+    # thread from here on, alongside the stages below and manifold3d (which holds the GIL);
+    # its seconds are then its own wall time, until its result is taken.
+    t_pairs = time.perf_counter()
+    active = ~degenerate
+    active[duplicates] = False
+    pending = None
+    pairs, n_pairs, hits = np.zeros((0, 2), np.int64), 0, np.zeros(n_faces, np.int64)
+    if check_intersections and check_manifold3d and _spare_core():
+        pending = start_intersecting_pairs(positions, mf, active)
+    elif check_intersections:
+        pairs, n_pairs, hits = intersecting_pairs(positions, mf, active)
+        seconds["self_intersections"] = time.perf_counter() - t_pairs
+
+    t = time.perf_counter()
     n_bodies, face_body = _bodies(mf, proper, topo)
     fan_vertex, fan_face = _fans(mf, proper, topo)
     fans_per_vertex = np.bincount(fan_vertex, minlength=len(positions))
     nm_vertices = np.flatnonzero(fans_per_vertex > 1)
     flipped, nonorientable = _flipped(n_faces, topo)
-    seconds["topology"] = time.perf_counter() - t
+    seconds["topology"] += time.perf_counter() - t
 
     # per-body sums
     t = time.perf_counter()
-    face_of_edge = np.zeros(len(topo.counts), np.int64)
-    face_of_edge[topo.edge] = topo.half_face
-    edge_body = face_body[face_of_edge]
+    edge_body = face_body[topo.face_of_edge]
     used_edge = topo.counts > 0
 
     def per_body(values: np.ndarray, labels: np.ndarray) -> np.ndarray:
@@ -708,7 +674,6 @@ def validate_arrays(
     def count(mask: np.ndarray, labels: np.ndarray) -> np.ndarray:
         return np.bincount(labels[mask], minlength=n_bodies).astype(np.int64)
 
-    six = _signed_six_volumes(positions, mf)
     volume = per_body(six, face_body) / 6.0
     area = per_body(area2, face_body) / 2.0
     n_face_body = count(np.ones(n_faces, bool), face_body)
@@ -719,46 +684,40 @@ def validate_arrays(
     incons_body = count(topo.inconsistent, edge_body)
     fan_body = face_body[fan_face]
     fans_body = np.bincount(fan_body, minlength=n_bodies)
-    n_pos = np.int64(len(positions))
-    vb = np.unique(np.repeat(face_body, 3) * n_pos + mf.reshape(-1))
-    vb_body, vb_vertex = vb // n_pos, vb % n_pos  # each (body, vertex) once
-    verts_body = np.bincount(vb_body, minlength=n_bodies)
     nm_vertex_mask = np.zeros(len(positions), bool)
     nm_vertex_mask[nm_vertices] = True
-    nm_vert_body = count(nm_vertex_mask[vb_vertex], vb_body)
+    # distinct vertices, non-manifold ones and the box of each body
+    verts_body, nm_vert_body, box_lo, box_hi = meshcheck.body_vertices(
+        mf, face_body, n_bodies, positions, nm_vertex_mask)
     flipped_body = np.bincount(face_body[flipped], minlength=n_bodies)
     nonorientable_body = np.bincount(face_body[nonorientable], minlength=n_bodies)
     degenerate_body = count(degenerate, face_body)
     duplicate_body = np.bincount(face_body[duplicates], minlength=n_bodies)
     holes_body = _holes(topo, face_body, n_bodies)
-    box_lo = np.full((n_bodies, 3), np.inf)
-    box_hi = np.full((n_bodies, 3), -np.inf)
-    # vb is sorted by body: reduce each body's run of vertices
-    starts = np.searchsorted(vb_body, np.arange(n_bodies))
-    box_lo[:] = np.minimum.reduceat(positions[vb_vertex], starts, axis=0)
-    box_hi[:] = np.maximum.reduceat(positions[vb_vertex], starts, axis=0)
     seconds["bodies"] = time.perf_counter() - t
-
-    # self-intersections
-    t = time.perf_counter()
-    active = ~degenerate
-    active[duplicates] = False
-    if check_intersections:
-        pairs, n_pairs, hits = intersecting_pairs(positions, mf, active)
-    else:
-        pairs, n_pairs, hits = np.zeros((0, 2), np.int64), 0, np.zeros(n_faces, np.int64)
-    pair_body = face_body[pairs]
-    same = pair_body[:, 0] == pair_body[:, 1]
-    self_body = np.bincount(pair_body[same, 0], minlength=n_bodies)
-    overlapping = sorted({(int(a), int(b)) for a, b in np.sort(pair_body[~same], axis=1)})
-    seconds["self_intersections"] = time.perf_counter() - t
 
     # nesting and orientation
     t = time.perf_counter()
     closed = (open_body == 0) & (nm_edge_body == 0) & (n_proper_body > 0)
-    inside, outside, nesting_checked = _nesting(positions, mf, face_body, closed, proper,
-                                                box_lo, box_hi)
+    oriented = closed & (incons_body == 0) & (nonorientable_body == 0)
+    inside, outside, nesting_checked = _nesting(positions, mf, face_body, closed, oriented,
+                                                area2 * proper, box_lo, box_hi)
     seconds["nesting"] = time.perf_counter() - t
+
+    # manifold3d's view of the whole mesh (while the intersection test goes on, if it does)
+    status = "skipped"
+    if check_manifold3d:
+        t = time.perf_counter()
+        status = _manifold_status(positions, mf).name
+        seconds["manifold3d"] = time.perf_counter() - t
+
+    if pending is not None:
+        pairs, n_pairs, hits = pending()
+        seconds["self_intersections"] = time.perf_counter() - t_pairs
+    pair_body = face_body[pairs]
+    same = pair_body[:, 0] == pair_body[:, 1]
+    self_body = np.bincount(pair_body[same, 0], minlength=n_bodies)
+    overlapping = sorted({(int(a), int(b)) for a, b in np.sort(pair_body[~same], axis=1)})
 
     zero_volume = ZERO_VOLUME_FRACTION * diagonal**3
     bodies = []
@@ -794,10 +753,7 @@ def validate_arrays(
         problems.append(f"{_plural(len(overlapping), 'pair')} of bodies intersect or touch "
                         f"(bodies {shown}{more})")
 
-    t = time.perf_counter()
-    status = _manifold_status(positions, mf).name
-    seconds["manifold3d"] = time.perf_counter() - t
-    if status != "NoError" and not any(b.problems for b in bodies):
+    if status not in ("NoError", "skipped") and not any(b.problems for b in bodies):
         problems.append(f"manifold3d refuses it (status {status})")
 
     def edges_where(mask: np.ndarray) -> np.ndarray:
@@ -825,10 +781,10 @@ def validate_arrays(
     )
 
 
-def validate_file(path: str | os.PathLike, *, check_intersections: bool = True
-                  ) -> ValidationReport:
+def validate_file(path: str | os.PathLike, *, check_intersections: bool = True,
+                  check_manifold3d: bool = True) -> ValidationReport:
     """Read a mesh file as written (see :func:`jampacked.export.io.read_mesh_arrays`: no
-    merging or repair) and validate it with :func:`validate_arrays`.
+    merging or repair) and validate it with :func:`validate_arrays` (the flags are its).
 
     Raises:
         MeshError: the file is missing, unreadable, or of an unknown type (the message names
@@ -840,6 +796,7 @@ def validate_file(path: str | os.PathLike, *, check_intersections: bool = True
     vertices, faces = read_mesh_arrays(path)
     read_seconds = time.perf_counter() - t
     report = validate_arrays(vertices, faces, path=path,
-                             check_intersections=check_intersections)
+                             check_intersections=check_intersections,
+                             check_manifold3d=check_manifold3d)
     report.seconds["read"] = read_seconds
     return report
