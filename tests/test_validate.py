@@ -639,6 +639,18 @@ def test_cli_json(files, capsys):
     assert missing["passed"] is False and "does not exist" in missing["error"]
 
 
+def test_cli_can_skip_the_manifold3d_cross_check(files, capsys):
+    """--no-manifold3d skips only manifold3d's status (said in the report); the own checks
+    still find the open edges."""
+    assert main(["validate", "--json", "--no-manifold3d", str(files["good"]),
+                 str(files["bad"])]) == 1
+    good, bad = json.loads(capsys.readouterr().out)["files"]
+    assert good["passed"] and good["manifold_status"] == "skipped"
+    assert not bad["passed"] and bad["bodies"][0]["open_edges"] == 3
+    assert main(["validate", "--json", str(files["good"])]) == 0
+    assert json.loads(capsys.readouterr().out)["files"][0]["manifold_status"] == "NoError"
+
+
 def test_cli_help(capsys):
     assert main(["--help"]) == 0
     assert "validate" in capsys.readouterr().out
