@@ -45,6 +45,12 @@ SCENES: dict[str, dict] = {
         "bars": {"density": 0.55, "tvd": 0.05, "nni": 1.1, "seconds": 180.0},
         "reference": "issue 5 bar: >= 55% certified, TVD <= 0.05, NNI >= 1.1, <= 3 min",
     },
+    "fruit-in-bunny-5min": {
+        "container": "containers/bunny.obj", "types": FRUIT,
+        "kwargs": {"container_size": 200.0, "type_scale": 300.0, "time_budget": 265.0},
+        "bars": {"density": 0.50, "tvd": 0.1, "nni": 1.0, "seconds": 300.0},
+        "reference": "issue 2 bar: >= 50% certified, TVD <= 0.1, NNI >= 1.0, <= 5 min",
+    },
     "fruit-in-torus": {
         "container": "containers/torus.obj", "types": FRUIT,
         "kwargs": {"container_size": 200.0, "type_scale": 300.0, "time_budget": 90.0},

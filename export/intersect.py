@@ -618,6 +618,15 @@ def _single_leaf(tri, ids, order, lo, hi, nodes, leaf_size, tol_rel, pairs, hits
     return pairs[:min(total, pairs.shape[0])], total, hits
 
 
+def _prepared(vertices: np.ndarray, faces: np.ndarray, active: np.ndarray | None
+              ) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+    """Contiguous float64 vertices, int64 faces and the indices of the faces to test."""
+    vertices = np.ascontiguousarray(vertices, dtype=np.float64)
+    faces = np.ascontiguousarray(faces, dtype=np.int64)
+    index = np.arange(len(faces)) if active is None else np.flatnonzero(active)
+    return vertices, faces, index
+
+
 def intersecting_pairs(
     vertices: np.ndarray,
     faces: np.ndarray,
@@ -641,9 +650,7 @@ def intersecting_pairs(
         ``(pairs, total, hits)``: (K, 2) int64 face indices, smaller first, K = min(total,
         cap); the number of intersecting pairs; (F,) int64 number of partners of each face.
     """
-    vertices = np.ascontiguousarray(vertices, dtype=np.float64)
-    faces = np.ascontiguousarray(faces, dtype=np.int64)
-    index = np.arange(len(faces)) if active is None else np.flatnonzero(active)
+    vertices, faces, index = _prepared(vertices, faces, active)
     if len(index) < 2:
         return np.zeros((0, 2), np.int64), 0, np.zeros(len(faces), np.int64)
     pairs, total, hits = _intersections(vertices, faces, index, float(tol_rel), LEAF_SIZE,
@@ -666,9 +673,7 @@ def start_intersecting_pairs(
     holds the GIL for long (manifold3d does) without stalling the test. Call the function
     returned for ``(pairs, total, hits)``; it waits for the test and re-raises its errors.
     """
-    vertices = np.ascontiguousarray(vertices, dtype=np.float64)
-    faces = np.ascontiguousarray(faces, dtype=np.int64)
-    index = np.arange(len(faces)) if active is None else np.flatnonzero(active)
+    vertices, faces, index = _prepared(vertices, faces, active)
     if len(index) < 2:
         empty = (np.zeros((0, 2), np.int64), 0, np.zeros(len(faces), np.int64))
         return lambda: empty

@@ -353,6 +353,18 @@ def flipped_faces(n_faces: int, first_corner: np.ndarray, second_corner: np.ndar
     return out_flipped[:n1].copy(), out_bad[:n2].copy()
 
 
+@njit(cache=True, inline="always")
+def _sorted3(a, b, c):
+    """Three integers in increasing order."""
+    if a > b:
+        a, b = b, a
+    if b > c:
+        b, c = c, b
+    if a > b:
+        a, b = b, a
+    return a, b, c
+
+
 @njit(cache=True)
 def duplicate_faces(faces: np.ndarray, proper: np.ndarray, corner_edge: np.ndarray,
                     counts: np.ndarray, first_corner: np.ndarray, second_corner: np.ndarray
@@ -403,13 +415,7 @@ def duplicate_faces(faces: np.ndarray, proper: np.ndarray, corner_edge: np.ndarr
     table = np.full(size, -1, np.int64)
     for t in range(n_crowded):
         f = crowded[t]
-        a, b, c = faces[f, 0], faces[f, 1], faces[f, 2]
-        if a > b:
-            a, b = b, a
-        if b > c:
-            b, c = c, b
-        if a > b:
-            a, b = b, a
+        a, b, c = _sorted3(faces[f, 0], faces[f, 1], faces[f, 2])
         h = np.uint64(a) * np.uint64(0x9E3779B97F4A7C15)
         h ^= np.uint64(b) * np.uint64(0xC2B2AE3D27D4EB4F) + (h >> np.uint64(29))
         h ^= np.uint64(c) * np.uint64(0x165667B19E3779F9) + (h >> np.uint64(32))
@@ -420,13 +426,7 @@ def duplicate_faces(faces: np.ndarray, proper: np.ndarray, corner_edge: np.ndarr
             if g < 0:
                 table[slot] = f
                 break
-            x, y, z = faces[g, 0], faces[g, 1], faces[g, 2]
-            if x > y:
-                x, y = y, x
-            if y > z:
-                y, z = z, y
-            if x > y:
-                x, y = y, x
+            x, y, z = _sorted3(faces[g, 0], faces[g, 1], faces[g, 2])
             if x == a and y == b and z == c:
                 is_copy[f] = True
                 break
