@@ -39,6 +39,15 @@ def used_vertices(faces: np.ndarray, n_vertices: int) -> tuple[np.ndarray, np.nd
     return used, out
 
 
+@njit(cache=True, inline="always")
+def _hash3(x, y, z):
+    """A 64-bit hash of three uint64 (for the open-addressing tables below)."""
+    h = x * np.uint64(0x9E3779B97F4A7C15)
+    h ^= y * np.uint64(0xC2B2AE3D27D4EB4F) + (h >> np.uint64(29))
+    h ^= z * np.uint64(0x165667B19E3779F9) + (h >> np.uint64(32))
+    return h ^ (h >> np.uint64(31))
+
+
 @njit(cache=True)
 def merge_bits(bits: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
     """Group equal rows of (V, 3) uint64 (the bits of positions) with a hash table.
@@ -57,11 +66,7 @@ def merge_bits(bits: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
     n_groups = 0
     for i in range(n):
         x, y, z = bits[i, 0], bits[i, 1], bits[i, 2]
-        h = x * np.uint64(0x9E3779B97F4A7C15)
-        h ^= y * np.uint64(0xC2B2AE3D27D4EB4F) + (h >> np.uint64(29))
-        h ^= z * np.uint64(0x165667B19E3779F9) + (h >> np.uint64(32))
-        h ^= h >> np.uint64(31)
-        slot = h & mask
+        slot = _hash3(x, y, z) & mask
         while True:
             g = table[slot]
             if g < 0:
@@ -416,11 +421,7 @@ def duplicate_faces(faces: np.ndarray, proper: np.ndarray, corner_edge: np.ndarr
     for t in range(n_crowded):
         f = crowded[t]
         a, b, c = _sorted3(faces[f, 0], faces[f, 1], faces[f, 2])
-        h = np.uint64(a) * np.uint64(0x9E3779B97F4A7C15)
-        h ^= np.uint64(b) * np.uint64(0xC2B2AE3D27D4EB4F) + (h >> np.uint64(29))
-        h ^= np.uint64(c) * np.uint64(0x165667B19E3779F9) + (h >> np.uint64(32))
-        h ^= h >> np.uint64(31)
-        slot = h & mask
+        slot = _hash3(np.uint64(a), np.uint64(b), np.uint64(c)) & mask
         while True:
             g = table[slot]
             if g < 0:

@@ -115,6 +115,22 @@ def _eisel_lemire(w, q, negative, pow5):
     return -value if negative else value, True
 
 
+@njit(cache=True, inline="always")
+def _digits(buf, i, stop, w, significant):
+    """Read decimal digits from buf[i]: the first 19 significant ones accumulate into w.
+    Returns (index after them, w, significant digits so far, digits read)."""
+    digits = 0
+    while i < stop and 48 <= buf[i] <= 57:
+        d = np.uint64(buf[i] - 48)
+        if significant or d:
+            significant += 1
+            if significant <= 19:
+                w = w * np.uint64(10) + d
+        digits += 1
+        i += 1
+    return i, w, significant, digits
+
+
 @njit(cache=True)
 def parse_float(buf: np.ndarray, start: int, stop: int, pow5: np.ndarray
                 ) -> tuple[float, int]:
@@ -126,29 +142,11 @@ def parse_float(buf: np.ndarray, start: int, stop: int, pow5: np.ndarray
     if i < stop and (buf[i] == 45 or buf[i] == 43):  # - +
         negative = buf[i] == 45
         i += 1
-    w = np.uint64(0)
-    significant = 0
-    digits = 0
+    i, w, significant, digits = _digits(buf, i, stop, np.uint64(0), 0)
     fraction = 0
-    while i < stop and 48 <= buf[i] <= 57:
-        d = np.uint64(buf[i] - 48)
-        if significant or d:
-            significant += 1
-            if significant <= 19:
-                w = w * np.uint64(10) + d
-        digits += 1
-        i += 1
     if i < stop and buf[i] == 46:  # .
-        i += 1
-        while i < stop and 48 <= buf[i] <= 57:
-            d = np.uint64(buf[i] - 48)
-            if significant or d:
-                significant += 1
-                if significant <= 19:
-                    w = w * np.uint64(10) + d
-            digits += 1
-            fraction += 1
-            i += 1
+        i, w, significant, fraction = _digits(buf, i + 1, stop, w, significant)
+        digits += fraction
     if digits == 0:
         return 0.0, 2
     exponent = 0
@@ -214,6 +212,17 @@ def _quoted_end(buf, i, stop):
     return -1
 
 
+@njit(cache=True, inline="always")
+def _after_field(buf, i, stop, k, mid1, mid2, tail):
+    """Index after the text that follows field k (0, 1, 2) of an element: mid1, mid2 or
+    tail (-1 if it is not there)."""
+    if k == 0:
+        return _match(buf, i, stop, mid1)
+    if k == 1:
+        return _match(buf, i, stop, mid2)
+    return _match(buf, i, stop, tail)
+
+
 @njit(cache=True)
 def scan_vertices(buf: np.ndarray, start: int, stop: int, head: np.ndarray, mid1: np.ndarray,
                   mid2: np.ndarray, tail: np.ndarray, pow5: np.ndarray
@@ -258,12 +267,7 @@ def scan_vertices(buf: np.ndarray, start: int, stop: int, head: np.ndarray, mid1
                 value = np.nan
             values[n] = value
             n += 1
-            if k == 0:
-                i = _match(buf, j, stop, mid1)
-            elif k == 1:
-                i = _match(buf, j, stop, mid2)
-            else:
-                i = _match(buf, j, stop, tail)
+            i = _after_field(buf, j, stop, k, mid1, mid2, tail)
         if i < 0:
             return values[:0], spans[:0], i, False
         i = _skip_space(buf, i, stop)
@@ -299,12 +303,7 @@ def scan_triangles(buf: np.ndarray, start: int, stop: int, head: np.ndarray, mid
                 return values[:0], i, False
             values[n] = value
             n += 1
-            if k == 0:
-                i = _match(buf, i, stop, mid1)
-            elif k == 1:
-                i = _match(buf, i, stop, mid2)
-            else:
-                i = _match(buf, i, stop, tail)
+            i = _after_field(buf, i, stop, k, mid1, mid2, tail)
         if i < 0:
             return values[:0], i, False
         i = _skip_space(buf, i, stop)
