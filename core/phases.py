@@ -135,7 +135,8 @@ def phase1(solver: Solver, shares: np.ndarray, spacing: float, rng: np.random.Ge
     """Place one shrunken object per interior lattice point and grow them one at a time.
 
     spacing: lattice spacing (container units). shares: (T,) target shares by count.
-    margin: (T,) per-type safety margin (container units).
+    margin: (T,) per-type safety margin (container units). growth_steps: steps from scale 0
+    to 1 (the paper: 30).
     The next object to grow is the first ungrown one, as the largest type that is below its
     target share (or, when none is, the type furthest below it).
     """
@@ -217,7 +218,8 @@ def phase2(solver: Solver, shares: np.ndarray, spacing: float, rng: np.random.Ge
     in a smaller hole and push its neighbours aside as it grows). With fit_factor < 1 the type
     tried first is the fitting one the mix lacks most, not the largest, and no type is tried
     that would push the type mix error above `max_tvd`. With `patience`, the pass ends after
-    that many candidate points in a row where nothing could be added.
+    that many candidate points in a row where nothing could be added. Objects grow in steps
+    of 1/growth_steps.
     """
     t0 = time.perf_counter()
     st = PhaseStats()
