@@ -488,14 +488,6 @@ def _build_tree(lo, hi, order, leaf_size):
 
 
 @njit(cache=True)
-def _boxes_overlap(alo, ahi, k, blo, bhi, m):
-    for d in range(3):
-        if alo[k, d] > bhi[m, d] or blo[m, d] > ahi[k, d]:
-            return False
-    return True
-
-
-@njit(cache=True)
 def _leaf_pairs(tri, ids, order, lo, hi, nodes, a, b, first_leaf, leaf_size, tol_rel, pairs,
                 hits, total):
     """Test the faces of leaf node a against those of leaf node b (a <= b); tri, ids, lo,

@@ -33,7 +33,7 @@ from jampacked.core.errors import InputError, MeshError
 from jampacked.core.meshes import _extension, _read_arrays, _read_bytes
 
 from .validate import ValidationReport, validate_file
-from .xmlmesh import POW5, scan_triangles, scan_vertices
+from .xmlmesh import POW5, scan_triangles, scan_vertices, skip_space
 
 __all__ = ["WRITE_FORMATS", "read_mesh_arrays", "write_mesh"]
 
@@ -168,12 +168,6 @@ def _fill_spans(xml: bytes, values: np.ndarray, spans: np.ndarray) -> np.ndarray
     return values
 
 
-def _skip_space(xml: bytes, i: int) -> int:
-    while i < len(xml) and xml[i] in b" \t\r\n":
-        i += 1
-    return i
-
-
 def _strict_meshes(xml: bytes, buf: np.ndarray
                    ) -> tuple[list[Body], list[tuple[int, int]]] | None:
     """What :func:`_fast_meshes` gives, and the span of each mesh element, for documents
@@ -191,20 +185,20 @@ def _strict_meshes(xml: bytes, buf: np.ndarray
             n_tags += xml.count(b"<mesh", pos)
             break
         n_tags += xml.count(b"<mesh", pos, i) + 1
-        k = _skip_space(xml, i + len(b"<mesh>"))
+        k = skip_space(buf, i + len(b"<mesh>"), len(xml))
         if not xml.startswith(b"<vertices>", k):
             return None
         v, v_spans, end, ok = scan_vertices(buf, k + len(b"<vertices>"), len(xml),
                                             *_VERTEX_WORDS, POW5)
         if not ok or not xml.startswith(b"</vertices>", end):
             return None
-        k = _skip_space(xml, end + len(b"</vertices>"))
+        k = skip_space(buf, end + len(b"</vertices>"), len(xml))
         if not xml.startswith(b"<triangles>", k):
             return None
         f, end, ok = scan_triangles(buf, k + len(b"<triangles>"), len(xml), *_TRIANGLE_WORDS)
         if not ok or not xml.startswith(b"</triangles>", end):
             return None
-        k = _skip_space(xml, end + len(b"</triangles>"))
+        k = skip_space(buf, end + len(b"</triangles>"), len(xml))
         if not xml.startswith(b"</mesh>", k):
             return None
         pos = k + len(b"</mesh>")

@@ -20,7 +20,7 @@ import math
 import numpy as np
 from numba import njit
 
-__all__ = ["POW5", "parse_float", "scan_triangles", "scan_vertices"]
+__all__ = ["POW5", "parse_float", "scan_triangles", "scan_vertices", "skip_space"]
 
 _SMALLEST_POWER = -342
 _LARGEST_POWER = 308
@@ -184,7 +184,8 @@ def parse_float(buf: np.ndarray, start: int, stop: int, pow5: np.ndarray
 
 
 @njit(cache=True, inline="always")
-def _skip_space(buf, i, stop):
+def skip_space(buf: np.ndarray, i: int, stop: int) -> int:
+    """Index of the first byte from buf[i] that is not XML whitespace (stop if none)."""
     while i < stop and (buf[i] == 32 or buf[i] == 10 or buf[i] == 13 or buf[i] == 9):
         i += 1
     return i
@@ -241,7 +242,7 @@ def scan_vertices(buf: np.ndarray, start: int, stop: int, head: np.ndarray, mid1
     spans = np.empty((16, 2), np.int64)
     n_spans = 0
     n = 0
-    i = _skip_space(buf, start, stop)
+    i = skip_space(buf, start, stop)
     while i < stop:
         end = i
         i = _match(buf, i, stop, head)
@@ -270,7 +271,7 @@ def scan_vertices(buf: np.ndarray, start: int, stop: int, head: np.ndarray, mid1
             i = _after_field(buf, j, stop, k, mid1, mid2, tail)
         if i < 0:
             return values[:0], spans[:0], i, False
-        i = _skip_space(buf, i, stop)
+        i = skip_space(buf, i, stop)
     return values[:n], spans[:n_spans], stop, True
 
 
@@ -284,7 +285,7 @@ def scan_triangles(buf: np.ndarray, start: int, stop: int, head: np.ndarray, mid
                                   + tail.shape[0] + 3) + 1)
     values = np.empty(cap, np.int64)
     n = 0
-    i = _skip_space(buf, start, stop)
+    i = skip_space(buf, start, stop)
     while i < stop:
         end = i
         i = _match(buf, i, stop, head)
@@ -306,5 +307,5 @@ def scan_triangles(buf: np.ndarray, start: int, stop: int, head: np.ndarray, mid
             i = _after_field(buf, i, stop, k, mid1, mid2, tail)
         if i < 0:
             return values[:0], i, False
-        i = _skip_space(buf, i, stop)
+        i = skip_space(buf, i, stop)
     return values[:n], stop, True
