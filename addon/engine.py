@@ -149,7 +149,7 @@ def export_triangles(packing_json: str, container: Triangles, types: Sequence[Tr
 
 def export_options(mode: str, shell: float, opening: str, axis: str, at: float, size: float,
                    drain: float, connector: float, resolution: float,
-                   split_files: bool) -> ExportOptions:
+                   split_files: bool, fill_voids: bool = True) -> ExportOptions:
     """ExportOptions from the panel's values (0 means "none"/"auto" for lengths).
 
     The shell, opening and drain only apply with a shell, and never in parts mode (the
@@ -168,7 +168,7 @@ def export_options(mode: str, shell: float, opening: str, axis: str, at: float, 
         drain=drain if with_shell and drain > 0 else None,
         connector=connector if connector > 0 else None,
         resolution=resolution if resolution > 0 else None,
-        split_files=split_files and mode == "parts")
+        split_files=split_files and mode == "parts", fill_voids=fill_voids)
 
 
 def validate_triangles(tris: Triangles) -> ValidationReport:

@@ -253,7 +253,8 @@ class ExportRunner(JobRunner):
         s = context.scene.jampacked
         options = engine.export_options(
             s.export_mode, s.shell, s.opening, axis_name(s.opening_axis), s.opening_at,
-            s.opening_size, s.drain, s.connector, s.resolution, s.split_files)
+            s.opening_size, s.drain, s.connector, s.resolution, s.split_files,
+            s.fill_voids)
         request = bridge.gather_export(context, options)
 
         def run(progress: worker.Progress, should_cancel: worker.ShouldCancel) -> Any:

@@ -130,6 +130,11 @@ class JAMPACKED_PG_settings(bpy.types.PropertyGroup):
         precision=3,
         description="Simplify meshes to this tolerance, e.g. the printer's resolution "
                     "(0: keep every triangle)")
+    fill_voids: BoolProperty(
+        name="Fill Sealed Voids", default=True,
+        description="Union and Connect: fill pockets shut in between objects, struts and "
+                    "shell, which resin and powder prints cannot drain (a closed shell keeps "
+                    "its cavity)")
     split_files: BoolProperty(
         name="One File per Part", default=False,
         description="Parts mode: write one file per part instead of one file")

@@ -137,6 +137,8 @@ class JAMPACKED_PT_export(_Sidebar, bpy.types.Panel):
                 layout.prop(s, "drain")
         if s.export_mode == 'CONNECT':
             layout.prop(s, "connector")
+        if s.export_mode != 'PARTS':
+            layout.prop(s, "fill_voids")
         if s.export_mode == 'PARTS':
             layout.prop(s, "split_files")
         layout.prop(s, "resolution")

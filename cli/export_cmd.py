@@ -33,7 +33,9 @@ shell and openings:
   along +z; any of +x -x +y -y +z -z) or --window +y@30 (a 30 mm round hole through the
   side facing +y). --drain D adds a drainage/escape hole of diameter D through the lowest
   point of the shell along --up (default +z) for resin and powder printers. Write
-  negative axes with '=': --up=-y, --open-plane=-z@0.3.
+  negative axes with '=': --up=-y, --open-plane=-z@0.3. Union and connect fill sealed
+  voids (pockets between objects, struts and shell that could not drain); --keep-voids
+  keeps them hollow. A closed shell (no opening, no drain) keeps its cavity.
 
 examples:
   jampacked export out/packing.json --mode connect --shell 2 --up +y \\
@@ -112,6 +114,10 @@ def add_export_parser(sub: argparse._SubParsersAction) -> None:
                          help="cut a round window through the shell's side, e.g. +y@30")
     p.add_argument("--drain", type=_positive_float("--drain"), metavar="MM",
                    help="drainage hole of this diameter through the shell's lowest point")
+    p.add_argument("--keep-voids", action="store_true",
+                   help="union/connect: keep sealed voids between objects, struts and shell "
+                        "hollow (by default they are filled so no resin or powder is "
+                        "trapped; a closed shell always keeps its cavity)")
     p.add_argument("--up", default="+z", choices=AXES, metavar="AXIS",
                    help="the axis pointing up when printed (default +z; +y for Y-up models): "
                         "the drain goes through the lowest point along it")
@@ -152,7 +158,8 @@ def cmd_export(args: argparse.Namespace) -> int:
         options = ExportOptions(mode=args.mode, shell=args.shell,
                                 opening=args.open_plane or args.window, drain=args.drain,
                                 connector=args.connector, resolution=args.resolution,
-                                split_files=args.split, up=args.up)
+                                split_files=args.split, up=args.up,
+                                fill_voids=not args.keep_voids)
     except InputError as exc:
         raise UsageError(str(exc)) from None
     with contextlib.ExitStack() as stack:
@@ -211,6 +218,9 @@ def print_export(report, console) -> None:
             t.add_row("opening", s.opening)
         if s.drain:
             t.add_row("drain hole", f"{s.drain:g}")
+    if report.voids_filled:
+        t.add_row("sealed voids filled", f"{report.voids_filled} "
+                                         f"({report.voids_filled_volume:,.1f} in volume)")
     if report.min_gap is not None:
         t.add_row("smallest gap between parts", f"{report.min_gap:.4g} (clearance "
                                                 f"{report.clearance:g})")

@@ -55,7 +55,9 @@ class ExportReport:
     triangles_saved: triangles --resolution removed. connectors / connector_length: struts
     added (connect mode) and their total visible length (container units). fused: tree edges
     whose solids already overlapped. min_gap: smallest gap between parts (parts mode; None
-    when no two parts are near), clearance: the packing's clearance.
+    when no two parts are near), clearance: the packing's clearance. voids_filled /
+    voids_filled_volume: sealed voids made solid (see ExportOptions.fill_voids) and their
+    volume (container units cubed).
     """
 
     mode: str
@@ -70,6 +72,8 @@ class ExportReport:
     min_gap: float | None = None
     clearance: float = 0.0
     volume: float = 0.0
+    voids_filled: int = 0
+    voids_filled_volume: float = 0.0
     shell: ShellReport | None = None
     validation: list[ValidationReport] = field(default_factory=list)
     timings: dict[str, float] = field(default_factory=dict)
@@ -95,6 +99,9 @@ class ExportReport:
                          f"{self.clearance:g})")
         if self.triangles_saved:
             parts.append(f"--resolution saved {self.triangles_saved:,} triangles")
+        if self.voids_filled:
+            parts.append(f"{self.voids_filled} sealed void{'s' if self.voids_filled > 1 else ''}"
+                         f" filled ({self.voids_filled_volume:.3g} in volume)")
         verdict = "PASS" if self.passed else "FAIL"
         parts.append(f"validation {verdict} for {len(self.validation)} file(s)")
         return "; ".join(parts) + "."
@@ -106,6 +113,7 @@ class ExportReport:
             "triangles_saved": self.triangles_saved, "connectors": self.connectors,
             "connector_length": self.connector_length, "fused": self.fused,
             "min_gap": self.min_gap, "clearance": self.clearance, "volume": self.volume,
+            "voids_filled": self.voids_filled, "voids_filled_volume": self.voids_filled_volume,
             "shell": self.shell.as_dict() if self.shell else None,
             "validation": [v.as_dict(max_indices=20) for v in self.validation],
             "passed": self.passed, "timings": self.timings, "warnings": self.warnings,
@@ -276,16 +284,24 @@ def export_packing(packing: Packing | str | os.PathLike,
             # slivers the local repairs cannot remove: struts turned another way meet the
             # surfaces elsewhere (union mode has nothing to turn; validation names the faces)
         # specks of no volume (where a strut grazes a surface) are dropped; a closed void
-        # inside a solid is a component of negative volume, not a body
+        # inside a solid is a component of negative volume, not a body. Dropping a void's
+        # surface fills it: the print then traps no resin or powder there. A closed shell's
+        # cavity is sealed on purpose, so its voids stay.
         speck = 1e-9 * float(np.prod(np.ptp(v, axis=0))) if len(v) else 0.0
-        v, f, volumes = _drop_specks(v, f, speck)
+        closed_shell = shell is not None and options.opening is None and options.drain is None
+        fill = options.fill_voids and not closed_shell
+        v, f, volumes, filled = _drop_specks(v, f, speck, fill_voids=fill)
+        out.voids_filled = len(filled)
+        out.voids_filled_volume = float(-filled.sum())
         out.bodies = int(np.sum(volumes > 0))
         voids = int(np.sum(volumes < 0))
         if voids:
+            why = ("the shell is closed" if closed_shell and options.fill_voids
+                   else "--keep-voids was given")
             out.warnings.append(
                 f"the result encloses {voids} sealed void{'s' if voids > 1 else ''} (space "
-                "shut in between objects, struts and shell); resin and powder printers "
-                "cannot drain them.")
+                f"shut in between objects, struts and shell), kept hollow because {why}; "
+                "resin and powder printers cannot drain them.")
         out.volume = float(volumes.sum())
         bodies, names = [(v, f)], ["jampacked"]
         if options.mode == "connect" and out.bodies != 1:
@@ -360,14 +376,16 @@ def _clean_arrays(result: m3.Manifold) -> tuple[np.ndarray, np.ndarray, int]:
     return v, f, left
 
 
-def _drop_specks(v: np.ndarray, f: np.ndarray, speck: float
-                 ) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+def _drop_specks(v: np.ndarray, f: np.ndarray, speck: float, fill_voids: bool = False
+                 ) -> tuple[np.ndarray, np.ndarray, np.ndarray, np.ndarray]:
     """Split a mesh into its connected components (by shared vertices, as manifold3d
-    writes them), drop those whose |volume| <= speck and unused vertices, and return
-    (vertices, faces, signed volume of each kept component)."""
+    writes them), drop those whose |volume| <= speck, with `fill_voids` also every void
+    (a component of negative volume: the inward surface of a sealed cavity), and unused
+    vertices. Returns (vertices, faces, signed volume of each kept component, signed
+    volume of each void filled)."""
     n = len(v)
     if len(f) == 0:
-        return v, f, np.zeros(0)
+        return v, f, np.zeros(0), np.zeros(0)
     rows = np.concatenate([f[:, 0], f[:, 1]])
     cols = np.concatenate([f[:, 1], f[:, 2]])
     graph = coo_matrix((np.ones(len(rows)), (rows, cols)), shape=(n, n))
@@ -379,11 +397,13 @@ def _drop_specks(v: np.ndarray, f: np.ndarray, speck: float
     used = np.zeros(count, bool)
     used[face_label] = True
     keep = used & (np.abs(volumes) > speck)
+    filled = keep & (volumes < 0) if fill_voids else np.zeros(count, bool)
+    keep &= ~filled
     if not np.all(keep[used]) or len(np.unique(f)) < n:
         f = f[keep[face_label]]
         verts, inverse = np.unique(f, return_inverse=True)
         v, f = v[verts], inverse.reshape(-1, 3)
-    return v, f, volumes[keep]
+    return v, f, volumes[keep], volumes[filled]
 
 
 def _parts(packing: Packing, solids: list[m3.Manifold], out: ExportReport

@@ -79,6 +79,9 @@ class ExportOptions:
         file with one object per part.
     up: the axis that points up when printing ("+z" by default; "+y" for Y-up models): the
         drain hole goes through the lowest point along it.
+    fill_voids: "union" and "connect": fill the sealed voids (pockets shut in between
+        objects, struts and shell) so no resin or powder is trapped in the print. A closed
+        shell (no opening, no drain) is a sealed print by choice: its voids stay hollow.
     """
 
     mode: str = "connect"
@@ -89,6 +92,7 @@ class ExportOptions:
     resolution: float | None = None
     split_files: bool = False
     up: str = "+z"
+    fill_voids: bool = True
 
     def __post_init__(self) -> None:
         up_rotation(self.up)  # checks the axis name

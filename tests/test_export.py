@@ -316,6 +316,57 @@ def test_cli_export_end_to_end(apart, tmp_path, capsys):
     assert rc == 2 and "axis" in capsys.readouterr().err
 
 
+def _hollow_cube(tmp: Path) -> Path:
+    """Six 20 x 20 x 2 slabs overlapping at the edges: the faces of a 20-unit cube whose
+    union shuts in a 16-unit cubic void."""
+    slab = tmp / "slab.obj"
+    trimesh.creation.box(extents=(20.0, 20.0, 2.0)).export(slab)
+    m = load_mesh(slab)
+    rec = TypeRecord(name="slab", path=str(slab), sha256=m.sha256, share=1.0,
+                     local_from_file=np.eye(4), volume=m.volume)
+    c = np.sqrt(0.5)
+    quats = np.array([[1.0, 0, 0, 0], [c, 0, c, 0], [c, c, 0, 0]])  # normal to z, x, y
+    rot = np.repeat(quats, 2, axis=0)
+    pos = np.array([[0, 0, 9.0], [0, 0, -9], [9, 0, 0], [-9, 0, 0], [0, 9, 0], [0, -9, 0]])
+    p = Packing(container_path="box:40x40x40", container_sha256=None,
+                frame_from_file=np.eye(4), container_volume=40.0 ** 3, types=[rec],
+                type_index=np.zeros(6, np.int64), rotations=rot, translations=pos,
+                scales=np.ones(6), params={"clearance": 0.0})
+    out = tmp / "hollow.json"
+    save_packing(p, out)
+    return out
+
+
+@pytest.mark.parametrize("mode", ["union", "connect"])
+def test_sealed_voids_are_filled_unless_kept(tmp_path, mode):
+    packing = _hollow_cube(tmp_path)
+    rep = export_packing(packing, tmp_path / "f.stl", ExportOptions(mode=mode))
+    assert rep.passed and rep.bodies == 1 and rep.voids_filled == 1
+    assert rep.voids_filled_volume == pytest.approx(16.0 ** 3, rel=1e-6)
+    assert rep.volume == pytest.approx(20.0 ** 3, rel=1e-6) and not rep.warnings
+    v = validate_file(tmp_path / "f.stl")
+    assert v.passed and len(v.bodies) == 1
+    assert _trimesh_bodies_volume(tmp_path / "f.stl") == (1, pytest.approx(8000.0, rel=1e-6))
+    kept = export_packing(packing, tmp_path / "k.stl",
+                          ExportOptions(mode=mode, fill_voids=False))
+    assert kept.passed and kept.voids_filled == 0
+    assert kept.volume == pytest.approx(20.0 ** 3 - 16.0 ** 3, rel=1e-6)
+    assert any("1 sealed void" in w and "--keep-voids" in w for w in kept.warnings)
+
+
+def test_cli_keep_voids(tmp_path, capsys):
+    from jampacked.cli.main import main
+
+    packing = _hollow_cube(tmp_path)
+    rc = main(["export", str(packing), "--mode", "union", "-o", str(tmp_path / "a.stl")])
+    assert rc == 0 and "sealed voids filled" in capsys.readouterr().out
+    rc = main(["export", str(packing), "--mode", "union", "--keep-voids", "--json",
+               "-o", str(tmp_path / "b.stl")])
+    captured = capsys.readouterr()
+    doc = json.loads(captured.out)
+    assert rc == 0 and doc["voids_filled"] == 0 and "1 sealed void" in captured.err
+
+
 # --------------------------------------------------------------------------- with a shell
 
 
@@ -327,6 +378,9 @@ def test_union_with_shell_adds_the_shell_volume(apart, tmp_path):
     assert rep.shell.volume == pytest.approx(80.0 ** 3 - inner, rel=0.01)
     assert rep.volume == pytest.approx(objects + rep.shell.volume, rel=1e-4)
     assert rep.shell.measured_median == pytest.approx(2.0, rel=0.05)
+    # a closed shell is sealed on purpose: its cavity is kept hollow, and said so
+    assert rep.voids_filled == 0
+    assert any("the shell is closed" in w for w in rep.warnings)
 
 
 def test_connect_with_opened_shell_is_one_body(apart, tmp_path):

@@ -134,7 +134,10 @@ def test_export_options_from_the_panel():
     assert (opts.shell, opts.opening.kind, opts.opening.axis, opts.opening.size) == \
         (1.5, "window", "-x", 8.0)
     assert opts.drain == 2.0 and opts.connector is None and opts.resolution == 0.1
-    assert not opts.split_files
+    assert not opts.split_files and opts.fill_voids
+    opts = engine.export_options("UNION", 0.0, "NONE", "+z", 0.7, 0.0, 0.0, 0.0, 0.0, False,
+                                 False)
+    assert opts.mode == "union" and not opts.fill_voids
     with pytest.raises(InputError):
         engine.export_options("UNION", 1.0, "WINDOW", "+z", 0.5, 0.0, 0.0, 0.0, 0.0, False)
 
