@@ -8,7 +8,8 @@
 Parts: scenes (bench/scenes.py: every scene, seeds, a cold run each), fidelity (speed
 against accuracy, bench/fidelity_sweep.py), growth (time against object count,
 bench/growth.py), peer (Blender rigid bodies, bench/peer_bullet.py, needs bpy), stability
-(bench/stability.py), paper (tables beside the paper's figures, bench/paper.py; reads the
+(bench/stability.py), profile (packed fraction against depth from the wall, fruit-in-bunny,
+bench/density_profile.py), paper (tables beside the paper's figures, bench/paper.py; reads the
 other results). Each run is its own process. Timings are wall-clock seconds on this
 machine (2 cores, noisy): compare medians and ratios from one run only.
 """
@@ -34,7 +35,7 @@ from scenes import (  # noqa: E402
     write_text,
 )
 
-PARTS = ("scenes", "fidelity", "growth", "peer", "stability", "paper")
+PARTS = ("scenes", "fidelity", "growth", "peer", "stability", "profile", "paper")
 #: scenes with bars run three seeds, the others one
 BAR_SEEDS = [1, 2, 3]
 
@@ -186,6 +187,8 @@ def write_table(summaries: list[dict], path: Path) -> None:
         "- Blender rigid bodies as a peer: [peer_bullet.json](peer_bullet.json), "
         "![peer](peer_bullet.png)",
         "- stability map: [stability.md](stability.md), ![stability](stability.png)",
+        "- where density is lost (fruit-in-bunny): [density_profile.json]"
+        "(density_profile.json), ![packed fraction against depth](density_profile.png)",
         "- export: [export.json](export.json); shell accuracy: "
         "[shell_accuracy.json](shell_accuracy.json)",
         "- the engine issue's runs (polyhedra-80 with 120 s, fruit-in-bunny with 280 s "
@@ -210,7 +213,7 @@ def main(argv: list[str] | None = None) -> int:
     parts = [] if a.report_only else a.part
     if "scenes" in parts:
         run_scenes(a.scene or list(SCENES), a.seeds, not a.no_cold, a.meshes)
-    for part in ("fidelity", "growth", "peer", "stability"):
+    for part in ("fidelity", "growth", "peer", "stability", "profile"):
         if part in parts:
             _run_part(part, a.meshes)
     summaries = load_summaries()
@@ -228,7 +231,8 @@ def _run_part(part: str, meshes: Path) -> None:
     import subprocess
 
     script = {"fidelity": "fidelity_sweep.py", "growth": "growth.py",
-              "peer": "peer_bullet.py", "stability": "stability.py"}[part]
+              "peer": "peer_bullet.py", "stability": "stability.py",
+              "profile": "density_profile.py"}[part]
     if part == "peer":
         import importlib.util
 
