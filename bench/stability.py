@@ -393,22 +393,34 @@ def problems(rec: dict) -> list[str]:
     return out
 
 
-def summarise(records: list[dict], quick: bool, total: float) -> dict:
+def summarise(records: list[dict], quick: bool, total: float,
+              load: dict | None = None) -> dict:
+    """load: the 1/5/15-minute load averages at the start and end of the run."""
     by = {o: sum(r["outcome"] == o for r in records) for o in OUTCOMES}
     return {"quick": quick, "total_seconds": total, "outcomes": by,
             "cases_with_problems": [r["name"] for r in records if r["problems"]],
-            "machine": f"{os.cpu_count()}-core", "records": records}
+            "machine": f"{os.cpu_count()}-core", "load_average_1_5_15min": load,
+            "records": records}
 
 
 def _fmt(x, spec: str, none: str = "-") -> str:
     return none if x is None else format(x, spec)
 
 
+def _load_words(summary: dict) -> str:
+    load = summary.get("load_average_1_5_15min")
+    if not load:  # written before the load was recorded
+        return " that other benchmark jobs may have shared"
+    fmt = " / ".join
+    return (f" (1/5/15-minute load averages {fmt(f'{x:.1f}' for x in load['start'])} at "
+            f"the start, {fmt(f'{x:.1f}' for x in load['end'])} at the end)")
+
+
 def write_markdown(summary: dict, path: Path) -> None:
     lines = [
         "# Stability map", "",
         "Written by `python bench/stability.py" + (" --quick" if summary["quick"] else "")
-        + f"` on a {summary['machine']} machine shared with other benchmark jobs "
+        + f"` on a {summary['machine']} machine{_load_words(summary)} "
         f"({summary['total_seconds'] / 60:.1f} min in all; cases rerun with --case replace "
         "their rows). Each case runs `pack()` in its "
         "own process under a timeout. Outcomes: certified (every independent check passed), "
@@ -561,6 +573,7 @@ def main(argv: list[str] | None = None) -> int:
         todo = [c for c in todo if c["name"] in a.case]
     a.out.mkdir(parents=True, exist_ok=True)
     t0 = time.perf_counter()
+    load_start = list(os.getloadavg())
     records = []
     for case in todo:
         rec = run_in_child(case, a.meshes)
@@ -579,7 +592,8 @@ def main(argv: list[str] | None = None) -> int:
         new = {r["name"]: r for r in records}
         records = [new.pop(r["name"], r) for r in old["records"]] + list(new.values())
         total = old["total_seconds"]
-    summary = summarise(records, a.quick, total)
+    summary = summarise(records, a.quick, total,
+                        {"start": load_start, "end": list(os.getloadavg())})
     write_outputs(summary, a.out / stem)
     print(f"{len(records)} cases in {summary['total_seconds'] / 60:.1f} min: "
           + ", ".join(f"{v} {k}" for k, v in summary["outcomes"].items() if v)

@@ -73,14 +73,16 @@ def choose_fidelity(type_vertices: list[np.ndarray], expected_objects: float,
     - elongated or flat types (banana): a finer grid, so their thickness spans enough cells;
     - a clearance smaller than a grid cell: a finer grid, so the grid's error stays below it;
     - a tight container (the smallest object only just fits its deepest point, or the
-      largest cannot turn freely anywhere, like fruit in a torus's tube): high's resolution,
-      since nearly every contact is a wall contact and the objects must turn to fit; on the
-      torus it reached the earlier automatic choice's density in a third of the time and
-      ended 1-3 points higher over 3 seeds (bench/results/fidelity.md).
+      largest cannot turn freely anywhere, like fruit in a torus's tube): high's container
+      grid, since nearly every contact is a wall contact, with medium's spheres and object
+      grid. On the torus this ended higher for each of seeds 1-3 than high's resolution
+      throughout (median 46.8% against 45.3%, 4 s less; bench/results/fidelity.md).
     """
     tight = depth_over_radius < TIGHT_DEPTH or depth_over_largest < 1.0
-    base = PRESETS["high"] if tight else PRESETS["medium"]
-    reasons = ["tight container: high resolution"] if tight else []
+    base = PRESETS["medium"]
+    container_cells = PRESETS["high"].container_cells if tight else base.container_cells
+    reasons = [f"tight container: {container_cells:g} container grid cells per radius"
+               ] if tight else []
     spheres = base.spheres
     if expected_objects > MANY_OBJECTS:
         spheres = PRESETS["low"].spheres
@@ -98,4 +100,4 @@ def choose_fidelity(type_vertices: list[np.ndarray], expected_objects: float,
             cells = min(want, PRESETS["high"].grid_cells)
             reasons.append(f"clearance {clearance:g}: {cells} grid cells")
     return replace(base, name="auto", spheres=spheres, grid_cells=cells,
-                   reasons=tuple(reasons))
+                   container_cells=container_cells, reasons=tuple(reasons))

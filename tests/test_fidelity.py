@@ -53,12 +53,12 @@ def test_small_clearance_gets_a_finer_grid_but_large_does_not():
     assert choose_fidelity([_box(20, 18, 16)], 200, 2.0, 6.0).grid_cells == 40
 
 
-def test_tight_container_gets_high_resolution():
-    high = PRESETS["high"]
+def test_tight_container_gets_a_finer_container_grid():
+    med, high = PRESETS["medium"], PRESETS["high"]
     for f in (choose_fidelity([_box(20, 18, 16)], 200, 0.0, 1.5),  # smallest barely fits
               choose_fidelity([_box(20, 18, 16)], 200, 0.0, 6.0, 0.8)):  # largest cannot turn
         assert (f.spheres, f.grid_cells, f.container_cells) == (
-            high.spheres, high.grid_cells, high.container_cells)
+            med.spheres, med.grid_cells, high.container_cells)
         assert "tight" in f.reasons[0]
     roomy = choose_fidelity([_box(20, 18, 16)], 200, 0.0, 6.0, 1.5)
     assert roomy.container_cells == PRESETS["medium"].container_cells
