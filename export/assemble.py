@@ -36,6 +36,7 @@ from jampacked.core.packing import (
 from .cleanup import remove_degenerate_faces
 from .closest import Surface
 from .connect import PlacedObject, candidate_pairs, plan_connectors
+from .intersect import intersecting_pairs
 from .io import WRITE_FORMATS, write_mesh
 from .options import ExportOptions, rotate_axis, up_rotation
 from .validate import ValidationReport
@@ -200,6 +201,8 @@ def export_packing(packing: Packing | str | os.PathLike,
         if ext not in WRITE_FORMATS:
             raise InputError(f"cannot write '{p}': unknown mesh format '.{ext}'; use one of "
                              f"{', '.join('.' + e for e in WRITE_FORMATS)}.")
+    # STL and PLY store float32 positions: the union is checked as they will store it
+    float32 = any(Path(p).suffix.lower() in (".stl", ".ply") for p in paths)
     protect = [p for p in ([packing_path, packing.container_path]
                            + [t.path for t in packing.types]) if p and not is_spec(p)]
     if packing.n == 0 and options.shell is None:
@@ -278,7 +281,7 @@ def export_packing(packing: Packing | str | os.PathLike,
                                  options, out, report, cancel, variant=attempt)
                 check_cancel()
             report(0.6, "union")
-            v, f, left = _union(solids + extra, shell, options, out)
+            v, f, left = _union(solids + extra, shell, options, out, float32=float32)
             if left == 0:
                 break
             # slivers the local repairs cannot remove: struts turned another way meet the
@@ -339,8 +342,9 @@ def export_packing(packing: Packing | str | os.PathLike,
 
 
 def _union(pieces: list[m3.Manifold], shell: m3.Manifold | None, options: ExportOptions,
-           out: ExportReport) -> tuple[np.ndarray, np.ndarray, int]:
-    """Union of the pieces and the shell: (vertices, faces, zero-area faces left)."""
+           out: ExportReport, float32: bool = False) -> tuple[np.ndarray, np.ndarray, int]:
+    """Union of the pieces and the shell: (vertices, faces, bad faces left; see
+    :func:`_clean_arrays`)."""
     result = m3.Manifold.batch_boolean(pieces, m3.OpType.Add)
     if shell is not None:
         # a separate boolean: batch_boolean with a hollow shell among hundreds of pieces
@@ -358,19 +362,34 @@ def _union(pieces: list[m3.Manifold], shell: m3.Manifold | None, options: Export
         before = result.num_tri()
         result = result.simplify(options.resolution)
         out.triangles_saved += before - result.num_tri()
-    return _clean_arrays(result)
+    return _clean_arrays(result, float32=float32)
 
 
-def _clean_arrays(result: m3.Manifold) -> tuple[np.ndarray, np.ndarray, int]:
+def _clean_arrays(result: m3.Manifold, float32: bool = False
+                  ) -> tuple[np.ndarray, np.ndarray, int]:
     """The result's arrays without zero-area faces (see export/cleanup.py), and how many
-    are left. Where the local repairs cannot remove them all, manifold3d first simplifies
-    by a tolerance far below any printer's resolution (1e-7 to 1e-5 of the size)."""
-    v, f, left = remove_degenerate_faces(*_arrays(result))
+    faces are left bad. With `float32` (an STL or PLY will be written) a face that
+    intersects another once the positions are rounded to float32 is bad too: slivers
+    from the booleans, a thousandth of a millimetre wide, can fold over there. Where the
+    local repairs cannot remove them all, manifold3d first simplifies by a tolerance far
+    below any printer's resolution (1e-7 to 1e-5 of the size)."""
+
+    def cleaned(m: m3.Manifold) -> tuple[np.ndarray, np.ndarray, int]:
+        v, f, left = remove_degenerate_faces(*_arrays(m))
+        if float32 and left == 0 and len(f):
+            # positions that round to the same float32 are one vertex, as a reader merges them
+            p32, merged = np.unique(v.astype(np.float32), axis=0, return_inverse=True)
+            _, crossing, _ = intersecting_pairs(p32.astype(np.float64),
+                                                merged.reshape(-1)[f])
+            left = int(crossing)
+        return v, f, left
+
+    v, f, left = cleaned(result)
     if left == 0 or len(v) == 0:
         return v, f, left
     diagonal = float(np.linalg.norm(np.ptp(v, axis=0)))
     for rel in (1e-7, 1e-6, 1e-5):
-        cv, cf, left_here = remove_degenerate_faces(*_arrays(result.simplify(rel * diagonal)))
+        cv, cf, left_here = cleaned(result.simplify(rel * diagonal))
         if left_here == 0:
             return cv, cf, 0
     return v, f, left

@@ -460,3 +460,32 @@ def test_needle_is_collapsed():
     rep = validate_arrays(v2, f2)
     assert left == 0 and len(f2) == 8 and (6 not in used or 4 not in used)
     assert rep.passed and rep.volume == pytest.approx(4 / 3)
+
+
+# --------------------------------------------------------------------------- float32 files
+
+SLIVERS = Path(__file__).resolve().parent / "data" / "spot-float32-slivers.json"
+
+
+def test_stl_export_survives_slivers_that_fold_over_in_float32(tmp_path):
+    """The bundled scene's packing whose connected print made `make demo` fail: the union
+    holds slivers (edges of 1e-3 mm) that intersect their neighbours once the positions
+    are rounded to float32, as STL stores them. The STL export now simplifies them away
+    (by at most 1e-5 of the size) and passes; the 3MF, float64, keeps them."""
+    from jampacked.export.intersect import intersecting_pairs
+    from jampacked.export.io import read_mesh_arrays
+
+    opts = ExportOptions(mode="connect", shell=2.0, up="+y",
+                         opening=Opening(axis="+y", at=0.55), drain=3.0)
+    rep = export_packing(SLIVERS, tmp_path / "a.3mf", opts)
+    assert rep.passed
+    volume = rep.volume
+    v, f = read_mesh_arrays(tmp_path / "a.3mf")
+    p32, merged = np.unique(v.astype(np.float32), axis=0, return_inverse=True)
+    _, crossing, _ = intersecting_pairs(p32.astype(np.float64), merged.reshape(-1)[f])
+    assert crossing > 0  # the failure mode is in this packing
+    rep = export_packing(SLIVERS, tmp_path / "a.stl", opts)
+    assert rep.passed and rep.bodies == 1
+    assert validate_file(tmp_path / "a.stl").passed
+    assert rep.volume == pytest.approx(volume, rel=1e-6)
+    assert _meshio_volume(tmp_path / "a.stl") == pytest.approx(volume, rel=1e-5)
