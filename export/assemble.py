@@ -300,7 +300,7 @@ def export_packing(packing: Packing | str | os.PathLike,
         voids = int(np.sum(volumes < 0))
         if voids:
             why = ("the shell is closed" if closed_shell and options.fill_voids
-                   else "--keep-voids was given")
+                   else "filling was turned off (--keep-voids)")
             out.warnings.append(
                 f"the result encloses {voids} sealed void{'s' if voids > 1 else ''} (space "
                 f"shut in between objects, struts and shell), kept hollow because {why}; "
