@@ -412,8 +412,8 @@ def _load_words(summary: dict) -> str:
     if not load:  # written before the load was recorded
         return " that other benchmark jobs may have shared"
     fmt = " / ".join
-    return (f" (1/5/15-minute load averages {fmt(f'{x:.1f}' for x in load['start'])} at "
-            f"the start, {fmt(f'{x:.1f}' for x in load['end'])} at the end)")
+    return (f" whose 1/5/15-minute load averages were {fmt(f'{x:.1f}' for x in load['start'])}"
+            f" at the start and {fmt(f'{x:.1f}' for x in load['end'])} at the end")
 
 
 def write_markdown(summary: dict, path: Path) -> None:
