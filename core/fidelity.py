@@ -76,7 +76,7 @@ def choose_fidelity(type_vertices: list[np.ndarray], expected_objects: float,
       largest cannot turn freely anywhere, like fruit in a torus's tube): high's container
       grid, since nearly every contact is a wall contact, with medium's spheres and object
       grid. On the torus this ended higher for each of seeds 1-3 than high's resolution
-      throughout (median 46.8% against 45.3%, 4 s less; bench/results/fidelity.md).
+      throughout (median 46.8% against 45.3%, 4 s less; the README's Benchmarks section).
     """
     tight = depth_over_radius < TIGHT_DEPTH or depth_over_largest < 1.0
     base = PRESETS["medium"]
