@@ -39,7 +39,7 @@ from .connect import PlacedObject, candidate_pairs, plan_connectors
 from .intersect import intersecting_pairs
 from .io import WRITE_FORMATS, write_mesh
 from .options import ExportOptions, rotate_axis, up_rotation
-from .validate import ValidationReport
+from .validate import ValidationReport, merge_identical
 
 if TYPE_CHECKING:
     from .shell import ShellReport
@@ -377,10 +377,11 @@ def _clean_arrays(result: m3.Manifold, float32: bool = False
     def cleaned(m: m3.Manifold) -> tuple[np.ndarray, np.ndarray, int]:
         v, f, left = remove_degenerate_faces(*_arrays(m))
         if float32 and left == 0 and len(f):
-            # positions that round to the same float32 are one vertex, as a reader merges them
-            p32, merged = np.unique(v.astype(np.float32), axis=0, return_inverse=True)
-            _, crossing, _ = intersecting_pairs(p32.astype(np.float64),
-                                                merged.reshape(-1)[f])
+            # positions that round to the same float32 are one vertex, as the validator
+            # merges them when it reads the file back
+            p32 = v.astype(np.float32).astype(np.float64)
+            first, remap = merge_identical(p32)
+            _, crossing, _ = intersecting_pairs(p32[first], remap[f])
             left = int(crossing)
         return v, f, left
 

@@ -619,6 +619,11 @@ def _prepared(vertices: np.ndarray, faces: np.ndarray, active: np.ndarray | None
     return vertices, faces, index
 
 
+def _no_pairs(n_faces: int) -> tuple[np.ndarray, int, np.ndarray]:
+    """The result of a test with fewer than two faces to test."""
+    return np.zeros((0, 2), np.int64), 0, np.zeros(n_faces, np.int64)
+
+
 def intersecting_pairs(
     vertices: np.ndarray,
     faces: np.ndarray,
@@ -644,7 +649,7 @@ def intersecting_pairs(
     """
     vertices, faces, index = _prepared(vertices, faces, active)
     if len(index) < 2:
-        return np.zeros((0, 2), np.int64), 0, np.zeros(len(faces), np.int64)
+        return _no_pairs(len(faces))
     pairs, total, hits = _intersections(vertices, faces, index, float(tol_rel), LEAF_SIZE,
                                         int(cap), np.zeros(1, np.int64))
     return pairs, int(total), hits
@@ -667,7 +672,7 @@ def start_intersecting_pairs(
     """
     vertices, faces, index = _prepared(vertices, faces, active)
     if len(index) < 2:
-        empty = (np.zeros((0, 2), np.int64), 0, np.zeros(len(faces), np.int64))
+        empty = _no_pairs(len(faces))
         return lambda: empty
     started = np.zeros(1, np.int64)  # set by the kernel once it runs
     out: list[Any] = []

@@ -224,6 +224,14 @@ def _after_field(buf, i, stop, k, mid1, mid2, tail):
     return _match(buf, i, stop, tail)
 
 
+@njit(cache=True, inline="always")
+def _capacity(start, stop, head, mid1, mid2, tail):
+    """Room for the numbers of every element buf[start:stop] can hold: three per element,
+    each element at least its fixed text plus one character per number."""
+    return 3 * ((stop - start) // (head.shape[0] + mid1.shape[0] + mid2.shape[0]
+                                   + tail.shape[0] + 3) + 1)
+
+
 @njit(cache=True)
 def scan_vertices(buf: np.ndarray, start: int, stop: int, head: np.ndarray, mid1: np.ndarray,
                   mid2: np.ndarray, tail: np.ndarray, pow5: np.ndarray
@@ -236,8 +244,7 @@ def scan_vertices(buf: np.ndarray, start: int, stop: int, head: np.ndarray, mid1
     left to the caller (their values are NaN); where the scan ended (``stop``, or the "<" of
     the other tag); ok False when an element starting with ``head`` has another form.
     """
-    cap = 3 * ((stop - start) // (head.shape[0] + mid1.shape[0] + mid2.shape[0]
-                                  + tail.shape[0] + 3) + 1)
+    cap = _capacity(start, stop, head, mid1, mid2, tail)
     values = np.empty(cap, np.float64)
     spans = np.empty((16, 2), np.int64)
     n_spans = 0
@@ -281,8 +288,7 @@ def scan_triangles(buf: np.ndarray, start: int, stop: int, head: np.ndarray, mid
     """Indices of the plain elements ``head N mid1 N mid2 N tail`` from buf[start] (N: 1 to
     15 decimal digits), only whitespace around elements; the scan ends at ``stop`` or at the
     first other tag. Returns ((3K,) int64, end, ok) as :func:`scan_vertices`."""
-    cap = 3 * ((stop - start) // (head.shape[0] + mid1.shape[0] + mid2.shape[0]
-                                  + tail.shape[0] + 3) + 1)
+    cap = _capacity(start, stop, head, mid1, mid2, tail)
     values = np.empty(cap, np.int64)
     n = 0
     i = skip_space(buf, start, stop)
