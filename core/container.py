@@ -10,7 +10,7 @@ from dataclasses import dataclass
 
 import numpy as np
 
-from .distance import DistanceGrid, distance_grid
+from .distance import DistanceGrid, distance_grid, min_pyramid
 from .kernels import sample_grid_many
 
 #: grid cells across the container's largest extent are capped to keep memory and time sane
@@ -25,6 +25,9 @@ class Container:
     faces: np.ndarray  # (F,3)
     volume: float
     grid: DistanceGrid
+    # lower bounds of the grid's interpolant over blocks of cells (see `min_pyramid`): lets
+    # the contact kernels skip objects and point clusters that are far from the wall
+    pyramid: tuple[np.ndarray, np.ndarray, np.ndarray]
 
     @property
     def bounds(self) -> np.ndarray:
@@ -39,7 +42,8 @@ def build_container(vertices: np.ndarray, faces: np.ndarray, volume: float,
     extent = float(np.ptp(vertices, axis=0).max())
     spacing = max(float(spacing), extent / MAX_CELLS_PER_AXIS)
     grid = distance_grid(vertices, faces, spacing, pad=2 * spacing, band=4)
-    return Container(vertices, np.ascontiguousarray(faces, np.int64), float(volume), grid)
+    return Container(vertices, np.ascontiguousarray(faces, np.int64), float(volume), grid,
+                     min_pyramid(grid.values))
 
 
 def interior_points(container: Container, spacing: float, min_depth: float,

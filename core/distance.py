@@ -294,3 +294,31 @@ def distance_grid(vertices: np.ndarray, faces: np.ndarray, spacing: float, *,
     values = np.where(inside, dist, -dist)
     return DistanceGrid(np.ascontiguousarray(values), np.asarray(origin, np.float64),
                         float(spacing))
+
+
+def min_pyramid(values: np.ndarray) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+    """Lower bounds of a grid's trilinear interpolant over blocks of cells, for culling.
+
+    Level 0 holds each cell's smallest corner value (the interpolant inside a cell never goes
+    below it); level L+1 the minimum of level L's 2x2x2 blocks, so a level-L entry bounds the
+    2^L x 2^L x 2^L cells it covers. values: (nx,ny,nz) node samples. Returns (flat (M,)
+    float64, offsets (L+1,) int64 into flat per level, shapes (L,3) int64 per level).
+    """
+    v = np.asarray(values, np.float64)
+    level = v[:-1, :-1, :-1]
+    for dx in (0, 1):
+        for dy in (0, 1):
+            for dz in (0, 1):
+                level = np.minimum(level, v[dx:dx + v.shape[0] - 1, dy:dy + v.shape[1] - 1,
+                                            dz:dz + v.shape[2] - 1])
+    levels = [np.ascontiguousarray(level)]
+    while max(level.shape) > 1:
+        pad = [(0, s % 2) for s in level.shape]
+        p = np.pad(level, pad, constant_values=np.inf)
+        level = p.reshape(p.shape[0] // 2, 2, p.shape[1] // 2, 2, p.shape[2] // 2, 2).min(
+            axis=(1, 3, 5))
+        levels.append(np.ascontiguousarray(level))
+    flat = np.concatenate([lv.ravel() for lv in levels])
+    off = np.cumsum([0] + [lv.size for lv in levels]).astype(np.int64)
+    shapes = np.array([lv.shape for lv in levels], np.int64)
+    return flat, off, shapes

@@ -133,59 +133,85 @@ def _push_pair(F, Tq, a, b, pen, nx, ny, nz, ax, ay, az, bx, by, bz):
 
 
 @njit(cache=True)
-def _points_in_other(a, b, R_a, R_b, typ, pos, scale, radius, pt_off, pts, g_off, g_vals,
-                     g_shape, g_origin, g_h, delta, tol, F, Tq):
+def _points_in_other(a, b, R_a, R_b, typ, pos, scale, radius, pc_off, pcl, pcl_off, box, pts,
+                     g_off, g_vals, g_shape, g_origin, g_h, delta, tol, F, Tq):
     """Surface points of object a against the distance grid of object b.
 
     Adds forces (pushing a's points out of b) to F[a], reactions to F[b], torques to Tq.
-    Returns the largest penetration depth (container units).
+    Returns the largest penetration depth (container units). Points are visited cluster by
+    cluster (pc_off, pcl, pcl_off: see `TypeTable`); a cluster whose bounding ball misses b's
+    bounding sphere, and a point outside b's box by more than delta (plus a grid cell, so
+    that no grid node it is interpolated from lies within delta of b), cannot penetrate b
+    and is skipped: the result equals visiting every point.
     """
     ta = typ[a]
     tb = typ[b]
     sa = scale[a]
     sb = scale[b]
     reach = radius[tb] * sb + delta
+    pad = delta / sb + g_h[tb]
+    lo_x = box[tb, 0] - pad
+    lo_y = box[tb, 1] - pad
+    lo_z = box[tb, 2] - pad
+    hi_x = box[tb, 3] + pad
+    hi_y = box[tb, 4] + pad
+    hi_z = box[tb, 5] + pad
+    ox = pos[a, 0] - pos[b, 0]
+    oy = pos[a, 1] - pos[b, 1]
+    oz = pos[a, 2] - pos[b, 2]
     worst = 0.0
-    for m in range(pt_off[ta], pt_off[ta + 1]):
-        wx = (R_a[0, 0] * pts[m, 0] + R_a[0, 1] * pts[m, 1] + R_a[0, 2] * pts[m, 2]) * sa
-        wy = (R_a[1, 0] * pts[m, 0] + R_a[1, 1] * pts[m, 1] + R_a[1, 2] * pts[m, 2]) * sa
-        wz = (R_a[2, 0] * pts[m, 0] + R_a[2, 1] * pts[m, 1] + R_a[2, 2] * pts[m, 2]) * sa
-        rx = wx + pos[a, 0] - pos[b, 0]
-        ry = wy + pos[a, 1] - pos[b, 1]
-        rz = wz + pos[a, 2] - pos[b, 2]
-        if rx * rx + ry * ry + rz * rz > reach * reach:
+    for cl in range(pc_off[ta], pc_off[ta + 1]):
+        cx = (R_a[0, 0] * pcl[cl, 0] + R_a[0, 1] * pcl[cl, 1] + R_a[0, 2] * pcl[cl, 2]) * sa + ox
+        cy = (R_a[1, 0] * pcl[cl, 0] + R_a[1, 1] * pcl[cl, 1] + R_a[1, 2] * pcl[cl, 2]) * sa + oy
+        cz = (R_a[2, 0] * pcl[cl, 0] + R_a[2, 1] * pcl[cl, 1] + R_a[2, 2] * pcl[cl, 2]) * sa + oz
+        lim = reach + pcl[cl, 3] * sa
+        if cx * cx + cy * cy + cz * cz > lim * lim:
             continue
-        # into b's local frame: R_b^T r / s_b
-        qx = (R_b[0, 0] * rx + R_b[1, 0] * ry + R_b[2, 0] * rz) / sb
-        qy = (R_b[0, 1] * rx + R_b[1, 1] * ry + R_b[2, 1] * rz) / sb
-        qz = (R_b[0, 2] * rx + R_b[1, 2] * ry + R_b[2, 2] * rz) / sb
-        d, gx, gy, gz = sample_type_grid(g_vals, g_off, g_shape, g_origin, g_h, tb, qx, qy, qz)
-        pen = d * sb + delta
-        if pen <= tol:
-            continue
-        # outward normal of b in the container frame: -R_b grad
-        nx = -(R_b[0, 0] * gx + R_b[0, 1] * gy + R_b[0, 2] * gz)
-        ny = -(R_b[1, 0] * gx + R_b[1, 1] * gy + R_b[1, 2] * gz)
-        nz = -(R_b[2, 0] * gx + R_b[2, 1] * gy + R_b[2, 2] * gz)
-        nn = np.sqrt(nx * nx + ny * ny + nz * nz)
-        if nn < 1e-12:
-            nx = pos[a, 0] - pos[b, 0]
-            ny = pos[a, 1] - pos[b, 1]
-            nz = pos[a, 2] - pos[b, 2]
-            nn = np.sqrt(nx * nx + ny * ny + nz * nz) + 1e-300
-        nx /= nn
-        ny /= nn
-        nz /= nn
-        # torque about a's centre from its point, about b's centre from the reaction
-        _push_pair(F, Tq, a, b, pen, nx, ny, nz, wx, wy, wz, rx, ry, rz)
-        if pen > worst:
-            worst = pen
+        for m in range(pcl_off[cl], pcl_off[cl + 1]):
+            wx = (R_a[0, 0] * pts[m, 0] + R_a[0, 1] * pts[m, 1] + R_a[0, 2] * pts[m, 2]) * sa
+            wy = (R_a[1, 0] * pts[m, 0] + R_a[1, 1] * pts[m, 1] + R_a[1, 2] * pts[m, 2]) * sa
+            wz = (R_a[2, 0] * pts[m, 0] + R_a[2, 1] * pts[m, 1] + R_a[2, 2] * pts[m, 2]) * sa
+            rx = wx + ox
+            ry = wy + oy
+            rz = wz + oz
+            if rx * rx + ry * ry + rz * rz > reach * reach:
+                continue
+            # into b's local frame: R_b^T r / s_b
+            qx = (R_b[0, 0] * rx + R_b[1, 0] * ry + R_b[2, 0] * rz) / sb
+            qy = (R_b[0, 1] * rx + R_b[1, 1] * ry + R_b[2, 1] * rz) / sb
+            qz = (R_b[0, 2] * rx + R_b[1, 2] * ry + R_b[2, 2] * rz) / sb
+            if (qx < lo_x or qx > hi_x or qy < lo_y or qy > hi_y or qz < lo_z
+                    or qz > hi_z):
+                continue
+            d, gx, gy, gz = sample_type_grid(g_vals, g_off, g_shape, g_origin, g_h, tb,
+                                             qx, qy, qz)
+            pen = d * sb + delta
+            if pen <= tol:
+                continue
+            # outward normal of b in the container frame: -R_b grad
+            nx = -(R_b[0, 0] * gx + R_b[0, 1] * gy + R_b[0, 2] * gz)
+            ny = -(R_b[1, 0] * gx + R_b[1, 1] * gy + R_b[1, 2] * gz)
+            nz = -(R_b[2, 0] * gx + R_b[2, 1] * gy + R_b[2, 2] * gz)
+            nn = np.sqrt(nx * nx + ny * ny + nz * nz)
+            if nn < 1e-12:
+                nx = ox
+                ny = oy
+                nz = oz
+                nn = np.sqrt(nx * nx + ny * ny + nz * nz) + 1e-300
+            nx /= nn
+            ny /= nn
+            nz /= nn
+            # torque about a's centre from its point, about b's centre from the reaction
+            _push_pair(F, Tq, a, b, pen, nx, ny, nz, wx, wy, wz, rx, ry, rz)
+            if pen > worst:
+                worst = pen
     return worst
 
 
 @njit(cache=True)
 def pair_contact(a, b, typ, pos, quat, scale, margin, clearance, tol, radius, sph_off, sph_c,
-                 sph_r, pt_off, pts, g_off, g_vals, g_shape, g_origin, g_h, F, Tq):
+                 sph_r, pc_off, pcl, pcl_off, box, pts, g_off, g_vals, g_shape, g_origin, g_h,
+                 F, Tq):
     """Penetration of objects a and b (inner spheres + surface points), forces accumulated.
 
     Objects must keep `clearance + margin[a] + margin[b]` apart. Returns the largest
@@ -260,10 +286,10 @@ def pair_contact(a, b, typ, pos, quat, scale, margin, clearance, tol, radius, sp
             _push_pair(F, Tq, a, b, pen, nx, ny, nz, ux, uy, uz, vx, vy, vz)
             if pen > worst:
                 worst = pen
-    p1 = _points_in_other(a, b, R_a, R_b, typ, pos, scale, radius, pt_off, pts, g_off, g_vals,
-                          g_shape, g_origin, g_h, delta, tol, F, Tq)
-    p2 = _points_in_other(b, a, R_b, R_a, typ, pos, scale, radius, pt_off, pts, g_off, g_vals,
-                          g_shape, g_origin, g_h, delta, tol, F, Tq)
+    p1 = _points_in_other(a, b, R_a, R_b, typ, pos, scale, radius, pc_off, pcl, pcl_off, box,
+                          pts, g_off, g_vals, g_shape, g_origin, g_h, delta, tol, F, Tq)
+    p2 = _points_in_other(b, a, R_b, R_a, typ, pos, scale, radius, pc_off, pcl, pcl_off, box,
+                          pts, g_off, g_vals, g_shape, g_origin, g_h, delta, tol, F, Tq)
     return max(worst, p1, p2)
 
 
@@ -284,12 +310,61 @@ def _push_wall(F, Tq, a, pen, gx, gy, gz, ax, ay, az):
 
 
 @njit(cache=True)
-def wall_contact(a, typ, pos, quat, scale, margin, clearance, tol, sph_off, sph_c, sph_r,
-                 pt_off, pts, c_vals, c_shape, c_origin, c_h, F, Tq):
-    """Penetration of object a into the container wall (spheres and surface points)."""
+def region_min(pyr, p_off, p_shape, c_origin, c_h, lx, ly, lz, ux, uy, uz):
+    """A lower bound of the container grid's interpolant over the box [l, u] (container
+    frame), from the min pyramid (pyr, p_off, p_shape: see `distance.min_pyramid`); -inf
+    where the box reaches outside the grid's cells."""
+    i0 = int(np.floor((lx - c_origin[0]) / c_h))
+    j0 = int(np.floor((ly - c_origin[1]) / c_h))
+    k0 = int(np.floor((lz - c_origin[2]) / c_h))
+    i1 = int(np.floor((ux - c_origin[0]) / c_h))
+    j1 = int(np.floor((uy - c_origin[1]) / c_h))
+    k1 = int(np.floor((uz - c_origin[2]) / c_h))
+    if (i0 < 0 or j0 < 0 or k0 < 0 or i1 >= p_shape[0, 0] or j1 >= p_shape[0, 1]
+            or k1 >= p_shape[0, 2]):
+        return -np.inf
+    span = max(i1 - i0, j1 - j0, k1 - k0) + 1
+    lev = 0
+    while (1 << lev) < span and lev + 1 < p_shape.shape[0]:
+        lev += 1  # the box covers at most 2 blocks per axis at this level
+    ny = p_shape[lev, 1]
+    nz = p_shape[lev, 2]
+    o = p_off[lev]
+    lo = np.inf
+    for i in range(i0 >> lev, (i1 >> lev) + 1):
+        for j in range(j0 >> lev, (j1 >> lev) + 1):
+            for k in range(k0 >> lev, (k1 >> lev) + 1):
+                v = pyr[o + (i * ny + j) * nz + k]
+                if v < lo:
+                    lo = v
+    return lo
+
+
+@njit(cache=True)
+def wall_contact(a, typ, pos, quat, scale, margin, clearance, tol, radius, sph_off, sph_c,
+                 sph_r, pc_off, pcl, pcl_off, pts, c_vals, c_shape, c_origin, c_h, c_pyr,
+                 c_poff, c_pshape, F, Tq):
+    """Penetration of object a into the container wall (spheres and surface points).
+
+    The min pyramid skips work that cannot find a contact: the whole object when the
+    grid's lower bound over its bounding sphere exceeds its largest inner sphere plus the
+    gap to keep, its surface points when that bound exceeds the gap, and each point cluster
+    whose own bound does; the result equals testing every sphere and point.
+    """
     t = typ[a]
     s = scale[a]
     delta = clearance + margin[a]
+    px = pos[a, 0]
+    py = pos[a, 1]
+    pz = pos[a, 2]
+    ro = radius[t] * s
+    near = region_min(c_pyr, c_poff, c_pshape, c_origin, c_h, px - ro, py - ro, pz - ro,
+                      px + ro, py + ro, pz + ro)
+    r_max = 0.0
+    for u in range(sph_off[t], sph_off[t + 1]):
+        r_max = max(r_max, sph_r[u])
+    if near > r_max * s + delta + tol:
+        return 0.0
     R = quat_to_rot(quat[a])
     worst = 0.0
     nx_, ny_, nz_ = c_shape[0], c_shape[1], c_shape[2]
@@ -298,27 +373,35 @@ def wall_contact(a, typ, pos, quat, scale, margin, clearance, tol, sph_off, sph_
         uy = (R[1, 0] * sph_c[u, 0] + R[1, 1] * sph_c[u, 1] + R[1, 2] * sph_c[u, 2]) * s
         uz = (R[2, 0] * sph_c[u, 0] + R[2, 1] * sph_c[u, 1] + R[2, 2] * sph_c[u, 2]) * s
         d, gx, gy, gz = trilinear(c_vals, 0, nx_, ny_, nz_, c_origin[0], c_origin[1],
-                                  c_origin[2], c_h, ux + pos[a, 0], uy + pos[a, 1],
-                                  uz + pos[a, 2])
+                                  c_origin[2], c_h, ux + px, uy + py, uz + pz)
         pen = sph_r[u] * s + delta - d
         if pen <= tol:
             continue
         _push_wall(F, Tq, a, pen, gx, gy, gz, ux, uy, uz)
         if pen > worst:
             worst = pen
-    for m in range(pt_off[t], pt_off[t + 1]):
-        wx = (R[0, 0] * pts[m, 0] + R[0, 1] * pts[m, 1] + R[0, 2] * pts[m, 2]) * s
-        wy = (R[1, 0] * pts[m, 0] + R[1, 1] * pts[m, 1] + R[1, 2] * pts[m, 2]) * s
-        wz = (R[2, 0] * pts[m, 0] + R[2, 1] * pts[m, 1] + R[2, 2] * pts[m, 2]) * s
-        d, gx, gy, gz = trilinear(c_vals, 0, nx_, ny_, nz_, c_origin[0], c_origin[1],
-                                  c_origin[2], c_h, wx + pos[a, 0], wy + pos[a, 1],
-                                  wz + pos[a, 2])
-        pen = delta - d
-        if pen <= tol:
+    if near > delta + tol:
+        return worst
+    for cl in range(pc_off[t], pc_off[t + 1]):
+        cx = (R[0, 0] * pcl[cl, 0] + R[0, 1] * pcl[cl, 1] + R[0, 2] * pcl[cl, 2]) * s + px
+        cy = (R[1, 0] * pcl[cl, 0] + R[1, 1] * pcl[cl, 1] + R[1, 2] * pcl[cl, 2]) * s + py
+        cz = (R[2, 0] * pcl[cl, 0] + R[2, 1] * pcl[cl, 1] + R[2, 2] * pcl[cl, 2]) * s + pz
+        rc = pcl[cl, 3] * s
+        if region_min(c_pyr, c_poff, c_pshape, c_origin, c_h, cx - rc, cy - rc, cz - rc,
+                      cx + rc, cy + rc, cz + rc) > delta + tol:
             continue
-        _push_wall(F, Tq, a, pen, gx, gy, gz, wx, wy, wz)
-        if pen > worst:
-            worst = pen
+        for m in range(pcl_off[cl], pcl_off[cl + 1]):
+            wx = (R[0, 0] * pts[m, 0] + R[0, 1] * pts[m, 1] + R[0, 2] * pts[m, 2]) * s
+            wy = (R[1, 0] * pts[m, 0] + R[1, 1] * pts[m, 1] + R[1, 2] * pts[m, 2]) * s
+            wz = (R[2, 0] * pts[m, 0] + R[2, 1] * pts[m, 1] + R[2, 2] * pts[m, 2]) * s
+            d, gx, gy, gz = trilinear(c_vals, 0, nx_, ny_, nz_, c_origin[0], c_origin[1],
+                                      c_origin[2], c_h, wx + px, wy + py, wz + pz)
+            pen = delta - d
+            if pen <= tol:
+                continue
+            _push_wall(F, Tq, a, pen, gx, gy, gz, wx, wy, wz)
+            if pen > worst:
+                worst = pen
     return worst
 
 
@@ -344,9 +427,9 @@ def _rotate_quat(q, ax, ay, az, angle):
 
 @njit(cache=True)
 def resolve(focus, typ, pos, quat, scale, alive, margin, vel, clearance, tol, radius,
-            sph_off, sph_c, sph_r, pt_off, pts, g_off, g_vals, g_shape, g_origin, g_h,
-            c_vals, c_origin, c_h, max_iter, k_obj, k_wall, k_rot, damping, rollback, mode,
-            wall_extra):
+            sph_off, sph_c, sph_r, pt_off, pc_off, pcl, pcl_off, box, pts, g_off, g_vals,
+            g_shape, g_origin, g_h, c_vals, c_origin, c_h, c_pyr, c_poff, c_pshape, max_iter,
+            k_obj, k_wall, k_rot, damping, rollback, mode, wall_extra):
     """Penalty-force overlap resolution starting from the objects in `focus`.
 
     Only objects in contact move: each gets the sum of its contact forces, normalised,
@@ -390,8 +473,8 @@ def resolve(focus, typ, pos, quat, scale, alive, margin, vel, clearance, tol, ra
         for ii in range(n_act):
             a = act_list[ii]
             pw = wall_contact(a, typ, pos, quat, scale, margin, clearance + wall_extra, tol,
-                              sph_off, sph_c,
-                              sph_r, pt_off, pts, c_flat, c_shape, c_origin, c_h, F, Tq)
+                              radius, sph_off, sph_c, sph_r, pc_off, pcl, pcl_off, pts, c_flat,
+                              c_shape, c_origin, c_h, c_pyr, c_poff, c_pshape, F, Tq)
             if pw > 0.0:
                 pen_wall[a] = max(pen_wall[a], pw)
                 if not hit[a]:
@@ -411,8 +494,8 @@ def resolve(focus, typ, pos, quat, scale, alive, margin, vel, clearance, tol, ra
                 if dx * dx + dy * dy + dz * dz > lim * lim:
                     continue
                 p = pair_contact(a, b, typ, pos, quat, scale, margin, clearance, tol, radius,
-                                 sph_off, sph_c, sph_r, pt_off, pts, g_off, g_vals, g_shape,
-                                 g_origin, g_h, F, Tq)
+                                 sph_off, sph_c, sph_r, pc_off, pcl, pcl_off, box, pts, g_off,
+                                 g_vals, g_shape, g_origin, g_h, F, Tq)
                 if p > 0.0:
                     pen_obj[a] = max(pen_obj[a], p)
                     pen_obj[b] = max(pen_obj[b], p)
@@ -483,8 +566,9 @@ def resolve(focus, typ, pos, quat, scale, alive, margin, vel, clearance, tol, ra
 
 @njit(cache=True)
 def max_penetrations(typ, pos, quat, scale, alive, margin, clearance, tol, radius, sph_off,
-                     sph_c, sph_r, pt_off, pts, g_off, g_vals, g_shape, g_origin, g_h, c_vals,
-                     c_origin, c_h, wall_extra):
+                     sph_c, sph_r, pt_off, pc_off, pcl, pcl_off, box, pts, g_off, g_vals,
+                     g_shape, g_origin, g_h, c_vals, c_origin, c_h, c_pyr, c_poff, c_pshape,
+                     wall_extra):
     """Deepest object-object and object-wall penetration of every alive object, (N,2)."""
     n = typ.shape[0]
     F = np.zeros((n, 4))
@@ -496,9 +580,8 @@ def max_penetrations(typ, pos, quat, scale, alive, margin, clearance, tol, radiu
         if not alive[a]:
             continue
         out[a, 1] = wall_contact(a, typ, pos, quat, scale, margin, clearance + wall_extra, tol,
-                                 sph_off,
-                                 sph_c, sph_r, pt_off, pts, c_flat, c_shape, c_origin, c_h,
-                                 F, Tq)
+                                 radius, sph_off, sph_c, sph_r, pc_off, pcl, pcl_off, pts,
+                                 c_flat, c_shape, c_origin, c_h, c_pyr, c_poff, c_pshape, F, Tq)
         ra = radius[typ[a]] * scale[a]
         for b in range(a + 1, n):
             if not alive[b]:
@@ -510,8 +593,8 @@ def max_penetrations(typ, pos, quat, scale, alive, margin, clearance, tol, radiu
             if dx * dx + dy * dy + dz * dz > lim * lim:
                 continue
             p = pair_contact(a, b, typ, pos, quat, scale, margin, clearance, tol, radius,
-                             sph_off, sph_c, sph_r, pt_off, pts, g_off, g_vals, g_shape,
-                             g_origin, g_h, F, Tq)
+                             sph_off, sph_c, sph_r, pc_off, pcl, pcl_off, box, pts, g_off,
+                             g_vals, g_shape, g_origin, g_h, F, Tq)
             out[a, 0] = max(out[a, 0], p)
             out[b, 0] = max(out[b, 0], p)
     return out

@@ -109,6 +109,35 @@ def surface_samples(vertices: np.ndarray, faces: np.ndarray, count: int) -> np.n
     return np.ascontiguousarray(_farthest_points(pts, count))
 
 
+def point_clusters(points: np.ndarray, leaf: int = 16
+                   ) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+    """Group points (P,3) into clusters of at most `leaf` nearby points by halving along the
+    longest box side. Returns (order (P,) point indices cluster by cluster; balls (C,4):
+    each cluster's box centre and the radius that covers its points; sizes (C,) points per
+    cluster). Deterministic; frame and units those of the points."""
+    order: list[np.ndarray] = []
+    stack = [np.arange(len(points))]
+    while stack:
+        idx = stack.pop()
+        if len(idx) <= leaf:
+            if len(idx):
+                order.append(idx)
+            continue
+        ext = np.ptp(points[idx], axis=0)
+        idx = idx[np.argsort(points[idx, int(np.argmax(ext))], kind="stable")]
+        half = len(idx) // 2
+        stack += [idx[half:], idx[:half]]  # the lower half is split (and listed) first
+    balls = np.zeros((len(order), 4))
+    for c, idx in enumerate(order):
+        q = points[idx]
+        mid = 0.5 * (q.min(axis=0) + q.max(axis=0))
+        balls[c, :3] = mid
+        balls[c, 3] = np.sqrt(((q - mid) ** 2).sum(axis=1)).max()
+    sizes = np.array([len(i) for i in order], np.int64)
+    flat = np.concatenate(order) if order else np.zeros(0, np.int64)
+    return flat, balls, sizes
+
+
 def _geometry_key(vertices: np.ndarray, faces: np.ndarray, params: tuple) -> str:
     h = hashlib.sha256()
     h.update(_CACHE_VERSION.encode())

@@ -13,7 +13,7 @@ import numpy as np
 
 from . import kernels
 from .container import Container
-from .objects import ObjectType
+from .objects import ObjectType, point_clusters
 
 
 class TypeTable:
@@ -27,7 +27,20 @@ class TypeTable:
         self.sph_c = np.ascontiguousarray(np.concatenate([t.sphere_centres for t in types]))
         self.sph_r = np.ascontiguousarray(np.concatenate([t.sphere_radii for t in types]))
         self.pt_off = np.cumsum([0] + [len(t.surface_points) for t in types]).astype(np.int64)
-        self.pts = np.ascontiguousarray(np.concatenate([t.surface_points for t in types]))
+        # surface points grouped into clusters of nearby points, so that the contact kernels
+        # can skip a cluster whose bounding ball is out of reach: pcl (C,4) ball centre and
+        # radius (local frame), pcl_off (C+1) its points' range in pts, pc_off (T+1) each
+        # type's range of clusters
+        clusters = [point_clusters(t.surface_points) for t in types]
+        self.pts = np.ascontiguousarray(np.concatenate(
+            [t.surface_points[order] for t, (order, _, _) in zip(types, clusters, strict=True)]))
+        self.pc_off = np.cumsum([0] + [len(b) for _, b, _ in clusters]).astype(np.int64)
+        self.pcl = np.ascontiguousarray(np.concatenate([b for _, b, _ in clusters]))
+        self.pcl_off = np.concatenate([[0], np.cumsum(np.concatenate(
+            [n for _, _, n in clusters]))]).astype(np.int64)
+        # (T,6) each type's bounding box (local frame): lo xyz, hi xyz
+        self.box = np.array([np.concatenate([t.vertices.min(axis=0), t.vertices.max(axis=0)])
+                             for t in types], np.float64)
         self.g_off = np.cumsum([0] + [t.grid.values.size for t in types]).astype(np.int64)
         self.g_vals = np.ascontiguousarray(
             np.concatenate([t.grid.values.ravel() for t in types]), np.float64)
@@ -115,8 +128,9 @@ class Solver:
         t, c, p = self.t, self.c.grid, self.p
         ok, its = kernels.resolve(
             np.asarray(focus, np.int64), typ, pos, quat, scale, alive, margin, vel,
-            p.clearance, p.tol, t.radius, t.sph_off, t.sph_c, t.sph_r, t.pt_off, t.pts,
-            t.g_off, t.g_vals, t.g_shape, t.g_origin, t.g_h, c.values, c.origin, c.spacing,
+            p.clearance, p.tol, t.radius, t.sph_off, t.sph_c, t.sph_r, t.pt_off, t.pc_off,
+            t.pcl, t.pcl_off, t.box, t.pts, t.g_off, t.g_vals, t.g_shape, t.g_origin, t.g_h,
+            c.values, c.origin, c.spacing, *self.c.pyramid,
             int(max_iter), p.k_obj, p.k_wall, p.k_rot, p.damping, rollback, p.mode,
             p.wall_margin)
         self.calls += 1
@@ -137,8 +151,9 @@ class Solver:
         t, c, p = self.t, self.c.grid, self.p
         return kernels.max_penetrations(
             typ, pos, quat, scale, alive, margin, p.clearance, p.tol, t.radius, t.sph_off,
-            t.sph_c, t.sph_r, t.pt_off, t.pts, t.g_off, t.g_vals, t.g_shape, t.g_origin,
-            t.g_h, c.values, c.origin, c.spacing, p.wall_margin)
+            t.sph_c, t.sph_r, t.pt_off, t.pc_off, t.pcl, t.pcl_off, t.box, t.pts, t.g_off,
+            t.g_vals, t.g_shape, t.g_origin, t.g_h, c.values, c.origin, c.spacing,
+            *self.c.pyramid, p.wall_margin)
 
     def free_distances(self, points: np.ndarray) -> np.ndarray:
         """Distance from each point (M,3) to the nearest object or the wall (M,)."""

@@ -17,9 +17,9 @@ import pytest
 import trimesh
 
 from jampacked.core import kernels, solver
-from jampacked.core.container import build_container
-from jampacked.core.distance import distance_grid
-from jampacked.core.objects import build_type
+from jampacked.core.container import Container, build_container
+from jampacked.core.distance import DistanceGrid, distance_grid, min_pyramid
+from jampacked.core.objects import build_type, point_clusters
 from jampacked.core.packing import quat_to_matrix
 from jampacked.core.spheres import inner_spheres, sphere_coverage
 
@@ -249,9 +249,11 @@ def env_for(table, container, state, clearance=0.0, tol=1e-6) -> dict:
     env = dict(typ=typ, pos=pos, quat=quat, scale=scale, alive=alive, margin=margin, vel=vel,
                clearance=clearance, tol=tol, c_vals=g.values, c_origin=g.origin,
                c_h=g.spacing, c_shape=np.array(g.values.shape, np.int64),
+               c_pyr=container.pyramid[0], c_poff=container.pyramid[1],
+               c_pshape=container.pyramid[2],
                F=np.zeros((len(typ), 4)), Tq=np.zeros((len(typ), 3)))
-    for name in ("radius", "sph_off", "sph_c", "sph_r", "pt_off", "pts", "g_off", "g_vals",
-                 "g_shape", "g_origin", "g_h"):
+    for name in ("radius", "sph_off", "sph_c", "sph_r", "pt_off", "pc_off", "pcl", "pcl_off",
+                 "box", "pts", "g_off", "g_vals", "g_shape", "g_origin", "g_h"):
         env[name] = getattr(table, name)
     return env
 
@@ -463,6 +465,62 @@ def test_pair_contact_matches_reference(table, container, seed):
     assert found >= 8
 
 
+def test_pair_contact_matches_reference_at_grazing_distances(table, container):
+    # centres between 0.55 and 1.0 of the bounding radii apart: the contacts are at the
+    # objects' tips, where skipping point clusters and points outside the other's box must
+    # change nothing
+    rng = np.random.default_rng(65)
+    grids = type_grids(table)
+    found = 0
+    for _ in range(150):
+        typ = rng.integers(0, 2, 2)
+        quat = random_quats(rng, 2)
+        scale = np.ones(2)
+        margin = np.zeros(2)
+        d = rng.normal(size=3)
+        d /= np.linalg.norm(d)
+        pos = np.array([[0.0, 0, 0], d * rng.uniform(0.55, 1.0) * table.radius[typ].sum()])
+        state = make_state(typ, pos, quat, scale, margin)
+        env = env_for(table, container, state, 0.0, 1e-9)
+        worst = call(kernels.pair_contact, env, a=0, b=1)
+        ref, F_ref, T_ref = pair_contact_ref(0, 1, table, grids, typ, pos, quat, scale, margin,
+                                             0.0, 1e-9)
+        assert worst == pytest.approx(ref, rel=1e-12, abs=1e-12)
+        np.testing.assert_allclose(env["F"], F_ref, rtol=1e-10, atol=1e-12)
+        np.testing.assert_allclose(env["Tq"], T_ref, rtol=1e-10, atol=1e-12)
+        found += worst > 0
+    assert found >= 30
+
+
+@pytest.mark.parametrize("n", [1, 16, 17, 96, 384, 1000])
+def test_point_clusters_list_every_point_once_inside_its_ball(n):
+    pts = np.random.default_rng(n).normal(size=(n, 3)) * [3.0, 1.0, 0.5]
+    order, balls, sizes = point_clusters(pts, leaf=16)
+    assert sorted(order.tolist()) == list(range(n))
+    assert sizes.sum() == n and sizes.max() <= 16 and sizes.min() >= 1
+    start = np.concatenate([[0], np.cumsum(sizes)])
+    for c in range(len(sizes)):
+        q = pts[order[start[c]:start[c + 1]]]
+        assert np.linalg.norm(q - balls[c, :3], axis=1).max() <= balls[c, 3] + 1e-12
+    # halving keeps clusters compact: their balls are much smaller than the cloud
+    if n >= 96:
+        assert np.median(balls[:, 3]) < 0.5 * np.ptp(pts, axis=0).max() / 2
+
+
+def test_type_table_clusters_index_each_types_points(table, types):
+    for t, typ in enumerate(types):
+        mine = table.pts[table.pt_off[t]:table.pt_off[t + 1]]
+        # the same points, reordered cluster by cluster
+        np.testing.assert_array_equal(np.unique(mine, axis=0),
+                                      np.unique(typ.surface_points, axis=0))
+        for c in range(table.pc_off[t], table.pc_off[t + 1]):
+            q = table.pts[table.pcl_off[c]:table.pcl_off[c + 1]]
+            assert table.pt_off[t] <= table.pcl_off[c] < table.pcl_off[c + 1] <= table.pt_off[t + 1]
+            assert np.linalg.norm(q - table.pcl[c, :3], axis=1).max() <= table.pcl[c, 3] + 1e-12
+        np.testing.assert_allclose(table.box[t, :3], typ.vertices.min(axis=0))
+        np.testing.assert_allclose(table.box[t, 3:], typ.vertices.max(axis=0))
+
+
 def test_pair_contact_far_apart_is_zero(table, container):
     rng = np.random.default_rng(60)
     for typ, pos, quat, scale, margin in pair_scene(rng, table, 10, overlap=False):
@@ -524,6 +582,102 @@ def test_wall_contact_matches_reference(table, container, seed):
         if not walls.any():
             assert worst == 0.0
     assert hits >= 4
+
+
+def test_wall_contact_matches_reference_where_culling_decides(table, container):
+    # depths from just touching to about one bounding radius from a face, and the corners'
+    # diagonals: where the min pyramid decides whether the spheres, the point clusters or
+    # the whole object can be skipped, the result must equal testing everything
+    rng = np.random.default_rng(75)
+    clearance, tol = 0.0, 1e-9
+    hits = misses = 0
+    for _ in range(200):
+        t = int(rng.integers(0, 2))
+        quat = random_quats(rng, 1)
+        scale = np.ones(1)
+        margin = np.zeros(1)
+        r = table.radius[t]
+        pos = rng.uniform(-3, 3, (1, 3))
+        axes = rng.random(3) < 0.5
+        axes[rng.integers(0, 3)] = True
+        sign = rng.choice([-1.0, 1.0], 3)
+        pos[0, axes] = sign[axes] * (HALF_CONTAINER - rng.uniform(0.3, 1.2) * r)
+        state = make_state(np.array([t]), pos, quat, scale, margin)
+        env = env_for(table, container, state, clearance, tol)
+        worst = call(kernels.wall_contact, env, a=0, c_vals=container.grid.values.ravel())
+        ref, F_ref, T_ref = wall_contact_ref(0, table, container.grid, np.array([t]), pos,
+                                             quat, scale, margin, clearance, tol)
+        assert worst == pytest.approx(ref, rel=1e-12, abs=1e-12)
+        np.testing.assert_allclose(env["F"], F_ref, rtol=1e-10, atol=1e-12)
+        np.testing.assert_allclose(env["Tq"], T_ref, rtol=1e-10, atol=1e-12)
+        hits += worst > 0
+        misses += worst == 0
+    assert hits >= 40 and misses >= 40
+
+
+def test_wall_contact_culling_holds_on_a_grid_that_is_no_distance_field(table):
+    # a bowl of values, lowest at one of the object's inner sphere centres or surface points,
+    # is no distance field: only bounds that hold for any interpolant leave the result
+    # unchanged (a culling test that relies on distance-field slopes fails here)
+    rng = np.random.default_rng(80)
+    box = trimesh.creation.box(extents=(20.0, 20.0, 20.0))
+    h = 0.25
+    axis = np.arange(-6.0, 6.01, h)
+    nodes = np.stack(np.meshgrid(axis, axis, axis, indexing="ij"), axis=-1)
+    hits = misses = 0
+    for _ in range(120):
+        t = int(rng.integers(0, 2))
+        state = make_state(np.array([t]), rng.uniform(-1, 1, (1, 3)), random_quats(rng, 1),
+                           np.ones(1), np.zeros(1))
+        typ, pos, quat, scale, _, margin, _ = state.view()
+        kind = "sph" if rng.random() < 0.5 else "pts"
+        world, _, rad = posed(table, t, kind, quat_to_rot_ref(quat[0]), 1.0, pos[0])
+        if kind == "sph":  # often the largest sphere: the whole-object bound is about it
+            pick = int(np.argmax(rad) if rng.random() < 0.5 else rng.integers(0, len(world)))
+            low = rng.uniform(0.4, 1.2) * rad[pick]
+        else:  # a point's cluster is culled by its own bound: steep bowls test it
+            pick = int(rng.integers(0, len(world)))
+            low = rng.uniform(-0.4, 0.1)
+        vals = rng.uniform(1.0, 40.0) * ((nodes - world[pick]) ** 2).sum(axis=-1)
+        g = DistanceGrid(vals, np.full(3, -6.0), h)
+        # the interpolant at the picked centre or point is `low`
+        vals += low - trilinear_ref(vals, g.origin, h, world[pick:pick + 1])[0][0]
+        cont = Container(box.vertices, box.faces, 8000.0, g, min_pyramid(g.values))
+        env = env_for(table, cont, state, 0.0, 1e-9)
+        worst = call(kernels.wall_contact, env, a=0, c_vals=g.values.ravel())
+        ref, F_ref, T_ref = wall_contact_ref(0, table, g, typ, pos, quat, scale, margin, 0.0,
+                                             1e-9)
+        assert worst == pytest.approx(ref, rel=1e-12, abs=1e-12)
+        np.testing.assert_allclose(env["F"], F_ref, rtol=1e-10, atol=1e-12)
+        hits += worst > 0
+        misses += worst == 0
+    assert hits >= 15 and misses >= 15
+
+
+@pytest.mark.parametrize("seed", range(3))
+def test_region_min_bounds_the_interpolant_over_the_box(seed):
+    rng = np.random.default_rng(90 + seed)
+    shape = tuple(int(x) for x in rng.integers(3, 20, 3))
+    vals = rng.normal(size=shape)
+    origin = rng.normal(size=3)
+    h = float(rng.uniform(0.5, 2.0))
+    pyr, off, shp = min_pyramid(vals)
+    assert tuple(shp[0]) == tuple(n - 1 for n in shape) and tuple(shp[-1]) == (1, 1, 1)
+    size = (np.array(shape) - 1) * h
+    for _ in range(40):
+        lo = origin + rng.random(3) * size
+        hi = np.minimum(lo + rng.random(3) * size * rng.choice([0.05, 0.3, 1.0]),
+                        origin + size * (1 - 1e-9))
+        bound = kernels.region_min(pyr, off, shp, origin, h, *lo, *hi)
+        pts = lo + rng.random((400, 3)) * (hi - lo)
+        assert bound <= trilinear_ref(vals, origin, h, pts)[0].min() + 1e-12
+        # exact for one cell: its smallest corner
+        if (np.floor((hi - origin) / h) == np.floor((lo - origin) / h)).all():
+            i, j, k = np.floor((lo - origin) / h).astype(int)
+            assert bound == vals[i:i + 2, j:j + 2, k:k + 2].min()
+    # a box reaching outside the grid's cells has no bound
+    assert kernels.region_min(pyr, off, shp, origin, h, *(origin - h), *(origin + h)) == -np.inf
+    assert kernels.region_min(pyr, off, shp, origin, h, *origin, *(origin + size + h)) == -np.inf
 
 
 def test_wall_contact_single_face_pushes_along_its_normal(table, container):
