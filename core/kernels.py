@@ -139,10 +139,10 @@ def _points_in_other(a, b, R_a, R_b, typ, pos, scale, radius, pc_off, pcl, pcl_o
 
     Adds forces (pushing a's points out of b) to F[a], reactions to F[b], torques to Tq.
     Returns the largest penetration depth (container units). Points are visited cluster by
-    cluster (pc_off, pcl, pcl_off: see `TypeTable`); a cluster whose bounding ball misses b's
-    bounding sphere, and a point outside b's box by more than delta (plus a grid cell, so
-    that no grid node it is interpolated from lies within delta of b), cannot penetrate b
-    and is skipped: the result equals visiting every point.
+    cluster (pc_off, pcl, pcl_off: see `TypeTable`). A point outside b's box by more than
+    delta plus a grid cell cannot penetrate b (no grid node it is interpolated from lies
+    within delta of b) and is skipped, and so is a cluster whose ball misses b's bounding
+    sphere or lies wholly outside that padded box: the result equals visiting every point.
     """
     ta = typ[a]
     tb = typ[b]
@@ -164,8 +164,18 @@ def _points_in_other(a, b, R_a, R_b, typ, pos, scale, radius, pc_off, pcl, pcl_o
         cx = (R_a[0, 0] * pcl[cl, 0] + R_a[0, 1] * pcl[cl, 1] + R_a[0, 2] * pcl[cl, 2]) * sa + ox
         cy = (R_a[1, 0] * pcl[cl, 0] + R_a[1, 1] * pcl[cl, 1] + R_a[1, 2] * pcl[cl, 2]) * sa + oy
         cz = (R_a[2, 0] * pcl[cl, 0] + R_a[2, 1] * pcl[cl, 1] + R_a[2, 2] * pcl[cl, 2]) * sa + oz
-        lim = reach + pcl[cl, 3] * sa
+        rc = pcl[cl, 3] * sa
+        lim = reach + rc
         if cx * cx + cy * cy + cz * cz > lim * lim:
+            continue
+        # the cluster's ball in b's local frame against b's box: every point would fail the
+        # box test below
+        qx = (R_b[0, 0] * cx + R_b[1, 0] * cy + R_b[2, 0] * cz) / sb
+        qy = (R_b[0, 1] * cx + R_b[1, 1] * cy + R_b[2, 1] * cz) / sb
+        qz = (R_b[0, 2] * cx + R_b[1, 2] * cy + R_b[2, 2] * cz) / sb
+        rq = rc / sb
+        if (qx < lo_x - rq or qx > hi_x + rq or qy < lo_y - rq or qy > hi_y + rq
+                or qz < lo_z - rq or qz > hi_z + rq):
             continue
         for m in range(pcl_off[cl], pcl_off[cl + 1]):
             wx = (R_a[0, 0] * pts[m, 0] + R_a[0, 1] * pts[m, 1] + R_a[0, 2] * pts[m, 2]) * sa
