@@ -6,9 +6,13 @@ All lengths are container units. Signed distance grids are positive inside.
 Flat type table (T types), built by `solver.TypeTable`:
 - radius (T,) bounding radius about the local origin
 - sph_off (T+1,), sph_c (S,3), sph_r (S,): inner spheres of type t are rows sph_off[t]:sph_off[t+1]
-- pt_off (T+1,), pts (P,3): surface points
+- pts (P,3): surface points, cluster by cluster: type t's clusters are rows
+  pc_off[t]:pc_off[t+1] of pcl (C,4) (ball centre xyz, radius), cluster c's points rows
+  pcl_off[c]:pcl_off[c+1] of pts
+- box (T,6): bounding box in the local frame, lo xyz then hi xyz
 - g_off (T+1,), g_vals (G,) flattened C-order grids, g_shape (T,3), g_origin (T,3), g_h (T,)
-Container grid: c_vals (nx,ny,nz), c_origin (3,), c_h.
+Container grid: c_vals (nx,ny,nz), c_origin (3,), c_h; its min pyramid c_pyr, c_poff,
+c_pshape (`distance.min_pyramid`).
 Penetration below `tol` (container units) is ignored.
 """
 
@@ -437,7 +441,7 @@ def _rotate_quat(q, ax, ay, az, angle):
 
 @njit(cache=True)
 def resolve(focus, typ, pos, quat, scale, alive, margin, vel, clearance, tol, radius,
-            sph_off, sph_c, sph_r, pt_off, pc_off, pcl, pcl_off, box, pts, g_off, g_vals,
+            sph_off, sph_c, sph_r, pc_off, pcl, pcl_off, box, pts, g_off, g_vals,
             g_shape, g_origin, g_h, c_vals, c_origin, c_h, c_pyr, c_poff, c_pshape, max_iter,
             k_obj, k_wall, k_rot, damping, rollback, mode, wall_extra):
     """Penalty-force overlap resolution starting from the objects in `focus`.
@@ -576,7 +580,7 @@ def resolve(focus, typ, pos, quat, scale, alive, margin, vel, clearance, tol, ra
 
 @njit(cache=True)
 def max_penetrations(typ, pos, quat, scale, alive, margin, clearance, tol, radius, sph_off,
-                     sph_c, sph_r, pt_off, pc_off, pcl, pcl_off, box, pts, g_off, g_vals,
+                     sph_c, sph_r, pc_off, pcl, pcl_off, box, pts, g_off, g_vals,
                      g_shape, g_origin, g_h, c_vals, c_origin, c_h, c_pyr, c_poff, c_pshape,
                      wall_extra):
     """Deepest object-object and object-wall penetration of every alive object, (N,2)."""

@@ -128,8 +128,8 @@ class Solver:
         t, c, p = self.t, self.c.grid, self.p
         ok, its = kernels.resolve(
             np.asarray(focus, np.int64), typ, pos, quat, scale, alive, margin, vel,
-            p.clearance, p.tol, t.radius, t.sph_off, t.sph_c, t.sph_r, t.pt_off, t.pc_off,
-            t.pcl, t.pcl_off, t.box, t.pts, t.g_off, t.g_vals, t.g_shape, t.g_origin, t.g_h,
+            p.clearance, p.tol, t.radius, t.sph_off, t.sph_c, t.sph_r, t.pc_off, t.pcl,
+            t.pcl_off, t.box, t.pts, t.g_off, t.g_vals, t.g_shape, t.g_origin, t.g_h,
             c.values, c.origin, c.spacing, *self.c.pyramid,
             int(max_iter), p.k_obj, p.k_wall, p.k_rot, p.damping, rollback, p.mode,
             p.wall_margin)
@@ -151,7 +151,7 @@ class Solver:
         t, c, p = self.t, self.c.grid, self.p
         return kernels.max_penetrations(
             typ, pos, quat, scale, alive, margin, p.clearance, p.tol, t.radius, t.sph_off,
-            t.sph_c, t.sph_r, t.pt_off, t.pc_off, t.pcl, t.pcl_off, t.box, t.pts, t.g_off,
+            t.sph_c, t.sph_r, t.pc_off, t.pcl, t.pcl_off, t.box, t.pts, t.g_off,
             t.g_vals, t.g_shape, t.g_origin, t.g_h, c.values, c.origin, c.spacing,
             *self.c.pyramid, p.wall_margin)
 
