@@ -82,13 +82,20 @@ def run_scenes(names: list[str], seeds: list[int] | None, cold: bool, meshes: Pa
         for scene in names:
             spec = SCENES[scene]
             args = (spec["container"], spec["types"])
-            # the cold run (numba compiling, approximations built) for the scenes with bars
-            first = run_in_child(*args, 0, spec["kwargs"], env=env, meshes=meshes) \
-                if cold and spec.get("bars") else None
-            if not compiled and first is None:  # warm runs only: compile numba first
+            # the cold run (numba compiling, approximations built) for the scenes with bars,
+            # in caches of its own: a scene run after another would find them filled
+            first = None
+            if cold and spec.get("bars"):
+                with tempfile.TemporaryDirectory() as own:
+                    first = run_in_child(*args, 0, spec["kwargs"], env=fresh_cache_env(own),
+                                         meshes=meshes)
+            if not compiled:  # the warm runs' caches: compile numba first
                 run_in_child("box:30x30x30", SCENES["polyhedra-80"]["types"][:1], 0,
                              {"time_budget": 1.0}, env=env, meshes=meshes)
-            compiled = True
+                compiled = True
+            if first is not None:  # and build this scene's approximations there
+                run_in_child(*args, 0, {**spec["kwargs"], "time_budget": 1.0}, env=env,
+                             meshes=meshes)
             use = seeds or (BAR_SEEDS if spec.get("bars") else [1])
             warm = [run_in_child(*args, s, spec["kwargs"], env=env, meshes=meshes)
                     for s in use]
