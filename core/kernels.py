@@ -40,6 +40,22 @@ def quat_to_rot(q):
 
 
 @njit(cache=True)
+def _rotate(R, x, y, z):
+    """R (x, y, z): a local offset into the container frame's orientation."""
+    return (R[0, 0] * x + R[0, 1] * y + R[0, 2] * z,
+            R[1, 0] * x + R[1, 1] * y + R[1, 2] * z,
+            R[2, 0] * x + R[2, 1] * y + R[2, 2] * z)
+
+
+@njit(cache=True)
+def _unrotate(R, x, y, z):
+    """R^T (x, y, z): a container-frame offset into the local frame's orientation."""
+    return (R[0, 0] * x + R[1, 0] * y + R[2, 0] * z,
+            R[0, 1] * x + R[1, 1] * y + R[2, 1] * z,
+            R[0, 2] * x + R[1, 2] * y + R[2, 2] * z)
+
+
+@njit(cache=True)
 def trilinear(vals, off, nx, ny, nz, ox, oy, oz, h, px, py, pz):
     """Trilinear value and gradient of a flat C-order grid at (px,py,pz).
 
@@ -165,35 +181,39 @@ def _points_in_other(a, b, R_a, R_b, typ, pos, scale, radius, pc_off, pcl, pcl_o
     oz = pos[a, 2] - pos[b, 2]
     worst = 0.0
     for cl in range(pc_off[ta], pc_off[ta + 1]):
-        cx = (R_a[0, 0] * pcl[cl, 0] + R_a[0, 1] * pcl[cl, 1] + R_a[0, 2] * pcl[cl, 2]) * sa + ox
-        cy = (R_a[1, 0] * pcl[cl, 0] + R_a[1, 1] * pcl[cl, 1] + R_a[1, 2] * pcl[cl, 2]) * sa + oy
-        cz = (R_a[2, 0] * pcl[cl, 0] + R_a[2, 1] * pcl[cl, 1] + R_a[2, 2] * pcl[cl, 2]) * sa + oz
+        cx, cy, cz = _rotate(R_a, pcl[cl, 0], pcl[cl, 1], pcl[cl, 2])
+        cx = cx * sa + ox
+        cy = cy * sa + oy
+        cz = cz * sa + oz
         rc = pcl[cl, 3] * sa
         lim = reach + rc
         if cx * cx + cy * cy + cz * cz > lim * lim:
             continue
         # the cluster's ball in b's local frame against b's box: every point would fail the
         # box test below
-        qx = (R_b[0, 0] * cx + R_b[1, 0] * cy + R_b[2, 0] * cz) / sb
-        qy = (R_b[0, 1] * cx + R_b[1, 1] * cy + R_b[2, 1] * cz) / sb
-        qz = (R_b[0, 2] * cx + R_b[1, 2] * cy + R_b[2, 2] * cz) / sb
+        qx, qy, qz = _unrotate(R_b, cx, cy, cz)
+        qx /= sb
+        qy /= sb
+        qz /= sb
         rq = rc / sb
         if (qx < lo_x - rq or qx > hi_x + rq or qy < lo_y - rq or qy > hi_y + rq
                 or qz < lo_z - rq or qz > hi_z + rq):
             continue
         for m in range(pcl_off[cl], pcl_off[cl + 1]):
-            wx = (R_a[0, 0] * pts[m, 0] + R_a[0, 1] * pts[m, 1] + R_a[0, 2] * pts[m, 2]) * sa
-            wy = (R_a[1, 0] * pts[m, 0] + R_a[1, 1] * pts[m, 1] + R_a[1, 2] * pts[m, 2]) * sa
-            wz = (R_a[2, 0] * pts[m, 0] + R_a[2, 1] * pts[m, 1] + R_a[2, 2] * pts[m, 2]) * sa
+            wx, wy, wz = _rotate(R_a, pts[m, 0], pts[m, 1], pts[m, 2])
+            wx *= sa
+            wy *= sa
+            wz *= sa
             rx = wx + ox
             ry = wy + oy
             rz = wz + oz
             if rx * rx + ry * ry + rz * rz > reach * reach:
                 continue
             # into b's local frame: R_b^T r / s_b
-            qx = (R_b[0, 0] * rx + R_b[1, 0] * ry + R_b[2, 0] * rz) / sb
-            qy = (R_b[0, 1] * rx + R_b[1, 1] * ry + R_b[2, 1] * rz) / sb
-            qz = (R_b[0, 2] * rx + R_b[1, 2] * ry + R_b[2, 2] * rz) / sb
+            qx, qy, qz = _unrotate(R_b, rx, ry, rz)
+            qx /= sb
+            qy /= sb
+            qz /= sb
             if (qx < lo_x or qx > hi_x or qy < lo_y or qy > hi_y or qz < lo_z
                     or qz > hi_z):
                 continue
@@ -374,11 +394,12 @@ def wall_contact(a, typ, pos, quat, scale, margin, clearance, tol, radius, sph_o
     ro = radius[t] * s
     near = region_min(c_pyr, c_poff, c_pshape, c_origin, c_h, px - ro, py - ro, pz - ro,
                       px + ro, py + ro, pz + ro)
-    r_max = 0.0
-    for u in range(sph_off[t], sph_off[t + 1]):
-        r_max = max(r_max, sph_r[u])
-    if near > r_max * s + delta + tol:
-        return 0.0
+    if near > delta + tol:  # else no inner sphere can clear it either
+        r_max = 0.0
+        for u in range(sph_off[t], sph_off[t + 1]):
+            r_max = max(r_max, sph_r[u])
+        if near > r_max * s + delta + tol:
+            return 0.0
     R = quat_to_rot(quat[a])
     worst = 0.0
     nx_, ny_, nz_ = c_shape[0], c_shape[1], c_shape[2]
@@ -397,9 +418,10 @@ def wall_contact(a, typ, pos, quat, scale, margin, clearance, tol, radius, sph_o
     if near > delta + tol:
         return worst
     for cl in range(pc_off[t], pc_off[t + 1]):
-        cx = (R[0, 0] * pcl[cl, 0] + R[0, 1] * pcl[cl, 1] + R[0, 2] * pcl[cl, 2]) * s + px
-        cy = (R[1, 0] * pcl[cl, 0] + R[1, 1] * pcl[cl, 1] + R[1, 2] * pcl[cl, 2]) * s + py
-        cz = (R[2, 0] * pcl[cl, 0] + R[2, 1] * pcl[cl, 1] + R[2, 2] * pcl[cl, 2]) * s + pz
+        cx, cy, cz = _rotate(R, pcl[cl, 0], pcl[cl, 1], pcl[cl, 2])
+        cx = cx * s + px
+        cy = cy * s + py
+        cz = cz * s + pz
         rc = pcl[cl, 3] * s
         if region_min(c_pyr, c_poff, c_pshape, c_origin, c_h, cx - rc, cy - rc, cz - rc,
                       cx + rc, cy + rc, cz + rc) > delta + tol:

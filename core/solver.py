@@ -26,7 +26,6 @@ class TypeTable:
         self.sph_off = np.cumsum([0] + [len(t.sphere_radii) for t in types]).astype(np.int64)
         self.sph_c = np.ascontiguousarray(np.concatenate([t.sphere_centres for t in types]))
         self.sph_r = np.ascontiguousarray(np.concatenate([t.sphere_radii for t in types]))
-        self.pt_off = np.cumsum([0] + [len(t.surface_points) for t in types]).astype(np.int64)
         # surface points grouped into clusters of nearby points, so that the contact kernels
         # can skip a cluster whose bounding ball is out of reach: pcl (C,4) ball centre and
         # radius (local frame), pcl_off (C+1) its points' range in pts, pc_off (T+1) each

@@ -82,6 +82,11 @@ def type_grids(table: solver.TypeTable) -> list[np.ndarray]:
             for t in range(len(table.g_h))]
 
 
+def point_range(table, t) -> slice:
+    """Rows of type t's surface points in table.pts: its clusters' points."""
+    return slice(int(table.pcl_off[table.pc_off[t]]), int(table.pcl_off[table.pc_off[t + 1]]))
+
+
 def posed(table, t, kind, R, s, p):
     """Type t's spheres ('sph': centres, radii) or surface points ('pts') in the container
     frame, and their offsets from the object's centre."""
@@ -89,7 +94,7 @@ def posed(table, t, kind, R, s, p):
         loc = table.sph_c[table.sph_off[t]:table.sph_off[t + 1]]
         rad = table.sph_r[table.sph_off[t]:table.sph_off[t + 1]] * s
     else:
-        loc = table.pts[table.pt_off[t]:table.pt_off[t + 1]]
+        loc = table.pts[point_range(table, t)]
         rad = None
     off = loc @ R.T * s
     return off + p, off, rad
@@ -252,8 +257,8 @@ def env_for(table, container, state, clearance=0.0, tol=1e-6) -> dict:
                c_pyr=container.pyramid[0], c_poff=container.pyramid[1],
                c_pshape=container.pyramid[2],
                F=np.zeros((len(typ), 4)), Tq=np.zeros((len(typ), 3)))
-    for name in ("radius", "sph_off", "sph_c", "sph_r", "pt_off", "pc_off", "pcl", "pcl_off",
-                 "box", "pts", "g_off", "g_vals", "g_shape", "g_origin", "g_h"):
+    for name in ("radius", "sph_off", "sph_c", "sph_r", "pc_off", "pcl", "pcl_off", "box", "pts",
+                 "g_off", "g_vals", "g_shape", "g_origin", "g_h"):
         env[name] = getattr(table, name)
     return env
 
@@ -265,6 +270,21 @@ def call(kernel, env: dict, **override):
     missing = [n for n in names if n not in merged]
     assert not missing, f"test helper does not know kernel arguments {missing}"
     return kernel(*(merged[n] for n in names))
+
+
+def wall_matches_reference(table, container, state, clearance, tol, torque=True):
+    """wall_contact of object 0 against the numpy reference (depth, forces and, with
+    `torque`, torques); returns (depth, env) for further checks."""
+    typ, pos, quat, scale, _, margin, _ = state.view()
+    env = env_for(table, container, state, clearance, tol)
+    worst = call(kernels.wall_contact, env, a=0, c_vals=container.grid.values.ravel())
+    ref, F_ref, T_ref = wall_contact_ref(0, table, container.grid, typ, pos, quat, scale,
+                                         margin, clearance, tol)
+    assert worst == pytest.approx(ref, rel=1e-12, abs=1e-12)
+    np.testing.assert_allclose(env["F"], F_ref, rtol=1e-10, atol=1e-12)
+    if torque:
+        np.testing.assert_allclose(env["Tq"], T_ref, rtol=1e-10, atol=1e-12)
+    return worst, env
 
 
 def pair_scene(rng, table, n_pairs: int, overlap: bool):
@@ -509,13 +529,14 @@ def test_point_clusters_list_every_point_once_inside_its_ball(n):
 
 def test_type_table_clusters_index_each_types_points(table, types):
     for t, typ in enumerate(types):
-        mine = table.pts[table.pt_off[t]:table.pt_off[t + 1]]
+        span = point_range(table, t)
+        mine = table.pts[span]
         # the same points, reordered cluster by cluster
         np.testing.assert_array_equal(np.unique(mine, axis=0),
                                       np.unique(typ.surface_points, axis=0))
         for c in range(table.pc_off[t], table.pc_off[t + 1]):
             q = table.pts[table.pcl_off[c]:table.pcl_off[c + 1]]
-            assert table.pt_off[t] <= table.pcl_off[c] < table.pcl_off[c + 1] <= table.pt_off[t + 1]
+            assert span.start <= table.pcl_off[c] < table.pcl_off[c + 1] <= span.stop
             assert np.linalg.norm(q - table.pcl[c, :3], axis=1).max() <= table.pcl[c, 3] + 1e-12
         np.testing.assert_allclose(table.box[t, :3], typ.vertices.min(axis=0))
         np.testing.assert_allclose(table.box[t, 3:], typ.vertices.max(axis=0))
@@ -566,13 +587,7 @@ def test_wall_contact_matches_reference(table, container, seed):
         sign = rng.choice([-1.0, 1.0], 3)
         pos[0, walls] = sign[walls] * (HALF_CONTAINER - rng.uniform(-0.3, 1.0) * r)
         state = make_state(np.array([t]), pos, quat, scale, margin)
-        env = env_for(table, container, state, clearance, tol)
-        worst = call(kernels.wall_contact, env, a=0, c_vals=container.grid.values.ravel())
-        ref, F_ref, T_ref = wall_contact_ref(0, table, container.grid, np.array([t]), pos,
-                                             quat, scale, margin, clearance, tol)
-        assert worst == pytest.approx(ref, rel=1e-12, abs=1e-12)
-        np.testing.assert_allclose(env["F"], F_ref, rtol=1e-10, atol=1e-12)
-        np.testing.assert_allclose(env["Tq"], T_ref, rtol=1e-10, atol=1e-12)
+        worst, env = wall_matches_reference(table, container, state, clearance, tol)
         if worst > 0:
             hits += 1
             # pushed back in: against the walls it touches
@@ -603,13 +618,7 @@ def test_wall_contact_matches_reference_where_culling_decides(table, container):
         sign = rng.choice([-1.0, 1.0], 3)
         pos[0, axes] = sign[axes] * (HALF_CONTAINER - rng.uniform(0.3, 1.2) * r)
         state = make_state(np.array([t]), pos, quat, scale, margin)
-        env = env_for(table, container, state, clearance, tol)
-        worst = call(kernels.wall_contact, env, a=0, c_vals=container.grid.values.ravel())
-        ref, F_ref, T_ref = wall_contact_ref(0, table, container.grid, np.array([t]), pos,
-                                             quat, scale, margin, clearance, tol)
-        assert worst == pytest.approx(ref, rel=1e-12, abs=1e-12)
-        np.testing.assert_allclose(env["F"], F_ref, rtol=1e-10, atol=1e-12)
-        np.testing.assert_allclose(env["Tq"], T_ref, rtol=1e-10, atol=1e-12)
+        worst, env = wall_matches_reference(table, container, state, clearance, tol)
         hits += worst > 0
         misses += worst == 0
     assert hits >= 40 and misses >= 40
@@ -629,7 +638,7 @@ def test_wall_contact_culling_holds_on_a_grid_that_is_no_distance_field(table):
         t = int(rng.integers(0, 2))
         state = make_state(np.array([t]), rng.uniform(-1, 1, (1, 3)), random_quats(rng, 1),
                            np.ones(1), np.zeros(1))
-        typ, pos, quat, scale, _, margin, _ = state.view()
+        _, pos, quat, _, _, _, _ = state.view()
         kind = "sph" if rng.random() < 0.5 else "pts"
         world, _, rad = posed(table, t, kind, quat_to_rot_ref(quat[0]), 1.0, pos[0])
         if kind == "sph":  # often the largest sphere: the whole-object bound is about it
@@ -643,12 +652,7 @@ def test_wall_contact_culling_holds_on_a_grid_that_is_no_distance_field(table):
         # the interpolant at the picked centre or point is `low`
         vals += low - trilinear_ref(vals, g.origin, h, world[pick:pick + 1])[0][0]
         cont = Container(box.vertices, box.faces, 8000.0, g, min_pyramid(g.values))
-        env = env_for(table, cont, state, 0.0, 1e-9)
-        worst = call(kernels.wall_contact, env, a=0, c_vals=g.values.ravel())
-        ref, F_ref, T_ref = wall_contact_ref(0, table, g, typ, pos, quat, scale, margin, 0.0,
-                                             1e-9)
-        assert worst == pytest.approx(ref, rel=1e-12, abs=1e-12)
-        np.testing.assert_allclose(env["F"], F_ref, rtol=1e-10, atol=1e-12)
+        worst, _ = wall_matches_reference(table, cont, state, 0.0, 1e-9, torque=False)
         hits += worst > 0
         misses += worst == 0
     assert hits >= 15 and misses >= 15
