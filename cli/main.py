@@ -36,7 +36,7 @@ from rich.progress import BarColumn, Progress, TaskProgressColumn, TextColumn, T
 from rich.table import Table
 
 from jampacked.cli.export_cmd import add_export_parser
-from jampacked.core.api import pack
+from jampacked.core.api import PackParams, pack
 from jampacked.core.errors import InputError, JampackedError
 from jampacked.core.meshes import parse_box_spec
 from jampacked.core.packing import Packing, is_spec, load_packing, save_packing, verify_sources
@@ -146,6 +146,16 @@ def _non_negative_float(text: str) -> float:
     return value
 
 
+def _fraction(text: str) -> float:
+    try:
+        value = float(text)
+    except ValueError:
+        raise argparse.ArgumentTypeError(f"must be a number from 0 to 1, got {text!r}") from None
+    if not math.isfinite(value) or not 0.0 <= value <= 1.0:
+        raise argparse.ArgumentTypeError(f"must be from 0 to 1, got {text!r}")
+    return value
+
+
 def _seed(text: str) -> int:
     try:
         value = int(text)
@@ -199,6 +209,13 @@ def _add_pack_parser(sub: argparse._SubParsersAction) -> None:
         help="minimum gap between objects and to the container wall, in container units; "
              "use about 0.3-0.5 mm to print objects as separate parts (default: 0, touching "
              "allowed)")
+    p.add_argument(
+        "--mix-tolerance", type=_fraction, metavar="TVD",
+        help="how far the type mix may drift from the shares (total variation distance, 0 "
+             "to 1) for the late passes to add an object to a small hole; the types a mix "
+             "lacks late are often big ones that no longer fit, so a looser mix packs "
+             f"denser (default: {PackParams().extra_max_tvd:g}; 0 keeps the mix as close as "
+             "the count allows)")
     p.add_argument(
         "--seed", type=_seed, default=0, metavar="N",
         help="random seed; the same inputs and seed give the same packing (default: 0)")
@@ -544,7 +561,9 @@ def _cmd_pack(args: argparse.Namespace) -> int:
             scene.container, scene.types, scene.shares, seed=args.seed,
             clearance=args.clearance, fidelity=args.fidelity, time_budget=args.time_budget,
             progress=progress_cb, should_cancel=cancel, container_size=scene.container_size,
-            type_scale=scene.type_scale, names=scene.names)
+            type_scale=scene.type_scale, names=scene.names,
+            params=None if args.mix_tolerance is None
+            else PackParams(extra_max_tvd=args.mix_tolerance))
     save_packing(packing, args.output)
     for w in packing.params.get("warnings") or []:
         _warn(err, w)

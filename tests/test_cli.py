@@ -205,6 +205,22 @@ def test_bad_numbers_are_usage_errors(tmp_path, capsys):
     rc = main(["pack", "box:30x30x30", "--type", str(P1), "--clearance", "-1",
                "-o", str(tmp_path / "p.json")])
     assert rc == 2 and "--clearance" in capsys.readouterr().err
+    rc = main(["pack", "box:30x30x30", "--type", str(P1), "--mix-tolerance", "1.5",
+               "-o", str(tmp_path / "p.json")])
+    err = capsys.readouterr().err
+    assert rc == 2 and "--mix-tolerance" in err and "from 0 to 1" in err
+    assert not (tmp_path / "p.json").exists()
+
+
+@needs_meshes
+def test_mix_tolerance_reaches_the_late_passes(tmp_path):
+    """--mix-tolerance sets the cap the extra cavity passes keep the type mix error under;
+    the packing file records it."""
+    out = tmp_path / "p.json"
+    rc, _, se = run(["pack", "box:30x30x30", "--type", str(P1), "--type", str(P3),
+                     *SMALL, "--mix-tolerance", "0.01", "-q", "-o", str(out)])
+    assert rc == 0, se
+    assert load_packing(out).params["extra_max_tvd"] == 0.01
 
 
 def test_info_on_a_non_packing(not_a_mesh, capsys):
