@@ -105,6 +105,7 @@ class PackRequest:
     clearance: float
     fidelity: str
     time_budget: float | None
+    mix_tolerance: float
     signatures: list[str] = field(default_factory=list)
 
 
@@ -145,6 +146,7 @@ def gather_pack(context: bpy.types.Context) -> PackRequest:
         container=ctris, types=ttris, shares=shares, seed=int(s.seed),
         clearance=float(s.clearance), fidelity=s.fidelity.lower(),
         time_budget=float(s.time_budget) if s.time_budget > 0 else None,
+        mix_tolerance=float(s.mix_tolerance),
         signatures=[t.signature() for t in [ctris, *ttris]])
 
 

@@ -111,21 +111,26 @@ def packing_from_json(text: str) -> Packing:
 
 def pack_triangles(container: Triangles, types: Sequence[Triangles], shares: Sequence[float],
                    *, seed: int, clearance: float, fidelity: str, time_budget: float | None,
+                   mix_tolerance: float | None = None,
                    progress: Progress, should_cancel: ShouldCancel) -> PackOutcome:
     """Check the meshes and pack; runs in the worker thread.
 
     Returns the certified packing (container frame = world space) and its JSON text, in
     which the container is named ``blender:<object name>`` and the types have no path.
-    Raises JampackedError subclasses (MeshError naming the object, InputError, ...).
+    mix_tolerance caps the type mix error the late cavity passes may reach (None: the
+    engine's default). Raises JampackedError subclasses (MeshError naming the object,
+    InputError, ...).
     """
-    from jampacked.core.api import pack
+    from jampacked.core.api import PackParams, pack
 
     progress(0.0, f"checking {container.name}")
     cmesh = container.mesh_data("container")
     tmeshes = [t.mesh_data("object") for t in types]
     packing = pack(cmesh, tmeshes, list(shares), seed=seed, clearance=clearance,
                    fidelity=fidelity, time_budget=time_budget, progress=progress,
-                   should_cancel=should_cancel, names=[t.name for t in types])
+                   should_cancel=should_cancel, names=[t.name for t in types],
+                   params=None if mix_tolerance is None
+                   else PackParams(extra_max_tvd=mix_tolerance))
     packing.container_path = CONTAINER_SPEC + container.name
     return PackOutcome(packing=packing, json_text=packing_to_json(packing))
 

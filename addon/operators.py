@@ -218,8 +218,8 @@ class PackRunner(JobRunner):
             return engine.pack_triangles(
                 request.container, request.types, request.shares, seed=request.seed,
                 clearance=request.clearance, fidelity=request.fidelity,
-                time_budget=request.time_budget, progress=progress,
-                should_cancel=should_cancel)
+                time_budget=request.time_budget, mix_tolerance=request.mix_tolerance,
+                progress=progress, should_cancel=should_cancel)
 
         return worker.Job(self.job_title, run)
 

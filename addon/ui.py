@@ -54,6 +54,7 @@ class JAMPACKED_PT_pack(_Sidebar, bpy.types.Panel):
         col.prop(s, "seed")
         col.prop(s, "clearance")
         col.prop(s, "fidelity")
+        col.prop(s, "mix_tolerance")
         col.prop(s, "time_budget")
         if state.running:
             box = layout.box()

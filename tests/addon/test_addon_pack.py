@@ -86,6 +86,17 @@ def test_pack_operator_builds_the_packing(bpy, addon, scene):
     assert not addon.worker.busy()
 
 
+def test_mix_tolerance_reaches_the_engine(bpy, addon, scene):
+    """The panel's Mix Tolerance starts at the engine's default and is what the late cavity
+    passes get (the packing records it)."""
+    from jampacked.core.api import PackParams
+
+    assert scene.settings.mix_tolerance == pytest.approx(PackParams().extra_max_tvd)
+    scene.settings.mix_tolerance = 0.0
+    assert bpy.ops.jampacked.pack() == {'FINISHED'}
+    assert _packing(addon, scene.settings.result).params["extra_max_tvd"] == 0.0
+
+
 def test_modal_path_and_second_pack_blocked(bpy, addon, scene):
     run = runner(addon)
     assert run.begin(bpy.context)
