@@ -14,6 +14,7 @@ from jampacked.core.api import PackParams, pack
 from jampacked.core.errors import InputError, MeshError, PackingError
 from jampacked.core.metrics import compute_metrics
 from jampacked.core.packing import load_packing, save_packing
+from jampacked.core.phases import best_tvd
 
 MESHES = Path(__file__).resolve().parents[2] / "shared" / "meshes"
 pytestmark = pytest.mark.skipif(not MESHES.is_dir(), reason="../shared/meshes not present")
@@ -230,3 +231,18 @@ def test_extra_passes_repeat_while_they_add_objects_and_time_is_left():
     assert ended
     q = pack(BOX, POLY, seed=2, fidelity="low", params=PackParams(extra_rounds=8))
     assert {e["round"] for e in q.params["extra_passes"]} == {0}
+
+
+@pytest.mark.parametrize("tolerance", [0.0, 0.05])
+def test_extra_passes_keep_the_mix_within_the_tolerance(tolerance):
+    """No object the late cavity passes add takes the type mix error above the mix
+    tolerance, unless the mix was already further off after phase 2 or the count allows
+    nothing closer (within one object of the best mix for that count)."""
+    shares = np.array([0.7, 0.3])
+    p = pack(BOX, POLY, shares, seed=4, fidelity="low",
+             params=PackParams(extra_max_tvd=tolerance))
+    before, after = p.metrics["after_phase2"], p.metrics["after_extra"]
+    assert after["count"] > before["count"]  # the passes added objects: the check bites
+    bound = max([tolerance, before["tvd"]] + [best_tvd(shares, k) + 1.0 / k for k in
+                                               range(before["count"] + 1, after["count"] + 1)])
+    assert after["tvd"] <= bound + 1e-9
