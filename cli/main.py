@@ -213,9 +213,9 @@ def _add_pack_parser(sub: argparse._SubParsersAction) -> None:
         "--mix-tolerance", type=_fraction, metavar="TVD",
         help="how far the type mix may drift from the shares (total variation distance, 0 "
              "to 1) for the late passes to add an object to a small hole; the types a mix "
-             "lacks late are often big ones that no longer fit, so a looser mix packs "
-             f"denser (default: {PackParams().extra_max_tvd:g}; 0 keeps the mix as close as "
-             "the count allows)")
+             "lacks late are often big ones that no longer fit, so a tight mix can leave "
+             f"holes unfilled (default: {PackParams().extra_max_tvd:g}; 0 keeps the mix as "
+             "close as the count allows)")
     p.add_argument(
         "--seed", type=_seed, default=0, metavar="N",
         help="random seed; the same inputs and seed give the same packing (default: 0)")

@@ -60,7 +60,7 @@ class PackParams:
     # extra passes add no object that pushes TVD above this. Late holes are small, and the
     # types the mix then lacks are often the big ones that no longer fit: a tighter cap
     # ends those passes with time left (fruit-in-bunny seeds 1 and 2: 53.1 / 49.9% with
-    # 0.03, 54.7 / 53.4% with 0.04; the bar allows TVD 0.05)
+    # 0.03, 54.7 / 53.4% with 0.04, 51.7 / 55.0% with 0.05: no steady gain beyond 0.04)
     extra_max_tvd: float = 0.04
     # growth steps from scale 0 to 1 in the extra passes: objects there start at the free
     # radius of their hole (scale ~0.5), and coarser steps cost fewer solver calls per try
