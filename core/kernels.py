@@ -19,7 +19,7 @@ Penetration below `tol` (container units) is ignored.
 from __future__ import annotations
 
 import numpy as np
-from numba import njit
+from numba import njit, prange
 
 
 @njit(cache=True)
@@ -461,11 +461,41 @@ def _rotate_quat(q, ax, ay, az, angle):
     q[3] = z / n
 
 
+CONTACT_CHUNKS = 4  # fixed, so that a packing does not depend on the machine's core count
+
+
+@njit(cache=True, parallel=True)
+def contacts_parallel(pa, pb, n_pairs, wa, n_wall, typ, pos, quat, scale, margin, clearance,
+                      wall_clearance, tol, radius, sph_off, sph_c, sph_r, pc_off, pcl,
+                      pcl_off, box, pts, g_off, g_vals, g_shape, g_origin, g_h, c_flat,
+                      c_shape, c_origin, c_h, c_pyr, c_poff, c_pshape, Fc, Tqc, pen_pair,
+                      pen_wall):
+    """Pair contacts (pa[k], pb[k]) for k < n_pairs and wall contacts of wa[k] for
+    k < n_wall in Fc.shape[0] chunks run in parallel: chunk c takes every c-th pair and
+    wall test and accumulates forces in Fc[c] (N,4) and torques in Tqc[c] (N,3), so no two
+    threads write the same memory. Depths go to pen_pair (n_pairs,) and pen_wall (n_wall,).
+    The split is by index: the result depends neither on timing nor on the thread count."""
+    nc = Fc.shape[0]
+    for c in prange(nc):
+        F = Fc[c]
+        Tq = Tqc[c]
+        for k in range(c, n_wall, nc):
+            pen_wall[k] = wall_contact(wa[k], typ, pos, quat, scale, margin, wall_clearance,
+                                       tol, radius, sph_off, sph_c, sph_r, pc_off, pcl,
+                                       pcl_off, pts, c_flat, c_shape, c_origin, c_h, c_pyr,
+                                       c_poff, c_pshape, F, Tq)
+        for k in range(c, n_pairs, nc):
+            pen_pair[k] = pair_contact(pa[k], pb[k], typ, pos, quat, scale, margin,
+                                       clearance, tol, radius, sph_off, sph_c, sph_r, pc_off,
+                                       pcl, pcl_off, box, pts, g_off, g_vals, g_shape,
+                                       g_origin, g_h, F, Tq)
+
+
 @njit(cache=True)
 def resolve(focus, typ, pos, quat, scale, alive, margin, vel, clearance, tol, radius,
             sph_off, sph_c, sph_r, pc_off, pcl, pcl_off, box, pts, g_off, g_vals,
             g_shape, g_origin, g_h, c_vals, c_origin, c_h, c_pyr, c_poff, c_pshape, max_iter,
-            k_obj, k_wall, k_rot, damping, rollback, mode, wall_extra):
+            k_obj, k_wall, k_rot, damping, rollback, mode, wall_extra, par_min, Fc, Tqc):
     """Penalty-force overlap resolution starting from the objects in `focus`.
 
     Only objects in contact move: each gets the sum of its contact forces, normalised,
@@ -477,6 +507,13 @@ def resolve(focus, typ, pos, quat, scale, alive, margin, vel, clearance, tol, ra
     wall_extra is added to the wall distance each object must keep (grid error allowance).
     mode 0 moves by the normalised force times stiffness times the deepest penetration (the
     paper); mode 1 by the penetration-weighted mean push vector times stiffness.
+
+    An iteration with at least `par_min` contact tests (pairs plus walls) splits them into
+    Fc.shape[0] chunks that run on numba's threads (`contacts_parallel`) and sums the
+    chunks' forces in chunk order: the result does not depend on the number of threads, and
+    differs from testing them one after the other only by rounding. Fc (C,>=N,4) and
+    Tqc (C,>=N,3) are the chunks' zeroed scratch force and torque rows, zero again on return
+    (kept by the caller, so that no call allocates C x N rows).
 
     Mutates pos, quat, vel. With `rollback`, a failed call restores every object it moved to
     its state at the call (the last overlap-free state). Returns (resolved, iterations used).
@@ -503,20 +540,18 @@ def resolve(focus, typ, pos, quat, scale, alive, margin, vel, clearance, tol, ra
             active[f] = 1
             act_list[n_act] = f
             n_act += 1
+    # the contact tests of one iteration: pairs (pa, pb) grouped by their active object
+    # in act_list order, each group after that object's wall test
+    cap = 64
+    pa = np.empty(cap, np.int64)
+    pb = np.empty(cap, np.int64)
+    pen_pair = np.empty(cap)
+    pen_w = np.empty(n)
+    n_thr = Fc.shape[0]
     for it in range(max_iter + 1):
-        hit_list = np.empty(n, np.int64)
-        n_hit = 0
+        n_pairs = 0
         for ii in range(n_act):
             a = act_list[ii]
-            pw = wall_contact(a, typ, pos, quat, scale, margin, clearance + wall_extra, tol,
-                              radius, sph_off, sph_c, sph_r, pc_off, pcl, pcl_off, pts, c_flat,
-                              c_shape, c_origin, c_h, c_pyr, c_poff, c_pshape, F, Tq)
-            if pw > 0.0:
-                pen_wall[a] = max(pen_wall[a], pw)
-                if not hit[a]:
-                    hit[a] = 1
-                    hit_list[n_hit] = a
-                    n_hit += 1
             ra = radius[typ[a]] * scale[a]
             for b in range(n):
                 if b == a or not alive[b]:
@@ -529,9 +564,71 @@ def resolve(focus, typ, pos, quat, scale, alive, margin, vel, clearance, tol, ra
                 dz = pos[a, 2] - pos[b, 2]
                 if dx * dx + dy * dy + dz * dz > lim * lim:
                     continue
-                p = pair_contact(a, b, typ, pos, quat, scale, margin, clearance, tol, radius,
-                                 sph_off, sph_c, sph_r, pc_off, pcl, pcl_off, box, pts, g_off,
-                                 g_vals, g_shape, g_origin, g_h, F, Tq)
+                if n_pairs == cap:
+                    cap *= 2
+                    pa2 = np.empty(cap, np.int64)
+                    pb2 = np.empty(cap, np.int64)
+                    pa2[:n_pairs] = pa[:n_pairs]
+                    pb2[:n_pairs] = pb[:n_pairs]
+                    pa = pa2
+                    pb = pb2
+                    pen_pair = np.empty(cap)
+                pa[n_pairs] = a
+                pb[n_pairs] = b
+                n_pairs += 1
+        if n_pairs + n_act >= par_min:
+            contacts_parallel(pa, pb, n_pairs, act_list, n_act, typ, pos, quat, scale,
+                              margin, clearance, clearance + wall_extra, tol, radius, sph_off,
+                              sph_c, sph_r, pc_off, pcl, pcl_off, box, pts, g_off, g_vals,
+                              g_shape, g_origin, g_h, c_flat, c_shape, c_origin, c_h, c_pyr,
+                              c_poff, c_pshape, Fc, Tqc, pen_pair, pen_w)
+            for c in range(n_thr):  # sum thread by thread, then clear for the next round
+                for ii in range(n_act):
+                    a = act_list[ii]
+                    for d in range(4):
+                        F[a, d] += Fc[c, a, d]
+                        Fc[c, a, d] = 0.0
+                    for d in range(3):
+                        Tq[a, d] += Tqc[c, a, d]
+                        Tqc[c, a, d] = 0.0
+                for kp in range(n_pairs):
+                    b = pb[kp]
+                    for d in range(4):
+                        F[b, d] += Fc[c, b, d]
+                        Fc[c, b, d] = 0.0
+                    for d in range(3):
+                        Tq[b, d] += Tqc[c, b, d]
+                        Tqc[c, b, d] = 0.0
+        else:
+            kp = 0
+            for ii in range(n_act):
+                a = act_list[ii]
+                pen_w[ii] = wall_contact(a, typ, pos, quat, scale, margin,
+                                         clearance + wall_extra, tol, radius, sph_off, sph_c,
+                                         sph_r, pc_off, pcl, pcl_off, pts, c_flat, c_shape,
+                                         c_origin, c_h, c_pyr, c_poff, c_pshape, F, Tq)
+                while kp < n_pairs and pa[kp] == a:
+                    pen_pair[kp] = pair_contact(a, pb[kp], typ, pos, quat, scale, margin,
+                                               clearance, tol, radius, sph_off, sph_c, sph_r,
+                                               pc_off, pcl, pcl_off, box, pts, g_off, g_vals,
+                                               g_shape, g_origin, g_h, F, Tq)
+                    kp += 1
+        hit_list = np.empty(n, np.int64)
+        n_hit = 0
+        kp = 0
+        for ii in range(n_act):
+            a = act_list[ii]
+            pw = pen_w[ii]
+            if pw > 0.0:
+                pen_wall[a] = max(pen_wall[a], pw)
+                if not hit[a]:
+                    hit[a] = 1
+                    hit_list[n_hit] = a
+                    n_hit += 1
+            while kp < n_pairs and pa[kp] == a:
+                b = pb[kp]
+                p = pen_pair[kp]
+                kp += 1
                 if p > 0.0:
                     pen_obj[a] = max(pen_obj[a], p)
                     pen_obj[b] = max(pen_obj[b], p)

@@ -60,6 +60,9 @@ class SolverParams:
     damping: float = 0.5  # velocity kept from one iteration to the next
     mode: int = 0  # 0: normalised force (paper), 1: weighted mean push vector
     wall_margin: float = 0.0  # extra distance kept from the wall (container grid error)
+    # contact tests in one solver iteration from which they run on numba's threads
+    # (NUMBA_NUM_THREADS); below it the thread start-up costs more than it saves
+    parallel_min: int = 4
 
 
 class PackState:
@@ -120,6 +123,8 @@ class Solver:
         self.p = params
         self.calls = 0
         self.iterations = 0
+        self._fc = np.zeros((kernels.CONTACT_CHUNKS, 0, 4))
+        self._tqc = np.zeros((kernels.CONTACT_CHUNKS, 0, 3))
 
     def resolve(self, focus: np.ndarray, max_iter: int, rollback: bool = True) -> bool:
         """Resolve overlaps around `focus` (object indices); False if still overlapping."""
@@ -131,10 +136,19 @@ class Solver:
             t.pcl_off, t.box, t.pts, t.g_off, t.g_vals, t.g_shape, t.g_origin, t.g_h,
             c.values, c.origin, c.spacing, *self.c.pyramid,
             int(max_iter), p.k_obj, p.k_wall, p.k_rot, p.damping, rollback, p.mode,
-            p.wall_margin)
+            p.wall_margin, p.parallel_min, *self._scratch())
         self.calls += 1
         self.iterations += int(its)
         return bool(ok)
+
+    def _scratch(self) -> tuple[np.ndarray, np.ndarray]:
+        """The parallel contact tests' zeroed force and torque rows, one set per chunk, for
+        every object the state can hold (resolve leaves them zero)."""
+        cap = len(self.s.typ)
+        if self._fc.shape[1] < cap:
+            self._fc = np.zeros((kernels.CONTACT_CHUNKS, cap, 4))
+            self._tqc = np.zeros((kernels.CONTACT_CHUNKS, cap, 3))
+        return self._fc, self._tqc
 
     def warm_up(self) -> None:
         """Compile (or load from numba's cache) the kernels the phases call, on empty input,

@@ -824,6 +824,86 @@ def test_resolve_is_deterministic(table, container):
         np.testing.assert_array_equal(x, y)
 
 
+def _crowd(seed, n=7):
+    rng = np.random.default_rng(seed)
+    return (rng.integers(0, 2, n), rng.normal(size=(n, 3)) * 1.2, random_quats(rng, n))
+
+
+def test_contacts_parallel_match_one_at_a_time(table, container):
+    """The chunked contact tests give the same depths as pair_contact and wall_contact,
+    and their chunks' forces add up to the one-at-a-time sums."""
+    typ, pos, quat = _crowd(94)
+    pos[0] = [HALF_CONTAINER - 0.8, 0.0, 0.0]  # one against the wall
+    state = make_state(typ, pos, quat)
+    env = env_for(table, container, state, clearance=0.01)
+    n = len(typ)
+    pa, pb = (np.array(x, np.int64) for x in zip(*[(a, b) for a in range(n)
+                                                    for b in range(a + 1, n)], strict=True))
+    wa = np.arange(n, dtype=np.int64)
+    F = np.zeros((n, 4))
+    Tq = np.zeros((n, 3))
+    pair_ref = [call(kernels.pair_contact, env, a=a, b=b, F=F, Tq=Tq) for a, b in zip(pa, pb,
+                                                                                      strict=True)]
+    wall_ref = [call(kernels.wall_contact, env, a=a, F=F, Tq=Tq,
+                     c_vals=container.grid.values.ravel()) for a in wa]
+    assert max(pair_ref) > 0 and max(wall_ref) > 0
+    chunks = kernels.CONTACT_CHUNKS
+    Fc = np.zeros((chunks, n, 4))
+    Tqc = np.zeros((chunks, n, 3))
+    pen_pair = np.zeros(len(pa))
+    pen_wall = np.zeros(n)
+    c = container.grid
+    kernels.contacts_parallel(
+        pa, pb, len(pa), wa, n, env["typ"], env["pos"], env["quat"], env["scale"],
+        env["margin"], 0.01, 0.01, env["tol"], table.radius, table.sph_off, table.sph_c,
+        table.sph_r, table.pc_off, table.pcl, table.pcl_off, table.box, table.pts,
+        table.g_off, table.g_vals, table.g_shape, table.g_origin, table.g_h,
+        c.values.ravel(), np.array(c.values.shape, np.int64), c.origin, c.spacing,
+        *container.pyramid, Fc, Tqc, pen_pair, pen_wall)
+    np.testing.assert_array_equal(pen_pair, pair_ref)
+    np.testing.assert_array_equal(pen_wall, wall_ref)
+    np.testing.assert_allclose(Fc.sum(axis=0), F, rtol=1e-12, atol=1e-12)
+    np.testing.assert_allclose(Tqc.sum(axis=0), Tq, rtol=1e-12, atol=1e-12)
+    assert (np.abs(Fc).sum(axis=(1, 2)) > 0).sum() > 1  # the work was split
+
+
+def _resolve_crowd(table, container, parallel_min, max_iter):
+    typ, pos, quat = _crowd(95)
+    state = make_state(typ, pos, quat)
+    sv = solver.Solver(container, table, state,
+                       solver.SolverParams(clearance=0.01, parallel_min=parallel_min))
+    ok = sv.resolve(np.arange(len(typ)), max_iter=max_iter, rollback=False)
+    return ok, sv
+
+
+def test_resolve_in_parallel_matches_serial_up_to_rounding(table, container):
+    _, serial = _resolve_crowd(table, container, 1 << 30, 3)
+    _, par = _resolve_crowd(table, container, 1, 3)
+    assert serial.iterations == par.iterations == 3
+    np.testing.assert_allclose(par.s.pos[:7], serial.s.pos[:7], rtol=0, atol=1e-9)
+    np.testing.assert_allclose(par.s.quat[:7], serial.s.quat[:7], rtol=0, atol=1e-9)
+    ok, par = _resolve_crowd(table, container, 1, 300)
+    assert ok and (par.penetrations() == 0).all()
+
+
+def test_resolve_does_not_depend_on_the_thread_count(table, container):
+    import numba
+
+    before = numba.get_num_threads()
+    runs = []
+    try:
+        for threads in sorted({1, min(2, numba.config.NUMBA_NUM_THREADS)}):
+            numba.set_num_threads(threads)
+            ok, sv = _resolve_crowd(table, container, 1, 60)
+            runs.append((ok, sv.iterations, sv.s.pos[:7].copy(), sv.s.quat[:7].copy()))
+    finally:
+        numba.set_num_threads(before)
+    for ok, its, pos, quat in runs[1:]:
+        assert (ok, its) == runs[0][:2]
+        np.testing.assert_array_equal(pos, runs[0][2])
+        np.testing.assert_array_equal(quat, runs[0][3])
+
+
 # ---------------------------------------------------------------- inner spheres
 
 
