@@ -461,6 +461,30 @@ def _rotate_quat(q, ax, ay, az, angle):
     q[3] = z / n
 
 
+@njit(cache=True)
+def _near_pairs(a, n_pairs, pa, pb, typ, pos, scale, alive, active, margin, radius,
+                clearance):
+    """Append to (pa, pb) from n_pairs on each alive b whose bounding sphere (plus the gaps
+    to keep) reaches a's, skipping an active b < a (its own scan has the pair); returns the
+    new count. pa and pb must have room for every object."""
+    ra = radius[typ[a]] * scale[a] + clearance + margin[a]
+    ax = pos[a, 0]
+    ay = pos[a, 1]
+    az = pos[a, 2]
+    for b in range(typ.shape[0]):
+        if b == a or not alive[b] or (active[b] and b < a):
+            continue
+        lim = ra + radius[typ[b]] * scale[b] + margin[b]
+        dx = ax - pos[b, 0]
+        dy = ay - pos[b, 1]
+        dz = az - pos[b, 2]
+        if dx * dx + dy * dy + dz * dz <= lim * lim:
+            pa[n_pairs] = a
+            pb[n_pairs] = b
+            n_pairs += 1
+    return n_pairs
+
+
 CONTACT_CHUNKS = 4  # fixed, so that a packing does not depend on the machine's core count
 
 
@@ -542,7 +566,7 @@ def resolve(focus, typ, pos, quat, scale, alive, margin, vel, clearance, tol, ra
             n_act += 1
     # the contact tests of one iteration: pairs (pa, pb) grouped by their active object
     # in act_list order, each group after that object's wall test
-    cap = 64
+    cap = n + 64
     pa = np.empty(cap, np.int64)
     pb = np.empty(cap, np.int64)
     pen_pair = np.empty(cap)
@@ -552,30 +576,17 @@ def resolve(focus, typ, pos, quat, scale, alive, margin, vel, clearance, tol, ra
         n_pairs = 0
         for ii in range(n_act):
             a = act_list[ii]
-            ra = radius[typ[a]] * scale[a]
-            for b in range(n):
-                if b == a or not alive[b]:
-                    continue
-                if active[b] and b < a:
-                    continue
-                lim = ra + radius[typ[b]] * scale[b] + clearance + margin[a] + margin[b]
-                dx = pos[a, 0] - pos[b, 0]
-                dy = pos[a, 1] - pos[b, 1]
-                dz = pos[a, 2] - pos[b, 2]
-                if dx * dx + dy * dy + dz * dz > lim * lim:
-                    continue
-                if n_pairs == cap:
-                    cap *= 2
-                    pa2 = np.empty(cap, np.int64)
-                    pb2 = np.empty(cap, np.int64)
-                    pa2[:n_pairs] = pa[:n_pairs]
-                    pb2[:n_pairs] = pb[:n_pairs]
-                    pa = pa2
-                    pb = pb2
-                    pen_pair = np.empty(cap)
-                pa[n_pairs] = a
-                pb[n_pairs] = b
-                n_pairs += 1
+            if n_pairs + n > cap:  # room for every pair of a: no check in the loop below
+                cap = 2 * (n_pairs + n)
+                pa2 = np.empty(cap, np.int64)
+                pb2 = np.empty(cap, np.int64)
+                pa2[:n_pairs] = pa[:n_pairs]
+                pb2[:n_pairs] = pb[:n_pairs]
+                pa = pa2
+                pb = pb2
+                pen_pair = np.empty(cap)
+            n_pairs = _near_pairs(a, n_pairs, pa, pb, typ, pos, scale, alive, active, margin,
+                                  radius, clearance)
         if n_pairs + n_act >= par_min:
             contacts_parallel(pa, pb, n_pairs, act_list, n_act, typ, pos, quat, scale,
                               margin, clearance, clearance + wall_extra, tol, radius, sph_off,
