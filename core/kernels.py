@@ -571,7 +571,7 @@ def resolve(focus, typ, pos, quat, scale, alive, margin, vel, clearance, tol, ra
     pb = np.empty(cap, np.int64)
     pen_pair = np.empty(cap)
     pen_w = np.empty(n)
-    n_thr = Fc.shape[0]
+    n_chunks = Fc.shape[0]
     for it in range(max_iter + 1):
         n_pairs = 0
         for ii in range(n_act):
@@ -593,7 +593,7 @@ def resolve(focus, typ, pos, quat, scale, alive, margin, vel, clearance, tol, ra
                               sph_c, sph_r, pc_off, pcl, pcl_off, box, pts, g_off, g_vals,
                               g_shape, g_origin, g_h, c_flat, c_shape, c_origin, c_h, c_pyr,
                               c_poff, c_pshape, Fc, Tqc, pen_pair, pen_w)
-            for c in range(n_thr):  # sum thread by thread, then clear for the next round
+            for c in range(n_chunks):  # sum chunk by chunk, then clear for the next round
                 for ii in range(n_act):
                     a = act_list[ii]
                     for d in range(4):
