@@ -56,10 +56,6 @@ class PackParams:
     extra_passes: tuple[float, ...] = (0.8, 0.6, 0.5, 0.4)
     extra_retries: int = 1
     extra_rounds: int = 8  # with a time budget: rounds of extra passes while they add objects
-    # ... until this many rounds in a row added nothing: a round's failed tries still push
-    # objects aside, and its new lattices find other holes, so the round after an empty one
-    # can add again
-    extra_idle_rounds: int = 2
     extra_patience: int = 60  # an extra pass ends after this many fruitless points in a row
     # extra passes add no object that pushes TVD above this. Late holes are small, and the
     # types the mix then lacks are often the big ones that no longer fit: a tighter cap
@@ -228,11 +224,10 @@ def pack(container: MeshSource, types: Sequence[MeshSource],
     # beyond the paper: further cavity passes at lower thresholds (objects grown there push
     # their neighbours aside), while the time budget allows. Each pass ends after
     # `extra_patience` fruitless points; with time left, the passes run again on freshly
-    # jittered lattices (other holes), until `extra_idle_rounds` rounds in a row add nothing.
+    # jittered lattices (other holes), for as long as a round still adds objects.
     extra = []
     n_extra = max(len(params.extra_passes), 1)
     rounds = params.extra_rounds if deadline is not None else 1
-    idle = 0
     for rnd in range(rounds):
         grown = 0
         for i, factor in enumerate(params.extra_passes):
@@ -248,8 +243,7 @@ def pack(container: MeshSource, types: Sequence[MeshSource],
                 progress=lambda f, m, lo=lo: report(lo + 0.1 * f / (n_extra * rounds), m))
             grown += st.grown
             extra.append({**asdict(st), "round": rnd, "factor": factor})
-        idle = idle + 1 if grown == 0 else 0
-        if idle >= params.extra_idle_rounds or stop():
+        if grown == 0 or stop():
             break
     after_extra = _snapshot_metrics(state, table, q, c_volume)
     t_extra = time.perf_counter()
