@@ -792,7 +792,7 @@ def print_summary(packing: Packing, console: Console, title: str | None = None) 
     labels = {"load": "load meshes", "approximate": "approximate",
               "compile": "compile kernels", "phase1": "1 place & grow",
               "phase2": "2 fill cavities", "extra": "more cavity passes",
-              "certify": "certify & repair"}
+              "other_attempts": "attempts not kept", "certify": "certify & repair"}
     for key, label in labels.items():
         if key not in timings:
             continue

@@ -1,8 +1,9 @@
 """`pack()`: the one call every front end uses.
 
 container + object types + target shares -> a certified `Packing` (container frame, container
-units). Steps: load and check meshes, build approximations, phase 1 (place & grow), phase 2
-(fill cavities), certify on the real meshes and repair or remove what fails, metrics.
+units). Steps: load and check meshes, build approximations, placement (phase 1, place &
+grow; phase 2, fill cavities; extra cavity passes: `placement`, in attempts while a time
+budget lasts), certify on the real meshes and repair or remove what fails, metrics.
 """
 
 from __future__ import annotations
@@ -23,7 +24,8 @@ from .meshes import MeshData, box_mesh, load_mesh, parse_box_spec
 from .metrics import compute_metrics
 from .objects import ObjectType, build_type
 from .packing import Packing, TypeRecord, matrix_to_quat, placement_matrices, quat_to_matrix
-from .phases import Stop, equivalent_radius, phase1, phase2
+from .phases import Stop, equivalent_radius
+from .placement import place
 from .solver import PackState, Solver, SolverParams, TypeTable
 from .spheres import sphere_coverage
 
@@ -56,6 +58,9 @@ class PackParams:
     extra_passes: tuple[float, ...] = (0.8, 0.6, 0.5, 0.4)
     extra_retries: int = 1
     extra_rounds: int = 8  # with a time budget: rounds of extra passes while they add objects
+    # with a time budget: independent attempts while the time left is at least the shortest
+    # attempt so far; the densest is kept (core/placement.py)
+    max_attempts: int = 8
     extra_patience: int = 60  # an extra pass ends after this many fruitless points in a row
     # extra passes add no object that pushes TVD above this. Late holes are small, and the
     # types the mix then lacks are often the big ones that no longer fit: a tighter cap
@@ -119,7 +124,8 @@ def pack(container: MeshSource, types: Sequence[MeshSource],
     bounding-box extent is this (container units, e.g. mm); type_scale multiplies the object
     files' coordinates. clearance: minimum gap between objects and to the wall (container
     units). time_budget (s) bounds placement (phases 1 and 2, after loading, approximation
-    and numba's compilation); certification runs after it. progress(fraction,
+    and numba's compilation); time an attempt leaves goes to new attempts, and the densest
+    is kept; certification runs after it. progress(fraction,
     message) and should_cancel() are polled; cancel or the budget returns the best certified
     packing so far. Raises JampackedError subclasses on bad input.
     """
@@ -196,57 +202,23 @@ def pack(container: MeshSource, types: Sequence[MeshSource],
             f"{', lower the clearance' if clearance else ''}, or remove the type.")
     t_approx = time.perf_counter()
 
-    # --- phases
+    # --- placement
     table = TypeTable(objtypes)
-    state = PackState()
-    solver = Solver(cont, table, state, SolverParams(
+    solver_params = SolverParams(
         clearance=clearance, tol=1e-6 * f_min, k_obj=params.k_obj, k_wall=params.k_wall,
         k_rot=params.k_rot, damping=params.damping, mode=params.mode,
-        wall_margin=params.wall_safety * cont.grid.spacing))
+        wall_margin=params.wall_safety * cont.grid.spacing)
     margin = np.array([params.safety * t.grid.spacing for t in objtypes])
-    rng = np.random.default_rng(seed)
-    solver.warm_up()
+    Solver(cont, table, PackState(), solver_params).warm_up()
     t_compile = time.perf_counter()
     # the budget bounds placement (loading, approximation and compiling come before it)
     deadline = None if time_budget is None else time.perf_counter() + float(time_budget)
     stop = Stop(deadline, should_cancel)
     s1 = (float(np.sum(q * volumes)) / params.phase1_density) ** (1 / 3)
-    st1 = phase1(solver, q, s1, rng, stop, iters=params.phase1_iterations, margin=margin,
-                 growth_steps=params.phase1_growth_steps,
-                 progress=lambda f, m: report(0.05 + 0.55 * f, m))
-    after1 = _snapshot_metrics(state, table, q, c_volume)
-    t_p1 = time.perf_counter()
-    st2 = phase2(solver, q, s1 * params.phase2_spacing, rng, stop,
-                 iters=params.phase2_iterations, margin=margin, retries=params.phase2_retries,
-                 progress=lambda f, m: report(0.6 + 0.2 * f, m))
-    after2 = _snapshot_metrics(state, table, q, c_volume)
-    t_p2 = time.perf_counter()
-    # beyond the paper: further cavity passes at lower thresholds (objects grown there push
-    # their neighbours aside), while the time budget allows. Each pass ends after
-    # `extra_patience` fruitless points; with time left, the passes run again on freshly
-    # jittered lattices (other holes), for as long as a round still adds objects.
-    extra = []
-    n_extra = max(len(params.extra_passes), 1)
-    rounds = params.extra_rounds if deadline is not None else 1
-    for rnd in range(rounds):
-        grown = 0
-        for i, factor in enumerate(params.extra_passes):
-            if stop():
-                break
-            lo = 0.8 + 0.1 * (i + rnd * n_extra) / (n_extra * rounds)
-            st = phase2(
-                solver, q, s1 * params.phase2_spacing * factor, rng, stop,
-                iters=params.extra_iterations, margin=margin, retries=params.extra_retries,
-                growth_steps=params.extra_growth_steps,
-                threshold=factor * f_min, fit_factor=factor, patience=params.extra_patience,
-                max_tvd=params.extra_max_tvd,
-                progress=lambda f, m, lo=lo: report(lo + 0.1 * f / (n_extra * rounds), m))
-            grown += st.grown
-            extra.append({**asdict(st), "round": rnd, "factor": factor})
-        if grown == 0 or stop():
-            break
-    after_extra = _snapshot_metrics(state, table, q, c_volume)
-    t_extra = time.perf_counter()
+    best, attempts = place(lambda: Solver(cont, table, PackState(), solver_params), q, s1,
+                           f_min, seed, stop, margin, params, c_volume, report)
+    solver, state = best.solver, best.solver.s
+    t_place = time.perf_counter()
 
     # --- certify (never skipped, also after cancel)
     report(0.9, "certifying on the real meshes")
@@ -272,14 +244,14 @@ def pack(container: MeshSource, types: Sequence[MeshSource],
     quat = state.quat[idx].copy()
     quat = matrix_to_quat(quat_to_matrix(quat))  # canonical sign (w >= 0), unit length
     metrics = compute_metrics(typ, pos, table.volume, q, c_volume)
-    metrics.update({"after_phase1": after1, "after_phase2": after2,
-                    "after_extra": after_extra})
+    metrics.update(best.after)
+    # phase times are the kept attempt's; the attempts not kept have a line of their own
     timings = {
         "load": t_load - t_start, "approximate": t_approx - t_load,
-        "compile": t_compile - t_approx, "phase1": t_p1 - t_compile,
-        "phase2": t_p2 - t_p1, "extra": t_extra - t_p2, "certify": t_cert - t_extra,
-        "total": t_cert - t_start,
-    }
+        "compile": t_compile - t_approx, **best.timings}
+    if len(attempts) > 1:
+        timings["other_attempts"] = t_place - t_compile - sum(best.timings.values())
+    timings.update({"certify": t_cert - t_place, "total": t_cert - t_start})
     all_params = asdict(params)
     all_params.update({
         "clearance": clearance, "fidelity": fid.name, "fidelity_requested": fidelity,
@@ -291,7 +263,7 @@ def pack(container: MeshSource, types: Sequence[MeshSource],
         "surface_points_per_type": [int(len(t.surface_points)) for t in objtypes],
         "sphere_coverage_per_type": [
             sphere_coverage(t.grid, t.sphere_centres, t.sphere_radii) for t in objtypes],
-        "phase1": asdict(st1), "phase2": asdict(st2), "extra_passes": extra,
+        **best.stats, "attempts": attempts,
         "repair": repair,
         "warnings": [w for m in [cmesh, *meshes] for w in m.warnings],
     })
@@ -325,13 +297,6 @@ def _source_name(source: MeshSource, mesh: MeshData) -> str:
     if isinstance(source, MeshData):
         return "memory:container"  # a spec, not a path: saved verbatim, never looked up
     return os.fspath(source)
-
-
-def _snapshot_metrics(state: PackState, table: TypeTable, q: np.ndarray,
-                      c_volume: float) -> dict:
-    idx = np.flatnonzero(state.alive[: state.n] & (state.scale[: state.n] >= 1.0))
-    m = compute_metrics(state.typ[idx], state.pos[idx], table.volume, q, c_volume)
-    return {k: m[k] for k in ("count", "density", "tvd", "nni_mean")}
 
 
 def _certify_and_repair(solver: Solver, certifier: Certifier, clearance: float,

@@ -246,3 +246,34 @@ def test_extra_passes_keep_the_mix_within_the_tolerance(tolerance):
     bound = max([tolerance, before["tvd"]] + [best_tvd(shares, k) + 1.0 / k for k in
                                                range(before["count"] + 1, after["count"] + 1)])
     assert after["tvd"] <= bound + 1e-9
+
+
+def test_time_left_after_an_attempt_goes_to_new_attempts_and_the_densest_is_kept():
+    """With a budget, an attempt that ends early (its cavity rounds stop adding objects) is
+    followed by new attempts from scratch while the time left is at least the shortest
+    attempt; the packing is the densest attempt's, and every attempt is recorded."""
+    p = pack(BOX, POLY, seed=2, fidelity="low", time_budget=8.0,
+             params=PackParams(extra_patience=4))
+    attempts = p.params["attempts"]
+    assert len(attempts) >= 2, attempts
+    kept = p.metrics["after_extra"]["density"]
+    assert kept == max(a["density"] for a in attempts)
+    for a in attempts:
+        assert a["seconds"] == pytest.approx(a["phase1"] + a["phase2"] + a["extra"])
+    # the phase times are the kept attempt's; the others have a line of their own
+    assert p.timings["other_attempts"] > 0
+    placing = sum(p.timings[k] for k in ("phase1", "phase2", "extra", "other_attempts"))
+    assert placing == pytest.approx(sum(a["seconds"] for a in attempts), abs=0.5)
+    assert placing < 8.0 + 5.0
+    assert p.certificate["certified"]
+    # a different random stream per attempt: not the same packing over and over
+    assert len({(a["count"], round(a["density"], 9)) for a in attempts}) > 1
+
+
+def test_one_attempt_without_a_budget_or_when_attempts_are_capped():
+    p = pack(BOX, POLY, seed=2, fidelity="low", params=PackParams(extra_patience=4))
+    assert len(p.params["attempts"]) == 1 and "other_attempts" not in p.timings
+    q = pack(BOX, POLY, seed=2, fidelity="low", time_budget=8.0,
+             params=PackParams(extra_patience=4, max_attempts=1))
+    assert len(q.params["attempts"]) == 1 and "other_attempts" not in q.timings
+    assert q.timings["phase1"] + q.timings["phase2"] + q.timings["extra"] < 8.0 + 5.0
