@@ -164,7 +164,9 @@ def write_table(summaries: list[dict], path: Path) -> None:
         "\"Before cert.\" is the worst exact overlap (pair intersection volume over the "
         "smaller object's) and wall violation (volume outside over the object's) of the "
         "placement the solver produced; certification then moved or removed objects until "
-        "every check passed.", "",
+        "every check passed. The phase times are the kept attempt's; the warm time also "
+        "covers the attempts not kept (`core/placement.py`). A scene marked * was last run "
+        "before placement ran in attempts (its runs record none).", "",
         "| scene | seeds | objects | certified density | TVD | NNI | phase 1 / 2 / extra / "
         "certify (s) | warm time (s) | cold time (s) | before cert.: overlap, outside | moved, "
         "removed | bars met |",
@@ -172,8 +174,9 @@ def write_table(summaries: list[dict], path: Path) -> None:
     for s in summaries:
         ph = s["median_phase_seconds"]
         met = {None: "no bars", True: "yes", False: "no"}[s["meets_bars"]]
+        old = "" if all("attempts" in r for r in s["runs"]) else "*"
         lines.append(
-            f"| {s['scene']} | {' '.join(map(str, s['seeds']))} | {s['median_count']:.0f} | "
+            f"| {s['scene']}{old} | {' '.join(map(str, s['seeds']))} | {s['median_count']:.0f} | "
             f"{s['median_density']:.1%} | {s['median_tvd']:.3f} | {s['median_nni']:.2f} | "
             f"{ph['phase1']:.0f} / {ph['phase2']:.0f} / {ph.get('extra', 0):.0f} / "
             f"{ph['certify']:.1f} | "

@@ -109,6 +109,7 @@ def run_record(container: str, types: list[str], seed: int, kwargs: dict,
         "spheres_per_type": p.params["spheres_per_type"],
         "container_grid_spacing": p.params["container_grid_spacing"],
         "phase1": p.params["phase1"], "phase2": p.params["phase2"],
+        "attempts": p.params.get("attempts", []),
         "stopped": p.params["stopped"], "kwargs": kwargs, "params": params or {},
         "density_trace": trace,
     }
