@@ -779,6 +779,12 @@ def print_summary(packing: Packing, console: Console, title: str | None = None) 
                                   f"{repair.get('moved', 0)} moved, "
                                   f"{repair.get('removed', 0)} removed"
                         + (f" (+{extra} final removal rounds)" if extra else ""))
+    attempts = params.get("attempts") or []
+    if len(attempts) > 1:
+        kept = max(range(len(attempts)), key=lambda i: attempts[i]["density"])
+        for i, a in enumerate(attempts):
+            summary.add_row(f"attempt {i + 1}", f"{a['count']} objects, {_pct(a['density'])}"
+                            f", {_seconds(a['seconds'])}" + (" (kept)" if i == kept else ""))
     console.print(summary)
 
     timings = packing.timings or {}

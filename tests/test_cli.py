@@ -118,6 +118,24 @@ def test_info_prints_summary_and_checks_sources(packed, capsys):
     assert "sources: all 2 mesh files present and unchanged" in so
 
 
+def test_info_lists_the_attempts_and_the_time_of_those_not_kept(packed, capsys):
+    d, out, *_ = packed
+    doc = json.loads(out.read_text())
+    doc["params"]["attempts"] = [
+        {"density": 0.412, "count": 30, "seconds": 2.5, "phase1": 1.0, "phase2": 0.5,
+         "extra": 1.0, "stopped": None},
+        {"density": 0.398, "count": 29, "seconds": 1.5, "phase1": 0.5, "phase2": 0.5,
+         "extra": 0.5, "stopped": "deadline"}]
+    doc["timings"]["other_attempts"] = 1.5
+    edited = d / "attempts.json"
+    edited.write_text(json.dumps(doc))
+    assert main(["info", str(edited)]) == 0
+    so = capsys.readouterr().out
+    assert "attempt 1" in so and "30 objects, 41.2%, 2.5 s (kept)" in so
+    assert "attempt 2" in so and "29 objects, 39.8%, 1.5 s" in so
+    assert "attempts not kept" in so
+
+
 def test_info_reports_changed_source(packed, capsys):
     d, out, *_ = packed
     doc = json.loads(out.read_text())
