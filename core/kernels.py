@@ -485,6 +485,22 @@ def _near_pairs(a, n_pairs, pa, pb, typ, pos, scale, alive, active, margin, radi
     return n_pairs
 
 
+@njit(cache=True)
+def _add_chunks(F, Tq, Fc, Tqc, rows, count):
+    """F[r] += Fc[c, r] and Tq[r] += Tqc[c, r] chunk by chunk for r in rows[:count], then
+    zero those chunk rows for the next iteration (a row listed twice adds zero the second
+    time)."""
+    for i in range(count):
+        r = rows[i]
+        for c in range(Fc.shape[0]):
+            for d in range(4):
+                F[r, d] += Fc[c, r, d]
+                Fc[c, r, d] = 0.0
+            for d in range(3):
+                Tq[r, d] += Tqc[c, r, d]
+                Tqc[c, r, d] = 0.0
+
+
 CONTACT_CHUNKS = 4  # fixed, so that a packing does not depend on the machine's core count
 
 
@@ -571,7 +587,6 @@ def resolve(focus, typ, pos, quat, scale, alive, margin, vel, clearance, tol, ra
     pb = np.empty(cap, np.int64)
     pen_pair = np.empty(cap)
     pen_w = np.empty(n)
-    n_chunks = Fc.shape[0]
     for it in range(max_iter + 1):
         n_pairs = 0
         for ii in range(n_act):
@@ -593,23 +608,8 @@ def resolve(focus, typ, pos, quat, scale, alive, margin, vel, clearance, tol, ra
                               sph_c, sph_r, pc_off, pcl, pcl_off, box, pts, g_off, g_vals,
                               g_shape, g_origin, g_h, c_flat, c_shape, c_origin, c_h, c_pyr,
                               c_poff, c_pshape, Fc, Tqc, pen_pair, pen_w)
-            for c in range(n_chunks):  # sum chunk by chunk, then clear for the next round
-                for ii in range(n_act):
-                    a = act_list[ii]
-                    for d in range(4):
-                        F[a, d] += Fc[c, a, d]
-                        Fc[c, a, d] = 0.0
-                    for d in range(3):
-                        Tq[a, d] += Tqc[c, a, d]
-                        Tqc[c, a, d] = 0.0
-                for kp in range(n_pairs):
-                    b = pb[kp]
-                    for d in range(4):
-                        F[b, d] += Fc[c, b, d]
-                        Fc[c, b, d] = 0.0
-                    for d in range(3):
-                        Tq[b, d] += Tqc[c, b, d]
-                        Tqc[c, b, d] = 0.0
+            _add_chunks(F, Tq, Fc, Tqc, act_list, n_act)  # pa's rows are act_list's
+            _add_chunks(F, Tq, Fc, Tqc, pb, n_pairs)
         else:
             kp = 0
             for ii in range(n_act):
