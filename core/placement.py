@@ -1,11 +1,11 @@
 """Placement: phase 1, phase 2 and the extra cavity rounds, as independent attempts.
 
 One attempt runs the phases on a fresh state (container frame, container units). With a
-time budget, an attempt usually ends before it: its rounds of cavity passes stop adding
+time budget, an attempt often ends before it: its rounds of cavity passes stop adding
 objects. The time left then goes to new attempts from scratch (each its own random
 stream), as long as it is at least the shortest attempt so far, and the densest attempt is
-kept: attempts end at densities that differ by about a point between random streams
-(fruit-in-bunny), so the best of several beats one attempt left idle.
+kept: attempts end at densities that differ by points between random streams (fruit in the
+torus: 43.0-49.4% over five attempts; in the knight 49.9% and 53.3%).
 """
 
 from __future__ import annotations
