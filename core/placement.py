@@ -130,7 +130,6 @@ def place(new_solver: Callable[[], Solver], q: np.ndarray, s1: float, f_min: flo
         done.append({**att.summary(), "stopped": stop.reason or None})
         if best is None or att.density > best.density:
             best = att
-        left = np.inf if stop.deadline is None else stop.deadline - time.perf_counter()
         if (stop.deadline is None or stop() or len(done) >= params.max_attempts
-                or left < shortest):
+                or stop.deadline - time.perf_counter() < shortest):
             return best, done
