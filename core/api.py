@@ -20,6 +20,7 @@ from .certify import DEFAULT_TOL, Certifier
 from .container import Container, build_container
 from .errors import InputError, PackingError
 from .fidelity import PRESETS, Fidelity, choose_fidelity
+from .margins import contact_margins
 from .meshes import MeshData, box_mesh, load_mesh, parse_box_spec
 from .metrics import compute_metrics
 from .objects import ObjectType, build_type
@@ -48,11 +49,13 @@ class PackParams:
     grid_cells: int | None = None  # object distance grid cells across its largest extent
     surface_points: int | None = None  # surface points per type
     container_cells: float | None = None  # container grid cells per smallest f(V)
-    # contact margins that keep certification's repairs rare; each costs density (fruit-in-
-    # bunny seed 1: 51.6% with 0.1 and 0.25, 53.1% with 0.05 and 0.1, 54.0% with none but
-    # 16 violations to repair, 3 objects removed)
-    safety: float = 0.05  # contact margin per object, in cells of its distance grid
-    wall_safety: float = 0.1  # extra wall distance, in cells of the container grid
+    # contact margins beyond the clearance, in cells of the object's (the container's) grid,
+    # for surfaces the grid reproduces closely or not (`core/margins.py`): each costs
+    # density, too little leaves certification overlaps it cannot push apart
+    safety: float = 0.025  # per object whose grid keeps its surface (smooth types)
+    safety_sharp: float = 0.05  # per object with edges the grid rounds off
+    wall_safety: float = 0.05  # extra wall distance, smooth container
+    wall_safety_sharp: float = 0.1
     # cavity passes beyond the paper: threshold = factor * smallest f(V), lattice spacing
     # scaled by the factor too
     extra_passes: tuple[float, ...] = (0.8, 0.6, 0.5, 0.4)
@@ -204,11 +207,14 @@ def pack(container: MeshSource, types: Sequence[MeshSource],
 
     # --- placement
     table = TypeTable(objtypes)
+    margins = contact_margins(objtypes, cont.grid, cont.vertices, cont.faces, params.safety,
+                              params.safety_sharp, params.wall_safety,
+                              params.wall_safety_sharp)
     solver_params = SolverParams(
         clearance=clearance, tol=1e-6 * f_min, k_obj=params.k_obj, k_wall=params.k_wall,
         k_rot=params.k_rot, damping=params.damping, mode=params.mode,
-        wall_margin=params.wall_safety * cont.grid.spacing)
-    margin = np.array([params.safety * t.grid.spacing for t in objtypes])
+        wall_margin=margins.wall)
+    margin = margins.objects
     Solver(cont, table, PackState(), solver_params).warm_up()
     t_compile = time.perf_counter()
     # the budget bounds placement (loading, approximation and compiling come before it)
@@ -263,7 +269,7 @@ def pack(container: MeshSource, types: Sequence[MeshSource],
         "surface_points_per_type": [int(len(t.surface_points)) for t in objtypes],
         "sphere_coverage_per_type": [
             sphere_coverage(t.grid, t.sphere_centres, t.sphere_radii) for t in objtypes],
-        **best.stats, "attempts": attempts,
+        **best.stats, "attempts": attempts, "margins": margins.as_dict(),
         "repair": repair,
         "warnings": [w for m in [cmesh, *meshes] for w in m.warnings],
     })

@@ -168,7 +168,8 @@ def test_repair_time_cap_removes_what_still_fails():
     apart, the offenders are removed (no long repair) and the result is still certified."""
     from jampacked.core.api import PackParams
 
-    params = PackParams(repair_seconds=0.0, safety=0.0, wall_safety=0.0, extra_passes=())
+    params = PackParams(repair_seconds=0.0, safety=0.0, safety_sharp=0.0, wall_safety=0.0,
+                        wall_safety_sharp=0.0, extra_passes=())
     p = pack(BOX, POLY, seed=1, fidelity="low", params=params)
     rep = p.params["repair"]
     assert not rep["first"]["certified"]  # the scene really needs repair
