@@ -209,7 +209,7 @@ def pack(container: MeshSource, types: Sequence[MeshSource],
     table = TypeTable(objtypes)
     margins = contact_margins(objtypes, cont.grid, cont.vertices, cont.faces, params.safety,
                               params.safety_sharp, params.wall_safety,
-                              params.wall_safety_sharp)
+                              params.wall_safety_sharp, clearance)
     solver_params = SolverParams(
         clearance=clearance, tol=1e-6 * f_min, k_obj=params.k_obj, k_wall=params.k_wall,
         k_rot=params.k_rot, damping=params.damping, mode=params.mode,

@@ -81,18 +81,23 @@ class Margins:
 
 def contact_margins(types: list, container_grid: DistanceGrid, container_vertices: np.ndarray,
                     container_faces: np.ndarray, smooth: float, sharp: float,
-                    wall_smooth: float, wall_sharp: float) -> Margins:
+                    wall_smooth: float, wall_sharp: float, clearance: float = 0.0) -> Margins:
     """Margins for object types (each with .grid, .vertices, .faces in its local frame) and
     the container: `smooth` cells of each type's grid where every type's grid surface
     error is at most SMOOTH_ERROR, else `sharp` cells (a sharp type's contacts are with the
     others too); `wall_smooth` or `wall_sharp` cells of the container grid by its own
-    error."""
+    error. With a clearance > 0 always the sharp ones: certification then checks exact gaps,
+    which have no tolerance, where overlaps below 1e-4 of an object's volume pass (lemons
+    and oranges in an 80 mm box, the stability map: with 2 and 5 mm clearances
+    certification removed 8 and 14 objects with the smooth margins, 4 and 5 with these;
+    with 0.5 mm, 17 and 16).
+    """
     errors = [surface_error(t.grid, t.vertices, t.faces, solid=True) for t in types]
-    all_smooth = all(e <= SMOOTH_ERROR for e in errors)
+    all_smooth = clearance <= 0 and all(e <= SMOOTH_ERROR for e in errors)
     cells = [smooth if all_smooth else sharp for _ in errors]
     wall_error = surface_error(container_grid, container_vertices, container_faces,
                                solid=False)
-    wall_cells = wall_smooth if wall_error <= SMOOTH_ERROR else wall_sharp
+    wall_cells = wall_smooth if clearance <= 0 and wall_error <= SMOOTH_ERROR else wall_sharp
     return Margins(
         objects=np.array([c * t.grid.spacing for c, t in zip(cells, types, strict=True)]),
         wall=wall_cells * container_grid.spacing, object_cells=cells, wall_cells=wall_cells,

@@ -53,6 +53,10 @@ def test_smooth_types_keep_the_small_margin_a_sharp_one_gives_all_the_large():
     assert m.objects == pytest.approx([0.05 * sphere.grid.spacing, 0.05 * cube.grid.spacing])
     # inside a box the grid never sees more room than there is (its planes are exact)
     assert m.wall_error <= 1e-9 and m.wall == pytest.approx(0.05 * cont.grid.spacing)
+    # with a clearance the exact gap check has no tolerance: the larger margins throughout
+    m = contact_margins([sphere], cont.grid, cont.vertices, cont.faces, 0.025, 0.05, 0.05, 0.1,
+                        clearance=0.5)
+    assert m.object_cells == [0.05] and m.wall_cells == 0.1
 
 
 def test_container_error_counts_room_the_grid_invents():
