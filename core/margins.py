@@ -25,26 +25,12 @@ import numpy as np
 
 from .distance import DistanceGrid
 from .kernels import sample_grid_many
+from .meshes import sample_surface
 
 #: grid error (cells) at the 1st percentile of the surface up to which a surface is smooth
 SMOOTH_ERROR = 0.17
 #: surface samples per mesh for the error estimate
 SAMPLES = 4096
-
-
-def area_samples(vertices: np.ndarray, faces: np.ndarray, count: int,
-                 seed: int = 0) -> np.ndarray:
-    """(count,3) points spread uniformly by area over a triangle mesh (same seed, same
-    points)."""
-    tri = vertices[faces]
-    area = 0.5 * np.linalg.norm(np.cross(tri[:, 1] - tri[:, 0], tri[:, 2] - tri[:, 0]), axis=1)
-    rng = np.random.default_rng(seed)
-    pick = rng.choice(len(faces), size=count, p=area / area.sum())
-    u = rng.random((count, 2))
-    flip = u.sum(axis=1) > 1.0
-    u[flip] = 1.0 - u[flip]
-    t = tri[pick]
-    return t[:, 0] + u[:, :1] * (t[:, 1] - t[:, 0]) + u[:, 1:] * (t[:, 2] - t[:, 0])
 
 
 def surface_error(grid: DistanceGrid, vertices: np.ndarray, faces: np.ndarray,
@@ -57,7 +43,7 @@ def surface_error(grid: DistanceGrid, vertices: np.ndarray, faces: np.ndarray,
     is); for a container (solid=False) outwards (the grid sees more room than there is).
     """
     d = sample_grid_many(grid.values, grid.origin, grid.spacing,
-                         area_samples(vertices, faces, SAMPLES)) / grid.spacing
+                         sample_surface(vertices, faces, SAMPLES)) / grid.spacing
     return max(float(-np.percentile(d, 1) if solid else np.percentile(d, 99)), 0.0)
 
 

@@ -454,6 +454,20 @@ def _boundary_loops(edges: _Edges, n_vertices: int) -> int:
     return int(connected_components(graph, directed=False)[0])
 
 
+def sample_surface(vertices: np.ndarray, faces: np.ndarray, n: int,
+                   seed: int = 0) -> np.ndarray:
+    """(n, 3) points uniformly distributed by area over a triangle mesh (seeded)."""
+    tri = vertices[faces]
+    area = 0.5 * np.linalg.norm(np.cross(tri[:, 1] - tri[:, 0], tri[:, 2] - tri[:, 0]), axis=1)
+    rng = np.random.default_rng(seed)
+    pick = rng.choice(len(faces), size=n, p=area / area.sum())
+    r1 = np.sqrt(rng.random(n))
+    r2 = rng.random(n)
+    t = tri[pick]
+    return (t[:, 0] * (1 - r1)[:, None] + t[:, 1] * (r1 * (1 - r2))[:, None]
+            + t[:, 2] * (r1 * r2)[:, None])
+
+
 def _face_areas2(vertices: np.ndarray, faces: np.ndarray) -> np.ndarray:
     tri = vertices[faces]
     return np.linalg.norm(np.cross(tri[:, 1] - tri[:, 0], tri[:, 2] - tri[:, 0]), axis=1)

@@ -47,6 +47,7 @@ from scipy.spatial import cKDTree
 
 from jampacked.core.distance import band_distances, inside_mask, point_triangle_distance
 from jampacked.core.errors import InputError
+from jampacked.core.meshes import sample_surface
 
 from .options import Opening
 from .validate import validate_arrays
@@ -283,20 +284,6 @@ def _mesh_arrays(m: m3.Manifold) -> tuple[np.ndarray, np.ndarray]:
     mesh = m.to_mesh64()
     return (np.asarray(mesh.vert_properties, np.float64)[:, :3],
             np.asarray(mesh.tri_verts, np.int64))
-
-
-def sample_surface(vertices: np.ndarray, faces: np.ndarray, n: int,
-                   seed: int = 0) -> np.ndarray:
-    """(n, 3) points uniformly distributed by area over a triangle mesh (seeded)."""
-    tri = vertices[faces]
-    area = 0.5 * np.linalg.norm(np.cross(tri[:, 1] - tri[:, 0], tri[:, 2] - tri[:, 0]), axis=1)
-    rng = np.random.default_rng(seed)
-    pick = rng.choice(len(faces), size=n, p=area / area.sum())
-    r1 = np.sqrt(rng.random(n))
-    r2 = rng.random(n)
-    t = tri[pick]
-    return (t[:, 0] * (1 - r1)[:, None] + t[:, 1] * (r1 * (1 - r2))[:, None]
-            + t[:, 2] * (r1 * r2)[:, None])
 
 
 def measure_wall_thickness(shell_outer_vertices: np.ndarray, shell_outer_faces: np.ndarray,

@@ -7,7 +7,8 @@ import pytest
 import trimesh
 
 from jampacked.core.container import build_container
-from jampacked.core.margins import SMOOTH_ERROR, area_samples, contact_margins, surface_error
+from jampacked.core.margins import SMOOTH_ERROR, contact_margins, surface_error
+from jampacked.core.meshes import sample_surface
 from jampacked.core.objects import build_type
 
 
@@ -24,15 +25,15 @@ def _type(mesh: trimesh.Trimesh, name: str):
                       fidelity="medium", use_cache=False)
 
 
-def test_area_samples_lie_on_the_surface_spread_by_area():
+def test_surface_samples_lie_on_the_surface_spread_by_area():
     box = trimesh.creation.box((10.0, 10.0, 1.0))
-    pts = area_samples(np.asarray(box.vertices), np.asarray(box.faces), 20000)
+    pts = sample_surface(np.asarray(box.vertices), np.asarray(box.faces), 20000)
     # every point on a face: at the box's half extent along some axis
     on_face = np.isclose(np.abs(pts), [5.0, 5.0, 0.5]).any(axis=1)
     assert on_face.all()
     # the two big faces hold 200 of the 240 units of area
     assert np.mean(np.isclose(np.abs(pts[:, 2]), 0.5)) == pytest.approx(200 / 240, abs=0.02)
-    again = area_samples(np.asarray(box.vertices), np.asarray(box.faces), 20000)
+    again = sample_surface(np.asarray(box.vertices), np.asarray(box.faces), 20000)
     assert np.array_equal(pts, again)
 
 
