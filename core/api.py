@@ -14,6 +14,7 @@ from collections.abc import Callable, Sequence
 from dataclasses import asdict, dataclass, replace
 from pathlib import Path
 
+import numba
 import numpy as np
 
 from .certify import DEFAULT_TOL, Certifier
@@ -29,6 +30,7 @@ from .phases import Stop, equivalent_radius
 from .placement import place
 from .solver import PackState, Solver, SolverParams, TypeTable
 from .spheres import sphere_coverage
+from .threads import ThreadTuner
 
 Progress = Callable[[float, str], None]
 MeshSource = str | os.PathLike | MeshData
@@ -84,6 +86,9 @@ class PackParams:
     k_rot: float = 1.0
     damping: float = 0.5
     mode: int = 0
+    # time the contact tests on one thread against all of numba's and keep the faster
+    # (`core/threads.py`); False: always all of them
+    tune_threads: bool = True
 
 
 def _load(source: MeshSource, role: str) -> MeshData:
@@ -216,13 +221,14 @@ def pack(container: MeshSource, types: Sequence[MeshSource],
         wall_margin=margins.wall)
     margin = margins.objects
     Solver(cont, table, PackState(), solver_params).warm_up()
+    tuner = ThreadTuner(numba.get_num_threads()) if params.tune_threads else None
     t_compile = time.perf_counter()
     # the budget bounds placement (loading, approximation and compiling come before it)
     deadline = None if time_budget is None else time.perf_counter() + float(time_budget)
     stop = Stop(deadline, should_cancel)
     s1 = (float(np.sum(q * volumes)) / params.phase1_density) ** (1 / 3)
-    best, attempts = place(lambda: Solver(cont, table, PackState(), solver_params), q, s1,
-                           f_min, seed, stop, margin, params, c_volume, report)
+    best, attempts = place(lambda: Solver(cont, table, PackState(), solver_params, tuner),
+                           q, s1, f_min, seed, stop, margin, params, c_volume, report)
     solver, state = best.solver, best.solver.s
     t_place = time.perf_counter()
 
@@ -270,7 +276,7 @@ def pack(container: MeshSource, types: Sequence[MeshSource],
         "sphere_coverage_per_type": [
             sphere_coverage(t.grid, t.sphere_centres, t.sphere_radii) for t in objtypes],
         **best.stats, "attempts": attempts, "margins": margins.as_dict(),
-        "repair": repair,
+        "repair": repair, "threads": None if tuner is None else tuner.as_dict(),
         "warnings": [w for m in [cmesh, *meshes] for w in m.warnings],
     })
     report(1.0, f"done: {len(idx)} objects, density {metrics['density']:.1%}")

@@ -556,7 +556,8 @@ def resolve(focus, typ, pos, quat, scale, alive, margin, vel, clearance, tol, ra
     (kept by the caller, so that no call allocates C x N rows).
 
     Mutates pos, quat, vel. With `rollback`, a failed call restores every object it moved to
-    its state at the call (the last overlap-free state). Returns (resolved, iterations used).
+    its state at the call (the last overlap-free state). Returns (resolved, iterations used,
+    contact tests run: the work the caller's thread tuner times, `core/threads.py`).
     """
     n = typ.shape[0]
     moved = np.zeros(n, np.uint8)
@@ -587,6 +588,7 @@ def resolve(focus, typ, pos, quat, scale, alive, margin, vel, clearance, tol, ra
     pb = np.empty(cap, np.int64)
     pen_pair = np.empty(cap)
     pen_w = np.empty(n)
+    tests = 0
     for it in range(max_iter + 1):
         n_pairs = 0
         for ii in range(n_act):
@@ -602,6 +604,7 @@ def resolve(focus, typ, pos, quat, scale, alive, margin, vel, clearance, tol, ra
                 pen_pair = np.empty(cap)
             n_pairs = _near_pairs(a, n_pairs, pa, pb, typ, pos, scale, alive, active, margin,
                                   radius, clearance)
+        tests += n_pairs + n_act
         if n_pairs + n_act >= par_min:
             contacts_parallel(pa, pb, n_pairs, act_list, n_act, typ, pos, quat, scale,
                               margin, clearance, clearance + wall_extra, tol, radius, sph_off,
@@ -657,7 +660,7 @@ def resolve(focus, typ, pos, quat, scale, alive, margin, vel, clearance, tol, ra
                 vel[a, 1] = 0.0
                 vel[a, 2] = 0.0
         if n_hit == 0:
-            return True, it
+            return True, it, tests
         if it == max_iter:
             break
         n_act = 0
@@ -705,7 +708,7 @@ def resolve(focus, typ, pos, quat, scale, alive, margin, vel, clearance, tol, ra
             pos[a] = bpos[a]
             quat[a] = bquat[a]
             vel[a] = bvel[a]
-    return False, max_iter
+    return False, max_iter, tests
 
 
 @njit(cache=True)

@@ -7,13 +7,16 @@ container frame, container units.
 
 from __future__ import annotations
 
+import time
 from dataclasses import dataclass
 
+import numba
 import numpy as np
 
 from . import kernels
 from .container import Container
 from .objects import ObjectType, point_clusters
+from .threads import ThreadTuner
 
 
 class TypeTable:
@@ -116,11 +119,13 @@ class Solver:
     """Binds a container, the type table and the state to the numba kernels."""
 
     def __init__(self, container: Container, table: TypeTable, state: PackState,
-                 params: SolverParams):
+                 params: SolverParams, tuner: ThreadTuner | None = None):
         self.c = container
         self.t = table
         self.s = state
         self.p = params
+        # shared by the solvers of one packing; None: every thread numba was given
+        self.tuner = tuner
         self.calls = 0
         self.iterations = 0
         self._fc = np.zeros((kernels.CONTACT_CHUNKS, 0, 4))
@@ -130,13 +135,25 @@ class Solver:
         """Resolve overlaps around `focus` (object indices); False if still overlapping."""
         typ, pos, quat, scale, alive, margin, vel = self.s.view()
         t, c, p = self.t, self.c.grid, self.p
-        ok, its = kernels.resolve(
-            np.asarray(focus, np.int64), typ, pos, quat, scale, alive, margin, vel,
-            p.clearance, p.tol, t.radius, t.sph_off, t.sph_c, t.sph_r, t.pc_off, t.pcl,
-            t.pcl_off, t.box, t.pts, t.g_off, t.g_vals, t.g_shape, t.g_origin, t.g_h,
-            c.values, c.origin, c.spacing, *self.c.pyramid,
-            int(max_iter), p.k_obj, p.k_wall, p.k_rot, p.damping, rollback, p.mode,
-            p.wall_margin, p.parallel_min, *self._scratch())
+        # numba's thread count is per calling thread: set it for this call only
+        before = numba.get_num_threads()
+        threads = before if self.tuner is None else self.tuner.threads
+        if threads != before:
+            numba.set_num_threads(threads)
+        start = time.perf_counter()
+        try:
+            ok, its, tests = kernels.resolve(
+                np.asarray(focus, np.int64), typ, pos, quat, scale, alive, margin, vel,
+                p.clearance, p.tol, t.radius, t.sph_off, t.sph_c, t.sph_r, t.pc_off, t.pcl,
+                t.pcl_off, t.box, t.pts, t.g_off, t.g_vals, t.g_shape, t.g_origin, t.g_h,
+                c.values, c.origin, c.spacing, *self.c.pyramid,
+                int(max_iter), p.k_obj, p.k_wall, p.k_rot, p.damping, rollback, p.mode,
+                p.wall_margin, p.parallel_min, *self._scratch())
+        finally:
+            if threads != before:
+                numba.set_num_threads(before)
+        if self.tuner is not None:
+            self.tuner.record(tests, time.perf_counter() - start)
         self.calls += 1
         self.iterations += int(its)
         return bool(ok)

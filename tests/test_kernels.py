@@ -904,6 +904,30 @@ def test_resolve_does_not_depend_on_the_thread_count(table, container):
         np.testing.assert_array_equal(quat, runs[0][3])
 
 
+def test_the_solver_runs_on_the_tuners_count_and_restores_numbas(table, container):
+    import numba
+
+    from jampacked.core.threads import ThreadTuner
+
+    def crowd(tuner):
+        typ, pos, quat = _crowd(95)
+        sv = solver.Solver(container, table, make_state(typ, pos, quat),
+                           solver.SolverParams(clearance=0.01, parallel_min=1), tuner)
+        ok = sv.resolve(np.arange(len(typ)), max_iter=60, rollback=False)
+        return ok, sv
+
+    before = numba.get_num_threads()
+    tuner = ThreadTuner(before)
+    tuner.threads = 1  # as during a probe or under load
+    ok1, one = crowd(tuner)
+    assert numba.get_num_threads() == before
+    assert tuner.seconds[1] > 0 and tuner.seconds[before] == 0
+    okn, every = crowd(None)
+    assert ok1 == okn and one.iterations == every.iterations
+    np.testing.assert_array_equal(one.s.pos, every.s.pos)
+    np.testing.assert_array_equal(one.s.quat, every.s.quat)
+
+
 # ---------------------------------------------------------------- inner spheres
 
 
