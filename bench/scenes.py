@@ -111,6 +111,7 @@ def run_record(container: str, types: list[str], seed: int, kwargs: dict,
         "phase1": p.params["phase1"], "phase2": p.params["phase2"],
         "attempts": p.params.get("attempts", []),
         "stopped": p.params["stopped"], "kwargs": kwargs, "params": params or {},
+        "threads": p.params.get("threads"),
         "density_trace": trace,
     }
 
