@@ -94,8 +94,9 @@ def sweep(scene: str, seeds: list[int], env: dict, meshes: Path,
             "worst_outside": med([r["before_certification"]["worst_outside"] for r in runs]),
             "moved": med([r["repair"]["moved"] for r in runs]),
             "removed": med([r["repair"]["removed"] for r in runs]),
-            "phase_seconds": {k: med([r["timings"][k] for r in runs])
-                              for k in runs[0]["timings"]},
+            # a phase some runs lack (other_attempts: one attempt only) took them 0 s
+            "phase_seconds": {k: med([r["timings"].get(k, 0.0) for r in runs])
+                              for k in dict.fromkeys(k for r in runs for k in r["timings"])},
             "runs": runs,
         }
         rows.append(row)
