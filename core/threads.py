@@ -3,7 +3,7 @@
 On an idle machine two threads test contacts 1.3-1.5 times faster than one. On cores shared
 with other busy processes (a render, a second packing, Blender itself) each iteration's
 parallel region waits at its barrier for a thread the OS has descheduled, and the same
-work took 3 to 100 times longer (bench/busy_machine.py). No setting of the thread layer
+placement took 4 to 18 times as long (bench/busy_machine.py). No setting of the thread layer
 fits both cases, so the solver measures its own throughput: every so often it spends a short
 probe on the other thread count and keeps whichever tested more contacts per second.
 
