@@ -194,7 +194,7 @@ def pack(container: MeshSource, types: Sequence[MeshSource],
             Path(m.path).stem if m.path else f"type{i}")
         objtypes.append(build_type(name, m.vertices, m.faces, path=m.path, sha256=m.sha256,
                                    share=float(q[i]), type_scale=type_scale, fidelity=fid,
-                                   use_cache=use_cache))
+                                   use_cache=use_cache, reach=clearance))
     # a type whose largest inscribed sphere (plus the clearance) is deeper than the container
     # fits nowhere: the grid's depth is within a cell of the true depth, the spheres' radii
     # never exceed the true inscribed radius

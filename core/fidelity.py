@@ -46,6 +46,11 @@ MANY_OBJECTS = 1500
 CELLS_ACROSS_THICKNESS = 8
 #: a container whose deepest point is within this many smallest radii of its wall is tight
 TIGHT_DEPTH = 2.0
+#: surface points per type with a clearance: between points the surface comes closer to a
+#: neighbour than the points say, and an exact gap check has no tolerance (lemon and orange
+#: x300: 0.17-0.22 mm at the 99th percentile with 384 points, 0.03-0.05 mm with 1024;
+#: `core/margins.py` covers the rest)
+CLEARANCE_POINTS = 1024
 
 
 def thickness_ratio(vertices: np.ndarray) -> float:
@@ -72,6 +77,7 @@ def choose_fidelity(type_vertices: list[np.ndarray], expected_objects: float,
       thousands of objects, time per object matters more than the last percent);
     - elongated or flat types (banana): a finer grid, so their thickness spans enough cells;
     - a clearance smaller than a grid cell: a finer grid, so the grid's error stays below it;
+    - any clearance: CLEARANCE_POINTS surface points per type;
     - a tight container (the smallest object only just fits its deepest point, or the
       largest cannot turn freely anywhere, like fruit in a torus's tube): high's container
       grid, since nearly every contact is a wall contact, with medium's spheres and object
@@ -94,10 +100,14 @@ def choose_fidelity(type_vertices: list[np.ndarray], expected_objects: float,
     if want > cells:
         cells = min(want, PRESETS["high"].grid_cells)
         reasons.append(f"a type {ratio:.1f} times longer than thick: {cells} grid cells")
+    points = base.surface_points
     if clearance > 0:
         want = int(np.ceil(max(extents) / clearance))
         if want > cells:
             cells = min(want, PRESETS["high"].grid_cells)
             reasons.append(f"clearance {clearance:g}: {cells} grid cells")
+        points = max(points, CLEARANCE_POINTS)
+        reasons.append(f"clearance {clearance:g}: {points} surface points per type")
     return replace(base, name="auto", spheres=spheres, grid_cells=cells,
-                   container_cells=container_cells, reasons=tuple(reasons))
+                   surface_points=points, container_cells=container_cells,
+                   reasons=tuple(reasons))

@@ -9,7 +9,7 @@ import pytest
 import trimesh
 
 from jampacked.core.api import PackParams, pack
-from jampacked.core.fidelity import PRESETS, choose_fidelity, thickness_ratio
+from jampacked.core.fidelity import CLEARANCE_POINTS, PRESETS, choose_fidelity, thickness_ratio
 
 MESHES = Path(__file__).resolve().parents[2] / "shared" / "meshes"
 
@@ -51,6 +51,14 @@ def test_elongated_type_gets_a_finer_grid():
 def test_small_clearance_gets_a_finer_grid_but_large_does_not():
     assert choose_fidelity([_box(20, 18, 16)], 200, 0.4, 6.0).grid_cells == 50
     assert choose_fidelity([_box(20, 18, 16)], 200, 2.0, 6.0).grid_cells == 40
+
+
+def test_any_clearance_gets_denser_surface_points():
+    assert choose_fidelity([_box(20, 18, 16)], 200, 0.0, 6.0).surface_points == 384
+    for c in (0.4, 2.0):
+        f = choose_fidelity([_box(20, 18, 16)], 200, c, 6.0)
+        assert f.surface_points == CLEARANCE_POINTS > PRESETS["medium"].surface_points
+        assert any("surface points" in r for r in f.reasons)
 
 
 def test_tight_container_gets_a_finer_container_grid():

@@ -7,9 +7,11 @@ import pytest
 import trimesh
 
 from jampacked.core.container import build_container
-from jampacked.core.margins import SMOOTH_ERROR, contact_margins, surface_error
+from jampacked.core.distance import distances_to_given_triangles
+from jampacked.core.kernels import sample_grid_many
+from jampacked.core.margins import SMOOTH_ERROR, contact_margins, sampling_gap, surface_error
 from jampacked.core.meshes import sample_surface
-from jampacked.core.objects import build_type
+from jampacked.core.objects import build_type, surface_samples
 
 
 def _turned(mesh: trimesh.Trimesh) -> trimesh.Trimesh:
@@ -58,6 +60,28 @@ def test_smooth_types_keep_the_small_margin_a_sharp_one_gives_all_the_large():
     m = contact_margins([sphere], cont.grid, cont.vertices, cont.faces, 0.025, 0.05, 0.05, 0.1,
                         clearance=0.5)
     assert m.object_cells == [0.05] and m.wall_cells == 0.1
+    # ... plus half the gap the surface points hide at that clearance
+    gap = sampling_gap(sphere.grid, sphere.vertices, sphere.faces, sphere.surface_points,
+                       sphere.equivalent_radius, 0.5)
+    assert m.sampling_gaps == pytest.approx([gap]) and gap > 0
+    assert m.objects == pytest.approx([0.05 * sphere.grid.spacing + 0.5 * gap])
+    assert m.as_dict()["sampling_gaps"] == m.sampling_gaps
+
+
+def test_sampling_gap_shrinks_as_surface_points_get_denser():
+    """A ball of radius r held g from a sphere of radius R: between surface points x apart
+    the sphere comes closer to it by about x^2 (1/R + 1/r) / 8; the measure is relative to
+    the surface, so a dense point set hides almost nothing."""
+    mesh = trimesh.creation.icosphere(subdivisions=4, radius=5.0)  # 2562 vertices
+    sphere = _type(mesh, "sphere")
+    v, f = sphere.vertices, sphere.faces
+    gaps = [sampling_gap(sphere.grid, v, f, surface_samples(v, f, n), 5.0, 0.5)
+            for n in (96, 384, 1536)]
+    assert gaps[0] > gaps[1] > gaps[2] > 0
+    # 96 points on a sphere of radius 5 lie about 1.8 apart: the gap is tenths of a unit
+    assert 0.05 < gaps[0] < 0.5
+    assert gaps[2] < 0.25 * gaps[0]
+    assert sampling_gap(sphere.grid, v, f, v, 5.0, 0.5) < 0.01  # every vertex a point
 
 
 def test_container_error_counts_room_the_grid_invents():
@@ -71,3 +95,23 @@ def test_container_error_counts_room_the_grid_invents():
                            shape.volume, 1.0)
     err = surface_error(cont.grid, cont.vertices, cont.faces, solid=False)
     assert err > SMOOTH_ERROR
+
+
+def test_a_clearance_gets_a_grid_that_reaches_it():
+    """Beyond its box a grid's distances are extrapolated and read too large; with a
+    clearance the grid reaches past it, so a gap of that size is read true."""
+    mesh = _turned(trimesh.creation.box((10.0, 6.0, 4.0)))
+    near = _type(mesh, "near")
+    far = build_type("far", mesh.vertices, mesh.faces, path=None, sha256=None, share=1.0,
+                     fidelity="medium", use_cache=False, reach=5.0)
+    v, f = far.vertices, far.faces
+    at = sample_surface(v, f, 2000)
+    centre = v.mean(axis=0)
+    out = at + 5.0 * (at - centre) / np.linalg.norm(at - centre, axis=1, keepdims=True)
+    true = np.min([distances_to_given_triangles(out, np.full(len(out), k, np.int64), v, f)
+                   for k in range(len(f))], axis=0)
+    errs = []
+    for t in (near, far):
+        d = sample_grid_many(t.grid.values, t.grid.origin, t.grid.spacing, out)
+        errs.append(float(np.percentile(-d - true, 99)))  # how much further it reads
+    assert errs[0] > 0.1 and errs[1] < 0.25 * errs[0]
