@@ -248,9 +248,9 @@ def outside_fractions(geom: Geometry, certifier, typ: np.ndarray,
                       matrices: np.ndarray) -> np.ndarray:
     """Exact volume fraction of each object outside the container (manifold3d booleans
     against the container itself, so it holds at any distance from it)."""
-    from jampacked.core.certify import to_manifold
+    from jampacked.core.solids import to_solid
 
-    inside = to_manifold(geom.container_vertices, geom.container_faces)
+    inside = to_solid(geom.container_vertices, geom.container_faces, double=False)
     out = np.empty(len(typ))
     for i in range(len(typ)):
         obj = certifier.types[typ[i]].transform(matrices[i, :3, :4].tolist())

@@ -118,9 +118,9 @@ def run_level_set(vertices: np.ndarray, faces: np.ndarray, thickness: float,
 def run_minkowski(vertices: np.ndarray, faces: np.ndarray, thickness: float,
                   segments: int) -> dict:
     """manifold3d minkowski_difference of the container and a polygonal sphere."""
-    from jampacked.export.shell import _manifold
+    from jampacked.core.solids import to_solid
 
-    outer = _manifold(vertices, faces)
+    outer = to_solid(vertices, faces)
     ball = m3.Manifold.sphere(thickness, segments)
     t0 = time.perf_counter()
     inner = outer.minkowski_difference(ball)

@@ -14,10 +14,10 @@ from collections.abc import Sequence
 import numpy as np
 
 from jampacked.core.atomic import atomic_output
-from jampacked.core.certify import to_manifold
 from jampacked.core.errors import InputError
 from jampacked.core.meshes import load_mesh
 from jampacked.core.packing import Packing, container_mesh
+from jampacked.core.solids import to_solid
 
 #: outline and fill of the container's section
 _CONTAINER_EDGE = "#7f7f7f"
@@ -76,7 +76,7 @@ def write_preview(packing: Packing, path: str | os.PathLike, *,
     # container in the container frame
     cmesh = container_mesh(packing, "draw")
     c_verts = _transform(cmesh.vertices, packing.frame_from_file)
-    container = to_manifold(c_verts, cmesh.faces)
+    container = to_solid(c_verts, cmesh.faces, double=False)
     lo, hi = c_verts.min(axis=0), c_verts.max(axis=0)
 
     # types in their local frame; objects placed as transformed manifolds, built lazily
@@ -89,7 +89,7 @@ def write_preview(packing: Packing, path: str | os.PathLike, *,
         m = load_mesh(rec.path, role="object")
         v = _transform(m.vertices, rec.local_from_file)
         type_verts[t] = v
-        type_solids[t] = to_manifold(v, m.faces)
+        type_solids[t] = to_solid(v, m.faces, double=False)
     mats = packing.matrices()
     z_lo = np.full(packing.n, np.inf)
     z_hi = np.full(packing.n, -np.inf)

@@ -23,15 +23,9 @@ from scipy.spatial import cKDTree
 
 from .container import Container
 from .kernels import sample_grid_many
+from .solids import to_solid
 
 DEFAULT_TOL = 1e-4
-
-
-def to_manifold(vertices: np.ndarray, faces: np.ndarray) -> m3.Manifold:
-    """manifold3d solid straight from arrays (no trimesh processing)."""
-    mesh = m3.Mesh(vert_properties=np.ascontiguousarray(vertices, np.float32),
-                   tri_verts=np.ascontiguousarray(faces, np.uint32))
-    return m3.Manifold(mesh)
 
 
 @dataclass
@@ -82,8 +76,9 @@ class Certifier:
             ((lo + hi) / 2).tolist())
         # the region outside the container: intersections with it are volume outside, and
         # min_gap to it is the wall gap
-        self.outside = box - to_manifold(container.vertices, container.faces)
-        self.types = [to_manifold(v, f) for v, f in zip(type_vertices, type_faces, strict=True)]
+        self.outside = box - to_solid(container.vertices, container.faces, double=False)
+        self.types = [to_solid(v, f, double=False)
+                      for v, f in zip(type_vertices, type_faces, strict=True)]
         self.vertices = type_vertices
         self.volumes = np.asarray(type_volumes, np.float64)
         self.max_edge = np.asarray(type_max_edge, np.float64)

@@ -48,6 +48,7 @@ from scipy.sparse.csgraph import connected_components
 from scipy.spatial import ConvexHull, QhullError, cKDTree
 
 from .errors import InputError, MeshError
+from .solids import to_solid
 
 __all__ = [
     "MeshData",
@@ -676,11 +677,7 @@ def _closed_manifold_problems(faces: np.ndarray, n_vertices: int) -> list[str]:
 
 
 def _manifold_status(vertices: np.ndarray, faces: np.ndarray) -> manifold3d.Error:
-    mesh = manifold3d.Mesh(
-        vert_properties=np.ascontiguousarray(vertices, dtype=np.float32),
-        tri_verts=np.ascontiguousarray(faces, dtype=np.uint32),
-    )
-    return manifold3d.Manifold(mesh).status()
+    return to_solid(vertices, faces, double=False).status()
 
 
 # --------------------------------------------------------------------------------------------

@@ -32,6 +32,7 @@ from jampacked.core.packing import (
     load_packing,
     verify_sources,
 )
+from jampacked.core.solids import solid_arrays, to_solid
 
 from .cleanup import remove_degenerate_faces
 from .closest import Surface
@@ -147,22 +148,6 @@ def _apply(m: np.ndarray, v: np.ndarray) -> np.ndarray:
     return v @ m[:3, :3].T + m[:3, 3]
 
 
-def _solid(vertices: np.ndarray, faces: np.ndarray) -> m3.Manifold:
-    """manifold3d solid from float64 arrays (exact positions; no trimesh processing)."""
-    mesh = m3.Mesh64(vert_properties=np.ascontiguousarray(vertices, np.float64),
-                     tri_verts=np.ascontiguousarray(faces, np.uint32))
-    return m3.Manifold(mesh)
-
-
-def _arrays(solid: m3.Manifold) -> tuple[np.ndarray, np.ndarray]:
-    # float64: rounding manifold3d's double positions to float32 can merge two vertices of
-    # a short edge and leave zero-area faces
-    mesh = solid.to_mesh64()
-    v = np.asarray(mesh.vert_properties, np.float64)[:, :3]
-    f = np.asarray(mesh.tri_verts, np.int64)
-    return v, f
-
-
 # --------------------------------------------------------------------------- export
 
 
@@ -228,7 +213,7 @@ def export_packing(packing: Packing | str | os.PathLike,
     type_solids = []
     saved_per_type = []
     for v, m in zip(local, types, strict=True):
-        s = _solid(v, m.faces)
+        s = to_solid(v, m.faces)
         before = s.num_tri()
         if options.resolution is not None:
             s = s.simplify(options.resolution)
@@ -375,7 +360,7 @@ def _clean_arrays(result: m3.Manifold, float32: bool = False
     below any printer's resolution (1e-7 to 1e-5 of the size)."""
 
     def cleaned(m: m3.Manifold) -> tuple[np.ndarray, np.ndarray, int]:
-        v, f, left = remove_degenerate_faces(*_arrays(m))
+        v, f, left = remove_degenerate_faces(*solid_arrays(m))
         if float32 and left == 0 and len(f):
             # positions that round to the same float32 are one vertex, as the validator
             # merges them when it reads the file back
@@ -430,7 +415,7 @@ def _parts(packing: Packing, solids: list[m3.Manifold], out: ExportReport
            ) -> tuple[list[tuple[np.ndarray, np.ndarray]], list[str]]:
     """Each object its own body; measures the smallest gap between near parts."""
     names = [f"{packing.types[t].name}_{i:03d}" for i, t in enumerate(packing.type_index)]
-    bodies = [_arrays(s) for s in solids]
+    bodies = [solid_arrays(s) for s in solids]
     out.bodies = len(bodies)
     out.volume = float(sum(s.volume() for s in solids))
     # every pair whose bounds, grown by the clearance, touch is checked exactly; the
@@ -483,9 +468,9 @@ def _connect(packing: Packing, local: list[np.ndarray], types: Sequence[MeshData
         # 0.2 x the smallest type's equivalent diameter: sturdy but small beside the objects
         vol = min(t.volume for t in packing.types)
         diameter = 0.2 * 2 * (3 * vol / (4 * np.pi)) ** (1 / 3)
-    shells = [(part, Surface(*_arrays(part))) for part in
+    shells = [(part, Surface(*solid_arrays(part))) for part in
               (shell.decompose() if shell is not None else [])]
-    cont = _solid(c_vertices, container.faces)
+    cont = to_solid(c_vertices, container.faces)
     lo, hi = c_vertices.min(axis=0), c_vertices.max(axis=0)
     pad = 0.1 * float((hi - lo).max()) + 1.0
     box = m3.Manifold.cube(tuple(hi - lo + 2 * pad)).translate(tuple(lo - pad))

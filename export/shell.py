@@ -48,6 +48,7 @@ from scipy.spatial import cKDTree
 from jampacked.core.distance import band_distances, inside_mask, point_triangle_distance
 from jampacked.core.errors import InputError
 from jampacked.core.meshes import sample_surface
+from jampacked.core.solids import solid_arrays, to_solid
 
 from .options import Opening
 from .validate import validate_arrays
@@ -279,13 +280,6 @@ def surface_distance(points: np.ndarray, vertices: np.ndarray, faces: np.ndarray
     return _min_candidate_distance(points, starts, flat, vertices, faces)
 
 
-def _mesh_arrays(m: m3.Manifold) -> tuple[np.ndarray, np.ndarray]:
-    """(V, 3) float64 positions and (F, 3) int64 faces of a manifold, in double precision."""
-    mesh = m.to_mesh64()
-    return (np.asarray(mesh.vert_properties, np.float64)[:, :3],
-            np.asarray(mesh.tri_verts, np.int64))
-
-
 def measure_wall_thickness(shell_outer_vertices: np.ndarray, shell_outer_faces: np.ndarray,
                            inner: m3.Manifold, n: int = 2000, seed: int = 0) -> np.ndarray:
     """Wall thickness at ``n`` random points of the inner surface, (n,) float64.
@@ -303,20 +297,13 @@ def measure_wall_thickness(shell_outer_vertices: np.ndarray, shell_outer_faces: 
     """
     if inner.is_empty() or n <= 0:
         return np.zeros(0)
-    v, f = _mesh_arrays(inner)
+    v, f = solid_arrays(inner)
     points = sample_surface(v, f, n, seed)
     return surface_distance(points, shell_outer_vertices, shell_outer_faces)
 
 
 # --------------------------------------------------------------------------------------------
 # the inner solid
-
-
-def _manifold(vertices: np.ndarray, faces: np.ndarray) -> m3.Manifold:
-    """manifold3d solid straight from arrays, in double precision (no processing)."""
-    mesh = m3.Mesh64(vert_properties=np.ascontiguousarray(vertices, np.float64),
-                     tri_verts=np.ascontiguousarray(faces, np.uint64))
-    return m3.Manifold(mesh)
 
 
 def _grid_spacing(lo: np.ndarray, hi: np.ndarray, thickness: float,
@@ -420,7 +407,7 @@ def _simplified(raw: m3.Manifold, thickness: float, tolerance: float,
         parts = _drop_specks(candidate, thickness)
         if not parts:
             return parts, factor * tolerance
-        v, f = _mesh_arrays(m3.Manifold.compose(parts))
+        v, f = solid_arrays(m3.Manifold.compose(parts))
         if validate_arrays(v, f).passed:
             return parts, factor * tolerance
     return _drop_specks(raw, thickness), 0.0
@@ -433,7 +420,7 @@ def _inner_solid(vertices: np.ndarray, faces: np.ndarray, thickness: float, spac
     if float(values.max()) <= thickness:
         raise _too_thick(thickness, _deepest(values, origin, spacing, vertices, faces))
     v, f = march_tetrahedra(values, thickness, origin, spacing)
-    raw = _manifold(v, f)
+    raw = to_solid(v, f)
     if raw.status() != m3.Error.NoError:  # pragma: no cover - marching output is manifold
         raise RuntimeError(f"inner shell surface rejected by manifold3d: {raw.status()}")
     diagonal = float(np.linalg.norm(vertices.max(axis=0) - vertices.min(axis=0)))
@@ -580,7 +567,7 @@ def _drain(shell: m3.Manifold, inner: m3.Manifold, diameter: float,
     (-z down). It starts a little above that point (short of the ceiling) and ends a margin
     below where the wall is left, but never reaches a part of the container further below.
     """
-    v, _ = _mesh_arrays(inner)
+    v, _ = solid_arrays(inner)
     radius = 0.5 * diameter
     up = np.array([0.0, 0.0, 1.0])
     size = float(np.ptp(v[:, 2])) + 4.0 * thickness + diameter + 1.0
@@ -676,7 +663,7 @@ def make_shell(vertices: np.ndarray, faces: np.ndarray, thickness: float, *,
         notes.append(f"the inner surface could not be simplified watertight, so it keeps all "
                      f"{inner.num_tri()} triangles of the grid.")
     report_progress(0.6, "shell: subtracting the inner surface")
-    shell = _manifold(v, f) - inner
+    shell = to_solid(v, f) - inner
     drain_at = None
     if drain is not None:
         report_progress(0.7, "shell: drain hole")

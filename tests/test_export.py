@@ -15,11 +15,11 @@ import trimesh
 from scipy.sparse import coo_matrix
 from scipy.sparse.csgraph import connected_components
 
-from jampacked.core.certify import to_manifold
 from jampacked.core.distance import point_triangle_distance
 from jampacked.core.errors import Cancelled, InputError, MeshError
 from jampacked.core.meshes import load_mesh
 from jampacked.core.packing import Packing, TypeRecord, save_packing
+from jampacked.core.solids import to_solid
 from jampacked.export.assemble import export_packing
 from jampacked.export.closest import Surface, closest_on_triangles
 from jampacked.export.options import ExportOptions, Opening
@@ -103,7 +103,7 @@ def _solids(packing_json: Path) -> list[m3.Manifold]:
         m = load_mesh(p.types[t].path)
         v = (m.vertices @ p.types[t].local_from_file[:3, :3].T
              + p.types[t].local_from_file[:3, 3])
-        out.append(to_manifold(v, m.faces).transform(mats[i][:3, :]))
+        out.append(to_solid(v, m.faces, double=False).transform(mats[i][:3, :]))
     return out
 
 

@@ -1,0 +1,37 @@
+"""manifold3d solids from and to arrays: the one place the project crosses that boundary.
+
+Solids are built straight from the arrays (never through `trimesh.Trimesh(process=True)`,
+which merges vertices and can break watertightness). Frames and units are the caller's.
+"""
+
+from __future__ import annotations
+
+import manifold3d as m3
+import numpy as np
+
+
+def to_solid(vertices: np.ndarray, faces: np.ndarray, *, double: bool = True) -> m3.Manifold:
+    """manifold3d solid from (V, 3) positions and (F, 3) vertex indices, as given.
+
+    double: keep positions in float64 (manifold3d's `Mesh64`); False rounds them to float32
+    (`Mesh`), which certification and the topology check use. Check `.status()` for
+    whether manifold3d accepted the mesh.
+    """
+    if double:
+        mesh = m3.Mesh64(vert_properties=np.ascontiguousarray(vertices, np.float64),
+                         tri_verts=np.ascontiguousarray(faces, np.uint64))
+    else:
+        mesh = m3.Mesh(vert_properties=np.ascontiguousarray(vertices, np.float32),
+                       tri_verts=np.ascontiguousarray(faces, np.uint32))
+    return m3.Manifold(mesh)
+
+
+def solid_arrays(solid: m3.Manifold) -> tuple[np.ndarray, np.ndarray]:
+    """(V, 3) float64 positions and (F, 3) int64 faces of a solid, in double precision.
+
+    Double precision: rounding manifold3d's positions to float32 can merge the two vertices
+    of a short edge and leave zero-area faces.
+    """
+    mesh = solid.to_mesh64()
+    return (np.asarray(mesh.vert_properties, np.float64)[:, :3],
+            np.asarray(mesh.tri_verts, np.int64))
