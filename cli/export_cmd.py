@@ -11,8 +11,12 @@ import contextlib
 import json
 
 from rich.markup import escape
-from rich.table import Table
 
+from jampacked.cli.args import FORMATTER, UsageError, fill, positive_float
+from jampacked.cli.exits import EXIT_ERROR, EXIT_INTERRUPTED, print_error
+from jampacked.cli.interrupt import CancelOnInterrupt
+from jampacked.cli.reports import consoles, print_export, print_validation, progress_bar
+from jampacked.cli.scene import check_output
 from jampacked.core.errors import Cancelled, InputError
 from jampacked.export.options import AXES, MODES, ExportOptions, Opening
 
@@ -88,31 +92,30 @@ def parse_window(text: str) -> Opening:
 
 
 def add_export_parser(sub: argparse._SubParsersAction) -> None:
-    from jampacked.cli.main import _FORMATTER, _fill, _positive_float
-
+    """Add the ``export`` subcommand to ``sub``."""
     p = sub.add_parser(
         "export",
         help="turn a packing into watertight mesh files that print (3MF, STL, OBJ, PLY)",
-        description=_fill(
+        description=fill(
             "Build the packed objects from a packing file, join them (union, connect) or "
             "keep them apart (parts), optionally inside a shell of the container, and write "
             "validated, watertight mesh files."),
         epilog=EXPORT_EPILOG,
-        formatter_class=_FORMATTER,
+        formatter_class=FORMATTER,
     )
     p.add_argument("packing", metavar="PACKING.json", help="a packing written by 'jampacked pack'")
     p.add_argument("-o", "--output", action="append", required=True, metavar="FILE",
                    help="output file (.3mf, .stl, .obj, .ply); repeat for several formats")
     p.add_argument("--mode", choices=MODES, default="connect",
                    help="union, connect (default: one printable body) or parts")
-    p.add_argument("--shell", type=_positive_float("--shell"), metavar="MM",
+    p.add_argument("--shell", type=positive_float("--shell"), metavar="MM",
                    help="add a shell of the container with this wall thickness")
     opening = p.add_mutually_exclusive_group()
     opening.add_argument("--open-plane", type=parse_open_plane, metavar="AXIS[@FRACTION]",
                          help="cut the shell open beyond a plane, e.g. +z@0.75")
     opening.add_argument("--window", type=parse_window, metavar="AXIS@DIAMETER",
                          help="cut a round window through the shell's side, e.g. +y@30")
-    p.add_argument("--drain", type=_positive_float("--drain"), metavar="MM",
+    p.add_argument("--drain", type=positive_float("--drain"), metavar="MM",
                    help="drainage hole of this diameter through the shell's lowest point")
     p.add_argument("--keep-voids", action="store_true",
                    help="union/connect: keep sealed voids between objects, struts and shell "
@@ -121,10 +124,10 @@ def add_export_parser(sub: argparse._SubParsersAction) -> None:
     p.add_argument("--up", default="+z", choices=AXES, metavar="AXIS",
                    help="the axis pointing up when printed (default +z; +y for Y-up models): "
                         "the drain goes through the lowest point along it")
-    p.add_argument("--connector", type=_positive_float("--connector"), metavar="MM",
+    p.add_argument("--connector", type=positive_float("--connector"), metavar="MM",
                    help="strut diameter for --mode connect (default: 0.2 x the smallest "
                         "object's equivalent diameter)")
-    p.add_argument("--resolution", type=_positive_float("--resolution"), metavar="MM",
+    p.add_argument("--resolution", type=positive_float("--resolution"), metavar="MM",
                    help="simplify meshes to the printer's resolution (surfaces move by at "
                         "most this much)")
     p.add_argument("--split", action="store_true",
@@ -138,22 +141,12 @@ def add_export_parser(sub: argparse._SubParsersAction) -> None:
 
 
 def cmd_export(args: argparse.Namespace) -> int:
-    from jampacked.cli.main import (
-        EXIT_ERROR,
-        EXIT_INTERRUPTED,
-        CancelOnInterrupt,
-        UsageError,
-        _check_output,
-        _consoles,
-        _error,
-        print_validation,
-        progress_bar,
-    )
+    """Run ``jampacked export``; returns the exit status."""
     from jampacked.export.assemble import export_packing
 
-    out, err = _consoles()
+    out, err = consoles()
     for path in args.output + ([args.render] if args.render else []):
-        _check_output(path, "-o" if path != args.render else "--render", [args.packing])
+        check_output(path, "-o" if path != args.render else "--render", [args.packing])
     try:
         options = ExportOptions(mode=args.mode, shell=args.shell,
                                 opening=args.open_plane or args.window, drain=args.drain,
@@ -170,7 +163,7 @@ def cmd_export(args: argparse.Namespace) -> int:
             report = export_packing(args.packing, args.output, options, progress=progress_cb,
                                     should_cancel=cancel)
         except Cancelled as exc:
-            _error(exc)
+            print_error(exc)
             return EXIT_INTERRUPTED
     if args.json:
         print(json.dumps(report.as_dict(), indent=1, allow_nan=False))
@@ -194,39 +187,3 @@ def cmd_export(args: argparse.Namespace) -> int:
         if not args.quiet and not args.json:
             out.print(f"wrote {args.render}", highlight=False)
     return 0 if report.passed else EXIT_ERROR
-
-
-def print_export(report, console) -> None:
-    """The export summary as a table."""
-    t = Table(title=f"export ({report.mode})", title_justify="left", show_header=False)
-    t.add_column("what")
-    t.add_column("value", justify="right")
-    t.add_row("objects", str(report.objects))
-    t.add_row("bodies", str(report.bodies))
-    t.add_row("triangles", f"{report.triangles:,}")
-    if report.triangles_saved:
-        t.add_row("saved by --resolution", f"{report.triangles_saved:,} triangles")
-    if report.mode == "connect":
-        t.add_row("connectors", f"{report.connectors} ({report.connector_length:.1f} long "
-                                f"in all)")
-        t.add_row("contacts fused", str(report.fused))
-    if report.shell is not None:
-        s = report.shell
-        t.add_row("shell wall", f"{s.thickness:g} asked; measured min {s.measured_min:.3g}, "
-                                f"median {s.measured_median:.3g}, max {s.measured_max:.3g}")
-        if s.opening:
-            t.add_row("opening", s.opening)
-        if s.drain:
-            t.add_row("drain hole", f"{s.drain:g}")
-    if report.voids_filled:
-        t.add_row("sealed voids filled", f"{report.voids_filled} "
-                                         f"({report.voids_filled_volume:,.1f} in volume)")
-    if report.min_gap is not None:
-        t.add_row("smallest gap between parts", f"{report.min_gap:.4g} (clearance "
-                                                f"{report.clearance:g})")
-    t.add_row("volume", f"{report.volume:,.1f}")
-    t.add_row("time", f"{report.timings.get('total', 0):.1f} s")
-    shown = report.paths[:6]
-    more = f"\n... and {len(report.paths) - len(shown)} more" if len(report.paths) > 6 else ""
-    t.add_row("files", "\n".join(escape(p) for p in shown) + more)
-    console.print(t)

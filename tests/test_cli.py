@@ -14,9 +14,12 @@ from pathlib import Path
 import numpy as np
 import pytest
 
-from jampacked.cli import main as cli
-from jampacked.cli.main import main, parse_type_arg, resolve_shares
+from jampacked.cli import pack_cmd
+from jampacked.cli.args import UsageError
+from jampacked.cli.main import main
+from jampacked.cli.parser import build_parser
 from jampacked.cli.preview import write_preview
+from jampacked.cli.scene import parse_type_arg, resolve_scene, resolve_shares
 from jampacked.core.errors import InputError
 from jampacked.core.metrics import compute_metrics
 from jampacked.core.packing import load_packing
@@ -150,7 +153,7 @@ def test_info_reports_changed_source(packed, capsys):
 @needs_meshes
 def test_ctrl_c_saves_best_certified_packing(tmp_path, monkeypatch, capsys):
     """The first Ctrl-C makes should_cancel() true; the packing so far is certified and saved."""
-    real_pack = cli.pack
+    real_pack = pack_cmd.pack
     seen = {}
     # what was installed before (importing bpy in the add-on tests sets SIG_IGN)
     before = signal.getsignal(signal.SIGINT)
@@ -161,7 +164,7 @@ def test_ctrl_c_saves_best_certified_packing(tmp_path, monkeypatch, capsys):
         seen["cancel"] = should_cancel()
         return real_pack(*args, should_cancel=should_cancel, **kwargs)
 
-    monkeypatch.setattr(cli, "pack", interrupted_pack)
+    monkeypatch.setattr(pack_cmd, "pack", interrupted_pack)
     out = tmp_path / "p.json"
     rc = main(["pack", "box:30x30x30", "--type", str(P1), *SMALL, "-q", "-o", str(out)])
     assert seen["cancel"] is True
@@ -269,24 +272,24 @@ def test_resolve_shares():
     assert resolve_shares([None, None], ["a", "b"]) is None
     assert resolve_shares([2.0, 1.0], ["a", "b"]) == [2.0, 1.0]
     assert resolve_shares([0.4, None, None], ["a", "b", "c"]) == pytest.approx([0.4, 0.3, 0.3])
-    with pytest.raises(cli.UsageError, match="100%"):
+    with pytest.raises(UsageError, match="100%"):
         resolve_shares([0.6, 0.4, None], ["a", "b", "c"])
 
 
 @needs_meshes
 def test_default_scene_resolves_bundled_files(tmp_path):
-    args = cli.build_parser().parse_args(["pack", "default", "-o", str(tmp_path / "p.json")])
+    args = build_parser().parse_args(["pack", "default", "-o", str(tmp_path / "p.json")])
     with contextlib.ExitStack() as stack:
-        scene = cli.resolve_scene(args, stack)
+        scene = resolve_scene(args, stack)
         assert os.path.isfile(scene.container) and scene.container.endswith("spot.obj")
         assert len(scene.types) == 5 and all(os.path.isfile(t) for t in scene.types)
     assert scene.names == ["banana", "strawberry", "lemon", "peach", "orange"]
     assert scene.shares is None
     assert (scene.container_size, scene.type_scale) == (150.0, 300.0)
-    args = cli.build_parser().parse_args(["pack", "default", "--container-size", "90",
+    args = build_parser().parse_args(["pack", "default", "--container-size", "90",
                                           "--type", str(P1), "-o", str(tmp_path / "p.json")])
     with contextlib.ExitStack() as stack:
-        scene = cli.resolve_scene(args, stack)
+        scene = resolve_scene(args, stack)
     assert scene.types == [str(P1)] and scene.names is None
     assert (scene.container_size, scene.type_scale) == (90.0, 1.0)
 

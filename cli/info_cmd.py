@@ -1,0 +1,52 @@
+"""``jampacked info``: summarise a saved packing and check its mesh files."""
+
+from __future__ import annotations
+
+import argparse
+
+from rich.markup import escape
+
+from jampacked.cli.args import FORMATTER, fill
+from jampacked.cli.exits import EXIT_ERROR
+from jampacked.cli.reports import consoles, print_summary, warn
+from jampacked.core.packing import is_spec, load_packing, verify_sources
+
+INFO_EPILOG = """\
+examples:
+  jampacked info packing.json
+
+Exit status: 0 all good, 1 the file cannot be read or a mesh file it names is missing or
+has changed since the packing was made.
+"""
+
+
+def add_info_parser(sub: argparse._SubParsersAction) -> None:
+    p = sub.add_parser(
+        "info",
+        help="summarise a saved packing and check its mesh files",
+        description=fill(
+            "Print the summary of a saved packing (objects per type, density, type-share "
+            "error, clumping, certification, timings) and check that the mesh files it "
+            "names are present and unchanged (sha256)."
+        ),
+        epilog=INFO_EPILOG,
+        formatter_class=FORMATTER,
+    )
+    p.add_argument("packing", metavar="PACKING.json", help="a packing written by 'jampacked pack'")
+    p.set_defaults(run=cmd_info)
+
+
+def cmd_info(args: argparse.Namespace) -> int:
+    out, err = consoles()
+    packing = load_packing(args.packing)
+    print_summary(packing, out, title=f"packing {args.packing}")
+    for w in packing.params.get("warnings") or []:
+        warn(err, w)
+    problems = verify_sources(packing)
+    n_files = len(packing.types) + (0 if is_spec(packing.container_path) else 1)
+    if problems:
+        for p in problems:
+            err.print(f"[red]source:[/] {escape(p)}", highlight=False, soft_wrap=True)
+        return EXIT_ERROR
+    out.print(f"sources: all {n_files} mesh files present and unchanged", highlight=False)
+    return 0

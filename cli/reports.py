@@ -1,0 +1,280 @@
+"""What the commands print (rich): the progress bar, warnings, the packing summary, the
+export summary and the validation tables.
+
+Lengths and volumes are in container units (millimetres when the result is meant for
+printing).
+"""
+
+from __future__ import annotations
+
+import contextlib
+import math
+import sys
+from collections.abc import Callable
+from pathlib import Path
+from typing import TYPE_CHECKING
+
+import numpy as np
+from rich.console import Console
+from rich.markup import escape
+from rich.progress import BarColumn, Progress, TaskProgressColumn, TextColumn, TimeElapsedColumn
+from rich.table import Table
+
+from jampacked.cli.interrupt import CancelOnInterrupt
+from jampacked.core.packing import Packing, is_spec
+
+if TYPE_CHECKING:  # imported when needed: validation pulls in numba kernels
+    from jampacked.export.assemble import ExportReport
+    from jampacked.export.validate import ValidationReport
+
+
+def consoles() -> tuple[Console, Console]:
+    """(stdout, stderr) consoles, made per call so redirected streams are honoured."""
+    return Console(file=sys.stdout), Console(file=sys.stderr)
+
+
+def warn(err: Console, message: str) -> None:
+    """``warning: MESSAGE`` on ``err`` (the stderr console)."""
+    err.print(f"[yellow]warning:[/] {escape(message)}", highlight=False, soft_wrap=True)
+
+
+def progress_bar(stack: contextlib.ExitStack, err: Console,
+                 cancel: CancelOnInterrupt | None = None) -> Callable[[float, str], None]:
+    """A rich progress bar on ``err`` for the life of ``stack``; returns the engine's
+    ``progress(fraction, message)`` callback (noting a pending Ctrl-C when ``cancel``)."""
+    bar = stack.enter_context(Progress(
+        TextColumn("[bold]{task.description}"), BarColumn(), TaskProgressColumn(),
+        TimeElapsedColumn(), console=err, transient=False))
+    task = bar.add_task("starting", total=1.0)
+
+    def update(fraction: float, message: str) -> None:
+        if cancel is not None and cancel.requested:
+            message = f"{message} [yellow](stopping: Ctrl-C)[/]"
+        bar.update(task, completed=min(max(fraction, 0.0), 1.0), description=message)
+
+    return update
+
+
+
+def _num(value, fmt: str = "{:.3g}", none: str = "-") -> str:
+    if value is None:
+        return none
+    try:
+        v = float(value)
+    except (TypeError, ValueError):
+        return str(value)
+    if not math.isfinite(v):
+        return none
+    return fmt.format(v)
+
+
+def _pct(value, digits: int = 1) -> str:
+    return _num(value, f"{{:.{digits}%}}")
+
+
+def _seconds(value) -> str:
+    return _num(value, "{:.1f} s")
+
+
+def _volume(value) -> str:
+    try:
+        v = float(value)
+    except (TypeError, ValueError):
+        return "-"
+    return f"{v:,.0f}" if 1e3 <= abs(v) < 1e15 else f"{v:.4g}"
+
+
+def _container_label(packing: Packing) -> str:
+    if is_spec(packing.container_path):
+        return packing.container_path
+    return Path(packing.container_path).name
+
+
+def print_summary(packing: Packing, console: Console, title: str | None = None) -> None:
+    """Print the summary tables of a packing: per type, quality and certificate, phases.
+
+    Reads only what the packing holds (metrics, certificate, params, timings), so a packing
+    loaded from JSON prints the same as one fresh from pack().
+    """
+    m = packing.metrics or {}
+    cert = packing.certificate or {}
+    params = packing.params or {}
+    n_types = len(packing.types)
+    counts = np.bincount(packing.type_index, minlength=n_types) if n_types else np.zeros(0)
+    total = int(counts.sum())
+    nni = list(m.get("nni_per_type") or [None] * n_types)
+    nni += [None] * (n_types - len(nni))
+
+    types = Table(title=title or "packing", title_justify="left", show_footer=True)
+    types.add_column("type", footer="all")
+    types.add_column("count", justify="right", footer=str(total))
+    types.add_column("share", justify="right", footer="100%" if total else "-")
+    types.add_column("target", justify="right", footer="100%")
+    types.add_column("NNI", justify="right", footer=_num(m.get("nni_mean"), "{:.2f}"))
+    for t, rec in enumerate(packing.types):
+        share = counts[t] / total if total else None
+        types.add_row(escape(rec.name), str(int(counts[t])), _pct(share), _pct(rec.share),
+                      _num(nni[t], "{:.2f}"))
+    console.print(types)
+
+    clearance = float(cert.get("clearance", params.get("clearance", 0.0)) or 0.0)
+    tol = cert.get("tol")
+    summary = Table(show_header=False, title="quality", title_justify="left")
+    summary.add_column("what", style="bold")
+    summary.add_column("value")
+    cs = escape(_container_label(packing))
+    summary.add_row("container", f"{cs}, volume {_volume(packing.container_volume)} units³")
+    summary.add_row("density", _pct(m.get("density")) + "  (object volume / container volume)")
+    summary.add_row("TVD", _num(m.get("tvd"), "{:.3f}") + "  (type-share error: 0 = exact mix)")
+    summary.add_row("NNI mean", _num(m.get("nni_mean"), "{:.2f}")
+                    + "  (<1 clumped, ≈1 random, >1 regular)")
+    summary.add_row("seed / fidelity", f"{packing.seed} / {params.get('fidelity', '-')}")
+    fd = params.get("fidelity_detail")
+    if fd:
+        summary.add_row("resolution", f"{fd['spheres']} spheres, {fd['grid_cells']} grid cells, "
+                        f"{fd['surface_points']} surface points per type; container grid "
+                        f"{fd['container_cells']:g} cells per smallest radius"
+                        + "".join(f"\n{r}" for r in fd.get("reasons", [])))
+    stopped = params.get("stopped")
+    if stopped:
+        why = {"deadline": "time budget reached", "cancelled": "interrupted"}.get(stopped,
+                                                                                 stopped)
+        summary.add_row("stopped early", why)
+    summary.add_section()
+    certified = cert.get("certified")
+    summary.add_row("certified", "[green]yes[/]" if certified else
+                    ("[red]NO[/]" if certified is False else "-"))
+    summary.add_row("worst overlap", _num(cert.get("worst_overlap"), "{:.2e}")
+                    + f"  of the smaller object (limit {_num(tol, '{:.0e}')})")
+    summary.add_row("worst wall violation", _num(cert.get("worst_outside"), "{:.2e}")
+                    + f"  of an object outside (limit {_num(tol, '{:.0e}')})")
+    if clearance > 0:
+        none = "no pair that close"
+        summary.add_row("min gap objects", _num(cert.get("min_pair_gap"), "{:.3g}", none)
+                        + f"  (clearance {clearance:g})")
+        summary.add_row("min gap wall", _num(cert.get("min_wall_gap"), "{:.3g}",
+                                              "no object that close")
+                        + f"  (clearance {clearance:g})")
+    else:
+        summary.add_row("clearance", "0 (objects may touch)")
+    summary.add_row("checked", f"{cert.get('pairs_checked', '-')} pairs, "
+                               f"{cert.get('walls_checked', '-')} objects near the wall")
+    repair = params.get("repair") or {}
+    if repair:
+        extra = repair.get("removed_after_final")
+        summary.add_row("repair", f"{repair.get('rounds', 0)} rounds, "
+                                  f"{repair.get('moved', 0)} moved, "
+                                  f"{repair.get('removed', 0)} removed"
+                        + (f" (+{extra} final removal rounds)" if extra else ""))
+    attempts = params.get("attempts") or []
+    if len(attempts) > 1:
+        kept = max(range(len(attempts)), key=lambda i: attempts[i]["density"])
+        for i, a in enumerate(attempts):
+            summary.add_row(f"attempt {i + 1}", f"{a['count']} objects, {_pct(a['density'])}"
+                            f", {_seconds(a['seconds'])}" + (" (kept)" if i == kept else ""))
+    console.print(summary)
+
+    timings = packing.timings or {}
+    phases = Table(title="phases", title_justify="left")
+    phases.add_column("phase")
+    phases.add_column("time", justify="right")
+    phases.add_column("objects", justify="right")
+    phases.add_column("density", justify="right")
+    after = {"phase1": m.get("after_phase1"), "phase2": m.get("after_phase2"),
+             "extra": m.get("after_extra")}
+    labels = {"load": "load meshes", "approximate": "approximate",
+              "compile": "compile kernels", "phase1": "1 place & grow",
+              "phase2": "2 fill cavities", "extra": "more cavity passes",
+              "other_attempts": "attempts not kept", "certify": "certify & repair"}
+    for key, label in labels.items():
+        if key not in timings:
+            continue
+        snap = after.get(key) or {}
+        if key == "certify":
+            snap = {"count": total, "density": m.get("density")}
+        phases.add_row(label, _seconds(timings[key]), str(snap.get("count", "")),
+                       _pct(snap.get("density")) if snap else "")
+    for key, value in timings.items():
+        if key not in labels and key != "total":
+            phases.add_row(key, _seconds(value), "", "")
+    if "total" in timings:
+        phases.add_section()
+        phases.add_row("total", _seconds(timings["total"]), str(total), _pct(m.get("density")))
+    if timings:
+        console.print(phases)
+
+
+#: bodies listed per file; failing bodies are listed first
+MAX_BODY_ROWS = 20
+
+
+def print_validation(report: ValidationReport, console: Console) -> None:
+    """Print a validation report: a table of its bodies (failing ones first, at most
+    MAX_BODY_ROWS), the whole-file checks and a PASS/FAIL line."""
+    bodies = sorted(report.bodies, key=lambda b: (b.passed, b.index))
+    table = Table(title=f"{escape(report.name)}: "
+                        f"{len(report.bodies)} bod{'y' if len(report.bodies) == 1 else 'ies'}",
+                  title_justify="left")
+    table.add_column("body", justify="right")
+    table.add_column("faces", justify="right")
+    table.add_column("volume", justify="right")
+    table.add_column("genus", justify="right")
+    table.add_column("kind")
+    table.add_column("result")
+    for b in bodies[:MAX_BODY_ROWS]:
+        result = ("[green]ok[/]" if b.passed
+                  else "[red]" + escape("; ".join(b.problems)) + "[/]")
+        table.add_row(str(b.index), str(b.faces), _volume(b.volume),
+                      "-" if b.genus is None else str(b.genus), b.kind, result)
+    rest = bodies[MAX_BODY_ROWS:]
+    if rest:
+        failing = sum(not b.passed for b in rest)
+        table.add_row("...", str(sum(b.faces for b in rest)), _volume(sum(b.volume for b in rest)),
+                      "", "", f"{len(rest)} more bodies" + (f", [red]{failing} failing[/]"
+                                                            if failing else ", all ok"))
+    console.print(table)
+    lo, hi = report.bbox_min, report.bbox_max
+    size = " x ".join(_num(b - a, "{:.4g}") for a, b in zip(lo, hi, strict=True))
+    console.print(f"  volume {_volume(report.volume)} units³, bounding box {size} units, "
+                  f"{report.n_faces} faces; self-intersections: {report.intersecting_pairs} "
+                  f"face pairs; manifold3d: {report.manifold_status}", highlight=False)
+    for problem in report.problems:
+        console.print(f"  [red]{escape(problem)}[/]", highlight=False)
+    style = "bold green" if report.passed else "bold red"
+    console.print(f"[{style}]{escape(report.summary())}[/]", highlight=False, soft_wrap=True)
+
+
+def print_export(report: ExportReport, console: Console) -> None:
+    """The export summary as a table."""
+    t = Table(title=f"export ({report.mode})", title_justify="left", show_header=False)
+    t.add_column("what")
+    t.add_column("value", justify="right")
+    t.add_row("objects", str(report.objects))
+    t.add_row("bodies", str(report.bodies))
+    t.add_row("triangles", f"{report.triangles:,}")
+    if report.triangles_saved:
+        t.add_row("saved by --resolution", f"{report.triangles_saved:,} triangles")
+    if report.mode == "connect":
+        t.add_row("connectors", f"{report.connectors} ({report.connector_length:.1f} long "
+                                f"in all)")
+        t.add_row("contacts fused", str(report.fused))
+    if report.shell is not None:
+        s = report.shell
+        t.add_row("shell wall", f"{s.thickness:g} asked; measured min {s.measured_min:.3g}, "
+                                f"median {s.measured_median:.3g}, max {s.measured_max:.3g}")
+        if s.opening:
+            t.add_row("opening", s.opening)
+        if s.drain:
+            t.add_row("drain hole", f"{s.drain:g}")
+    if report.voids_filled:
+        t.add_row("sealed voids filled", f"{report.voids_filled} "
+                                         f"({report.voids_filled_volume:,.1f} in volume)")
+    if report.min_gap is not None:
+        t.add_row("smallest gap between parts", f"{report.min_gap:.4g} (clearance "
+                                                f"{report.clearance:g})")
+    t.add_row("volume", f"{report.volume:,.1f}")
+    t.add_row("time", f"{report.timings.get('total', 0):.1f} s")
+    shown = report.paths[:6]
+    more = f"\n... and {len(report.paths) - len(shown)} more" if len(report.paths) > 6 else ""
+    t.add_row("files", "\n".join(escape(p) for p in shown) + more)
+    console.print(t)
