@@ -21,6 +21,7 @@ has changed since the packing was made.
 
 
 def add_info_parser(sub: argparse._SubParsersAction) -> None:
+    """Add the ``info`` subcommand to ``sub``."""
     p = sub.add_parser(
         "info",
         help="summarise a saved packing and check its mesh files",
@@ -37,6 +38,7 @@ def add_info_parser(sub: argparse._SubParsersAction) -> None:
 
 
 def cmd_info(args: argparse.Namespace) -> int:
+    """Run ``jampacked info``; returns the exit status."""
     out, err = consoles()
     packing = load_packing(args.packing)
     print_summary(packing, out, title=f"packing {args.packing}")

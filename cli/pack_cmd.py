@@ -48,6 +48,7 @@ press Ctrl-C twice to abort without saving. Exit status: 0 done, 1 the engine re
 
 
 def add_pack_parser(sub: argparse._SubParsersAction) -> None:
+    """Add the ``pack`` subcommand to ``sub``."""
     p = sub.add_parser(
         "pack",
         help="pack objects into a container and save the packing (JSON)",
@@ -118,6 +119,7 @@ def add_pack_parser(sub: argparse._SubParsersAction) -> None:
 
 
 def cmd_pack(args: argparse.Namespace) -> int:
+    """Run ``jampacked pack``; returns the exit status."""
     out, err = consoles()
     with contextlib.ExitStack() as stack:
         scene = resolve_scene(args, stack)

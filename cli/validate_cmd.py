@@ -29,6 +29,7 @@ Exit status: 0 every file passes, 1 some file fails, 2 a file is missing or unre
 
 
 def add_validate_parser(sub: argparse._SubParsersAction) -> None:
+    """Add the ``validate`` subcommand to ``sub``."""
     p = sub.add_parser(
         "validate",
         help="check that mesh files are watertight and printable",
@@ -55,6 +56,7 @@ def add_validate_parser(sub: argparse._SubParsersAction) -> None:
 
 
 def cmd_validate(args: argparse.Namespace) -> int:
+    """Run ``jampacked validate``; returns the exit status."""
     from jampacked.export.validate import validate_file
 
     out, _ = consoles()
