@@ -21,6 +21,8 @@ from jampacked.core.packing import Packing, container_mesh, verify_sources
 from jampacked.core.phases import equivalent_radius
 from jampacked.core.solids import to_solid
 
+from .union import SPECK_REL
+
 __all__ = [
     "PlacedScene",
     "check_placements",
@@ -181,18 +183,21 @@ class PlacedScene:
             before = s.num_tri()
             if resolution is not None:
                 s = s.simplify(resolution)
-            if s.is_empty():
-                why = (f" simplified by --resolution {resolution:g}"
-                       if before and resolution is not None else f" (manifold3d: {s.status()})")
-                raise InputError(f"type {rec.name!r} comes out empty{why}; its objects would "
-                                 "vanish from the export. Give a finer --resolution, or check "
-                                 "the type's mesh with `jampacked validate`.")
+            if not s.volume() > 0:
+                why = (f"simplified by --resolution {resolution:g}; give a finer one"
+                       if to_solid(v, f).volume() > 0 and resolution is not None else
+                       "its local_from_file in the packing is singular, or its mesh has no "
+                       "volume; re-run the packing")
+                raise InputError(f"type {rec.name!r} comes out empty: {why}. Its objects "
+                                 "would vanish from the export.")
             saved_per_type.append(before - s.num_tri())
             type_solids.append(s)
         counts = np.bincount(self.type_index, minlength=len(type_solids))
         solids = [type_solids[t].transform(self.matrices[i][:3, :]) for i, t in
                   enumerate(self.type_index)]
-        vanished = np.flatnonzero([s.is_empty() for s in solids])
+        # the union drops components this small as specks: such an object would vanish
+        speck = SPECK_REL * float(np.prod(self.hi - self.lo))
+        vanished = np.flatnonzero([not abs(s.volume()) > speck for s in solids])
         if vanished.size:
             where = f"the packing file {source}" if source else "the packing"
             scales = ", ".join(f"{packing.scales[i]:.3g}" for i in vanished[:NAMED])

@@ -20,7 +20,12 @@ from .cleanup import remove_degenerate_faces
 from .intersect import intersecting_pairs
 from .validate import merge_identical
 
-__all__ = ["Cleaned", "clean_bodies", "clean_arrays", "drop_specks", "union_arrays"]
+__all__ = ["SPECK_REL", "Cleaned", "clean_bodies", "clean_arrays", "drop_specks",
+           "union_arrays"]
+
+#: components of a union with less volume than this fraction of its bounding box are specks
+#: (where a strut grazes a surface), dropped
+SPECK_REL = 1e-9
 
 
 def union_arrays(pieces: list[m3.Manifold], shell: m3.Manifold | None,
@@ -140,7 +145,7 @@ def clean_bodies(v: np.ndarray, f: np.ndarray, *, fill_voids: bool,
     A closed void inside a solid is a component of negative volume, not a body; dropping its
     surface fills it, so the print traps no resin or powder there.
     """
-    speck = 1e-9 * float(np.prod(np.ptp(v, axis=0))) if len(v) else 0.0
+    speck = SPECK_REL * float(np.prod(np.ptp(v, axis=0))) if len(v) else 0.0
     v, f, volumes, filled = drop_specks(v, f, speck, fill_voids=fill_voids and not closed_shell)
     out = Cleaned(vertices=v, faces=f, bodies=int(np.sum(volumes > 0)),
                   volume=float(volumes.sum()), voids_filled=len(filled),
