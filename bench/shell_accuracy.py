@@ -76,10 +76,10 @@ def run_shell(name: str, vertices: np.ndarray, faces: np.ndarray, thickness: flo
 def run_level_set(vertices: np.ndarray, faces: np.ndarray, thickness: float,
                   spacing: float) -> dict:
     """manifold3d level_set over the same distance grid, read by a Python callback."""
-    from jampacked.export.shell import _offset_grid
+    from jampacked.export.offset import offset_grid
 
-    values, origin = _offset_grid(np.ascontiguousarray(vertices, np.float64),
-                                  np.ascontiguousarray(faces, np.int64), thickness, spacing)
+    values, origin = offset_grid(np.ascontiguousarray(vertices, np.float64),
+                                 np.ascontiguousarray(faces, np.int64), thickness, spacing)
     flat = values.ravel().tolist()
     nx, ny, nz = values.shape
     ox, oy, oz = origin.tolist()

@@ -26,7 +26,11 @@ from scipy.sparse import coo_matrix
 from scipy.sparse.csgraph import connected_components, minimum_spanning_tree
 from scipy.spatial import Delaunay, QhullError, cKDTree
 
+from jampacked.core.phases import equivalent_radius
+from jampacked.core.solids import solid_arrays
+
 from .closest import Surface
+from .scene import PlacedScene, transform_points
 
 #: a strut poking out of the container by more than this fraction of its volume is refused
 OUTSIDE_TOL = 1e-4
@@ -269,3 +273,29 @@ def _strut_between(pa: np.ndarray, pb: np.ndarray, diameter: float,
     sink_b = 0.5 * shell_thickness if to_shell else sink
     return strut(pa - sink * u, pb + sink_b * u, diameter,
                  spin=(0.5 + 0.618 * variant) / np.sqrt(2.0))
+
+
+def default_diameter(type_volumes: Sequence[float]) -> float:
+    """0.2 x the smallest type's equivalent diameter: sturdy but small beside the objects."""
+    return 0.4 * float(equivalent_radius(min(type_volumes)))
+
+
+def connect_scene(scene: PlacedScene, diameter: float, shell: m3.Manifold | None = None,
+                  shell_thickness: float = 0.0, *,
+                  should_cancel: Callable[[], bool] | None = None,
+                  progress: Callable[[float, str], None] | None = None,
+                  variant: int = 0) -> ConnectPlan:
+    """Struts tying a placed scene's objects (and its shell's bodies) into one body.
+
+    The scene's objects, the shell split into its bodies, and the region outside the
+    container that struts between objects must not enter: see :func:`plan_connectors`.
+    """
+    surfaces = [Surface(v, f) for v, f in zip(scene.local, scene.type_faces, strict=True)]
+    placed = [PlacedObject(solid=s, vertices=transform_points(scene.matrices[i], scene.local[t]),
+                           world_from_local=scene.matrices[i], surface=surfaces[t])
+              for i, (s, t) in enumerate(zip(scene.solids, scene.type_index, strict=True))]
+    shells = [(part, Surface(*solid_arrays(part))) for part in
+              (shell.decompose() if shell is not None else [])]
+    return plan_connectors(placed, diameter, shells=shells, shell_thickness=shell_thickness,
+                           outside=scene.outside(), should_cancel=should_cancel,
+                           progress=progress, variant=variant)

@@ -112,3 +112,41 @@ class ExportOptions:
                              "THICKNESS too.")
         if self.split_files and self.mode != "parts":
             raise InputError("one file per part only applies to --mode parts.")
+
+
+#: a resolution coarser than this fraction of an object's (or the container's) size would
+#: simplify it out of shape, or to nothing
+RESOLUTION_PER_SIZE = 0.25
+
+
+def check_scale(options: ExportOptions, extents: np.ndarray,
+                smallest_object: float | None) -> None:
+    """Refuse lengths that cannot work at the scene's scale, naming the option and the fix.
+
+    extents: (3,) the container's bounding-box extents; smallest_object: the smallest type's
+    equivalent diameter, or None when there are no objects. Container units. Run before any
+    heavy work: a shell, a strut or a drain wider than the container, or a resolution
+    coarser than the objects, would otherwise end deep inside the geometry.
+    """
+    small = float(np.min(extents))
+    if options.shell is not None and options.shell >= 0.5 * small:
+        raise InputError(
+            f"--shell {options.shell:g} is too thick for this container: its smallest extent "
+            f"is {small:.4g}, so walls that thick from both sides leave no cavity. Give a "
+            f"thickness well below {0.5 * small:.3g} (e.g. {0.05 * small:.2g}).")
+    for name, value in (("--drain", options.drain), ("--connector", options.connector)):
+        if value is not None and value >= small:
+            raise InputError(
+                f"{name} {value:g} is wider than the container (its smallest extent is "
+                f"{small:.4g}). Give a diameter well below that (e.g. {0.05 * small:.2g}).")
+    if options.resolution is None:
+        return
+    size, what = small, "the container's smallest extent"
+    if smallest_object is not None and smallest_object < size:
+        size, what = smallest_object, "the smallest object's equivalent diameter"
+    if options.resolution > RESOLUTION_PER_SIZE * size:
+        raise InputError(
+            f"--resolution {options.resolution:g} is coarser than the scene: {what} is "
+            f"{size:.4g}, and simplifying by the resolution would wear it out of shape or to "
+            f"nothing. Give your printer's resolution, below {RESOLUTION_PER_SIZE * size:.3g} "
+            "(e.g. 0.05 for 0.05 mm).")

@@ -489,3 +489,100 @@ def test_stl_export_survives_slivers_that_fold_over_in_float32(tmp_path):
     assert validate_file(tmp_path / "a.stl").passed
     assert rep.volume == pytest.approx(volume, rel=1e-6)
     assert _meshio_volume(tmp_path / "a.stl") == pytest.approx(volume, rel=1e-5)
+
+
+# --------------------------------------------------------------------------- inputs refused
+# (issue 20: what export did with packings and options it cannot honour)
+
+
+def _made(n: int = 4, **fields) -> Packing:
+    """A packing object of `n` polytopes 26 apart in an 80 box (clearance 1), fields replaced."""
+    recs = []
+    for path in (P1, P3):
+        m = load_mesh(path)
+        recs.append(TypeRecord(name=path.stem, path=str(path), sha256=m.sha256, share=0.5,
+                               local_from_file=_shift(-m.centroid), volume=m.volume))
+    base = dict(container_path="box:80x80x80", container_sha256=None,
+                frame_from_file=np.eye(4), container_volume=80.0 ** 3, types=recs,
+                type_index=np.arange(n) % 2, rotations=np.tile([1.0, 0, 0, 0], (n, 1)),
+                translations=_grid(26.0)[:n], scales=np.ones(n),
+                params={"clearance": 1.0})
+    base.update(fields)
+    return Packing(**base)
+
+
+@pytest.mark.parametrize("field, value, what", [
+    ("scales", [1.0, 0.0, 1.0, 1.0], "scale"),
+    ("scales", [1.0, float("nan"), 1.0, 1.0], "scale"),
+    ("rotations", [[1.0, 0, 0, 0], [0.0, 0, 0, 0], [1.0, 0, 0, 0], [1.0, 0, 0, 0]],
+     "rotation"),
+])
+def test_singular_placements_are_refused_by_name_not_dropped(tmp_path, field, value, what):
+    out = tmp_path / "u.stl"
+    with pytest.raises(InputError, match=rf"object 1 \(polytope3\): a zero or non-finite "
+                                         rf"{what}.*scale 1"):
+        export_packing(_made(**{field: np.array(value)}), out, ExportOptions(mode="union"))
+    assert not out.exists()
+
+
+@pytest.mark.parametrize("translation", [[1e300, 0.0, 0.0], [0.0, 1e3, 0.0]])
+def test_objects_far_outside_the_container_are_refused_by_name(tmp_path, translation):
+    t = _grid(26.0)[:4]
+    t[2] = translation
+    out = tmp_path / "u.stl"
+    with pytest.raises(InputError, match=r"object 2 \(polytope1\) outside the container"):
+        export_packing(_made(translations=t), out, ExportOptions(mode="union"))
+    assert not out.exists()
+
+
+@pytest.mark.parametrize("value", [None, [1], "abc", float("nan"), -5.0, True])
+def test_a_bad_stored_clearance_names_the_file_and_field(tmp_path, value):
+    save_packing(_made(), tmp_path / "p.json")
+    doc = json.loads((tmp_path / "p.json").read_text())
+    doc["params"]["clearance"] = value
+    (tmp_path / "p.json").write_text(json.dumps(doc))
+    with pytest.raises(InputError, match=r"p\.json.*params\.clearance"):
+        export_packing(tmp_path / "p.json", tmp_path / "u.stl", ExportOptions(mode="union"))
+    with pytest.raises(InputError, match=r"the packing has params\.clearance"):
+        export_packing(_made(params={"clearance": value}), tmp_path / "u.stl",
+                       ExportOptions(mode="union"))
+
+
+def test_parts_of_a_packing_without_clearance_are_refused_before_any_work(tmp_path,
+                                                                          monkeypatch):
+    import jampacked.export.assemble as assemble
+
+    def no_work(*args, **kwargs):
+        raise AssertionError("the meshes were loaded before the refusal")
+
+    monkeypatch.setattr(assemble, "load_sources", no_work)
+    src = _packing(tmp_path, _grid(9.0), [0, 1] * 4)  # touching objects, clearance 0
+    with pytest.raises(InputError, match=r"needs a gap.*--clearance.*--mode union") as err:
+        export_packing(src, tmp_path / "parts.3mf", ExportOptions(mode="parts"))
+    assert "bug" not in str(err.value) and not (tmp_path / "parts.3mf").exists()
+
+
+@pytest.mark.parametrize("options, name", [
+    (ExportOptions(mode="parts", resolution=1e9), "--resolution"),
+    (ExportOptions(mode="union", resolution=30.0), "--resolution"),
+    (ExportOptions(mode="union", shell=1e9), "--shell"),
+    (ExportOptions(mode="union", shell=40.0), "--shell"),
+    (ExportOptions(mode="connect", connector=1e9), "--connector"),
+    (ExportOptions(mode="union", shell=2.0, drain=1e9), "--drain"),
+])
+def test_lengths_out_of_scale_name_the_option(apart, tmp_path, options, name):
+    out = tmp_path / "o.stl"
+    with pytest.raises(InputError, match=name):
+        export_packing(apart, out, options)
+    assert not out.exists()
+
+
+def test_objects_scaled_to_nothing_are_refused_by_name(tmp_path):
+    with pytest.raises(InputError, match=r"object 3 \(polytope3\) to nothing.*scale 1"):
+        export_packing(_made(scales=np.array([1.0, 1.0, 1.0, 1e-9])), tmp_path / "u.stl",
+                       ExportOptions(mode="union"))
+    p = _made()
+    p.types[0].local_from_file = np.diag([0.0, 0.0, 0.0, 1.0])  # a singular type frame
+    with pytest.raises(InputError, match=r"type 'polytope1' comes out empty.*singular"):
+        export_packing(p, tmp_path / "u.stl", ExportOptions(mode="union"))
+    assert not (tmp_path / "u.stl").exists()

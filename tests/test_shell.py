@@ -1,4 +1,5 @@
-"""Tests for jampacked.export.shell: the container shell, its openings and its accuracy.
+"""Tests for jampacked.export.shell and its stages (offset, openings, wall): the container
+shell, its openings and its accuracy.
 
 Small meshes (trimesh.creation boxes, icospheres and a torus, in mm) keep the file fast; one
 test runs Spot the cow from ../shared/meshes at 150 mm.
@@ -17,15 +18,11 @@ import pytest
 import trimesh
 
 from jampacked.core.errors import InputError
+from jampacked.export.marching import march_tetrahedra
 from jampacked.export.options import Opening
-from jampacked.export.shell import (
-    ShellReport,
-    make_shell,
-    march_tetrahedra,
-    measure_wall_thickness,
-    surface_distance,
-)
+from jampacked.export.shell import ShellReport, make_shell
 from jampacked.export.validate import validate_arrays
+from jampacked.export.wall import measure_wall_thickness, surface_distance
 
 SHARED = Path(__file__).resolve().parents[2] / "shared" / "meshes"
 
@@ -92,9 +89,9 @@ def test_surface_distance_matches_numpy_reference():
 
 
 def test_simplification_falls_back_when_validation_fails(sphere, monkeypatch):
-    import jampacked.export.shell as shell_module
+    import jampacked.export.offset as offset_module
 
-    real = shell_module.validate_arrays
+    real = offset_module.validate_arrays
     calls = []
 
     def refuse_first(v, f, **kw):  # the first (coarsest) attempt "fails" validation
@@ -102,15 +99,15 @@ def test_simplification_falls_back_when_validation_fails(sphere, monkeypatch):
         report = real(v, f, **kw)
         return report if len(calls) > 1 else type("R", (), {"passed": False})()
 
-    monkeypatch.setattr(shell_module, "validate_arrays", refuse_first)
+    monkeypatch.setattr(offset_module, "validate_arrays", refuse_first)
     shell, report = make_shell(sphere.vertices, sphere.faces, 1.5, resolution=0.75)
     assert len(calls) == 2 and calls[1] > calls[0]  # a smaller tolerance keeps more faces
     # tolerance asked with a resolution: min(resolution / 2, T / 10)
-    assert report.tolerance == pytest.approx(shell_module.SIMPLIFY_LADDER[1] * 0.15)
+    assert report.tolerance == pytest.approx(offset_module.SIMPLIFY_LADDER[1] * 0.15)
     validated(shell)
     simplified = report.triangles
 
-    monkeypatch.setattr(shell_module, "validate_arrays",
+    monkeypatch.setattr(offset_module, "validate_arrays",
                         lambda v, f, **kw: type("R", (), {"passed": False})())
     shell, report = make_shell(sphere.vertices, sphere.faces, 1.5, resolution=0.75)
     assert report.tolerance == 0.0 and "could not be simplified" in report.notes[0]

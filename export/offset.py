@@ -1,0 +1,183 @@
+"""The container offset inward by the wall thickness T: the cavity a shell encloses.
+
+Frame and units: the container frame, container units (millimetres for printing); the
+container mesh given is already scaled, closed and outward wound.
+
+How the offset is made (chosen by measurement: bench/shell_accuracy.py, figures in
+docs/notes-export.md):
+
+1. a signed distance grid (positive inside) over the container's bounds, exact within
+   ``T + 2`` cells of the surface (:mod:`jampacked.core.distance`: exact point-triangle
+   distances in a band, ray parity for the sign); deeper nodes only need to be known deeper;
+2. marching tetrahedra (:mod:`jampacked.export.marching`) extracts the level set
+   ``distance = T``, watertight by construction;
+3. manifold3d simplifies it to a tolerance (far fewer triangles, every point moves less than
+   the tolerance). Its simplification can fold triangles over (elalish/manifold #970), so
+   each result is validated (:func:`jampacked.export.validate.validate_arrays`) and retried
+   with smaller tolerances, the unsimplified surface last.
+
+manifold3d's ``level_set`` (a Python call per grid point) and ``minkowski_difference`` with a
+polygonal sphere (its facets cut into the wall) were slower and less accurate.
+
+Parts of the container thinner than 2T have no inside after the offset: they stay solid.
+Cavities smaller than T^3 (specks where the container is barely thicker than 2T) are filled,
+since a sealed speck of a void only traps resin or powder.
+"""
+
+from __future__ import annotations
+
+import math
+
+import manifold3d as m3
+import numpy as np
+
+from jampacked.core.distance import band_distances, inside_mask
+from jampacked.core.errors import InputError
+from jampacked.core.solids import solid_arrays, to_solid
+
+from .marching import march_tetrahedra
+from .validate import validate_arrays
+from .wall import surface_distance
+
+__all__ = ["MAX_GRID_NODES", "grid_spacing", "inner_solid", "offset_grid"]
+
+#: the distance grid never has more nodes than this (memory about 40 bytes a node)
+MAX_GRID_NODES = 4_000_000
+#: default grid spacing as a fraction of the thickness
+SPACING_PER_T = 0.25
+#: cavities smaller than this times T^3 are filled (see the module docstring)
+MIN_CAVITY_PER_T3 = 1.0
+#: after simplification, triangles thinner than this fraction of the container's bounding-box
+#: diagonal are removed (manifold3d set_tolerance)
+SLIVER_REL = 1e-6
+#: simplification attempts, as fractions of the tolerance asked (see _simplified)
+SIMPLIFY_LADDER = (1.0, 0.6, 0.35)
+
+
+def grid_spacing(lo: np.ndarray, hi: np.ndarray, thickness: float,
+                 resolution: float | None) -> float:
+    """Grid spacing: T/4 (or the printer resolution), coarsened to stay under the node cap."""
+    h = resolution if resolution is not None else SPACING_PER_T * thickness
+    h = max(h, float(np.prod(hi - lo) / MAX_GRID_NODES) ** (1.0 / 3.0))
+    while np.prod(np.ceil((hi - lo) / h + 3.0)) > MAX_GRID_NODES:
+        h *= 1.05
+    return float(h)
+
+
+def offset_grid(vertices: np.ndarray, faces: np.ndarray, thickness: float,
+                spacing: float) -> tuple[np.ndarray, np.ndarray]:
+    """Signed distance (positive inside) on a grid over the bounds + 1 cell; (values, origin).
+
+    Exact at every node within ``T + 2`` cells of the surface; deeper nodes read exactly that
+    cap. That is all marching at level T needs: a grid edge is at most sqrt(3) cells long and
+    the distance is 1-Lipschitz, so no edge that crosses T touches a capped node.
+    """
+    band = math.ceil(thickness / spacing) + 2
+    origin = vertices.min(axis=0) - spacing
+    shape = tuple(int(n) for n in np.ceil((vertices.max(axis=0) + spacing - origin) / spacing)
+                  .astype(np.int64) + 1)
+    dist, _ = band_distances(vertices, faces, origin, spacing, np.asarray(shape, np.int64),
+                             float(band))
+    np.minimum(dist, band * spacing, out=dist)
+    inside = inside_mask(vertices, faces, origin, spacing, shape)
+    return np.where(inside, dist, -dist), origin
+
+
+def _deepest(values: np.ndarray, origin: np.ndarray, spacing: float, vertices: np.ndarray,
+             faces: np.ndarray, candidates: int = 4, steps: int = 5, rounds: int = 6) -> float:
+    """The container's largest inscribed distance, refined from the grid's deepest nodes.
+
+    Around each of the ``candidates`` deepest nodes, exact distances on a local grid of
+    ``steps``³ points; the best point becomes the next centre and the local grid shrinks by
+    ``steps - 1`` / 2 each round. Local points stay within the ball of their centre's depth,
+    so they are inside the container. Used for the error message only.
+    """
+    flat = values.ravel()
+    k = min(candidates, flat.size)
+    best = np.argpartition(flat, -k)[-k:]
+    best = best[flat[best] > 0]
+    if best.size == 0:
+        return 0.0
+    centres = origin + spacing * np.stack(np.unravel_index(best, values.shape), axis=1)
+    depth = flat[best]
+    axis = np.linspace(-1.0, 1.0, steps)
+    local = np.stack(np.meshgrid(axis, axis, axis, indexing="ij"), axis=-1).reshape(-1, 3)
+    reach = spacing
+    for _ in range(rounds):
+        r = np.minimum(reach, 0.999 * depth / math.sqrt(3.0))
+        points = centres[:, None, :] + r[:, None, None] * local[None]
+        d = surface_distance(points.reshape(-1, 3), vertices, faces).reshape(len(centres), -1)
+        pick = d.argmax(axis=1)
+        better = d[np.arange(len(centres)), pick] > depth
+        centres[better] = points[better, pick[better]]
+        depth = np.maximum(depth, d[np.arange(len(centres)), pick])
+        reach *= 2.0 / (steps - 1)
+    return float(depth.max())
+
+
+def _too_thick(thickness: float, deepest: float) -> InputError:
+    """The error for an offset with no cavity left; ``deepest``: largest inscribed distance."""
+    if deepest <= thickness:
+        why = (f"its deepest inside point is only {deepest:.3g} units from its surface, so "
+               f"offsetting the wall inward by {thickness:g} leaves no cavity")
+    else:
+        why = (f"its deepest inside point is {deepest:.3g} units from its surface, so "
+               f"offsetting the wall inward by {thickness:g} leaves at most a speck of cavity "
+               f"(cavities under {MIN_CAVITY_PER_T3:g} T³ are filled)")
+    return InputError(
+        f"shell thickness {thickness:g} is too thick for this container: {why}. Fix: give a "
+        f"thickness below {deepest:.3g} (in practice well below it, e.g. "
+        f"{0.5 * deepest:.2g}, so the cavity can hold objects), or scale the container up."
+    )
+
+
+def _drop_specks(inner: m3.Manifold, thickness: float) -> list[m3.Manifold]:
+    """The cavities of ``inner`` worth keeping (volume at least MIN_CAVITY_PER_T3 T³)."""
+    return [p for p in inner.decompose() if p.volume() >= MIN_CAVITY_PER_T3 * thickness ** 3]
+
+
+def _simplified(raw: m3.Manifold, thickness: float, tolerance: float,
+                diagonal: float) -> tuple[list[m3.Manifold], float]:
+    """The cavities, simplified to ``tolerance`` where that provably keeps them watertight.
+
+    manifold3d's simplification can fold triangles over or leave slivers (elalish/manifold
+    #970; how often: docs/notes-export.md). So each attempt is validated
+    (closed, no degenerate faces, no self-intersections), with smaller tolerances next, and
+    the unsimplified surface (watertight by construction) last. Returns (cavities, the
+    tolerance used, 0.0 for none).
+    """
+    exact = raw.get_tolerance()
+    for factor in SIMPLIFY_LADDER:
+        # simplify; remove the slivers it leaves (far below print precision); restore the
+        # tolerance so that later booleans keep the container's own mesh exact
+        candidate = (raw.simplify(factor * tolerance).set_tolerance(SLIVER_REL * diagonal)
+                     .set_tolerance(exact))
+        parts = _drop_specks(candidate, thickness)
+        if not parts:
+            return parts, factor * tolerance
+        v, f = solid_arrays(m3.Manifold.compose(parts))
+        if validate_arrays(v, f).passed:
+            return parts, factor * tolerance
+    return _drop_specks(raw, thickness), 0.0
+
+
+def inner_solid(vertices: np.ndarray, faces: np.ndarray, thickness: float, spacing: float,
+                tolerance: float) -> tuple[m3.Manifold, int, float]:
+    """The container offset inward by T (the cavities): (solid, cavities, tolerance used).
+
+    vertices (V, 3) / faces (F, 3): the container, closed and outward wound; thickness T,
+    grid ``spacing`` and simplification ``tolerance`` in its units. Raises InputError when T
+    leaves no cavity (the message gives the largest T that works).
+    """
+    values, origin = offset_grid(vertices, faces, thickness, spacing)
+    if float(values.max()) <= thickness:
+        raise _too_thick(thickness, _deepest(values, origin, spacing, vertices, faces))
+    v, f = march_tetrahedra(values, thickness, origin, spacing)
+    raw = to_solid(v, f)
+    if raw.status() != m3.Error.NoError:  # pragma: no cover - marching output is manifold
+        raise RuntimeError(f"inner shell surface rejected by manifold3d: {raw.status()}")
+    diagonal = float(np.linalg.norm(vertices.max(axis=0) - vertices.min(axis=0)))
+    parts, used = _simplified(raw, thickness, tolerance, diagonal)
+    if not parts:
+        raise _too_thick(thickness, _deepest(values, origin, spacing, vertices, faces))
+    return m3.Manifold.compose(parts), len(parts), used

@@ -1,0 +1,189 @@
+"""Openings in a shell: a plane cut, a round window, and a drain hole.
+
+Frame and units: the container frame, container units (millimetres for printing), with +z
+up (the drain goes down); :func:`jampacked.export.shell.make_shell` is given the container
+already turned that way.
+"""
+
+from __future__ import annotations
+
+import math
+
+import manifold3d as m3
+import numpy as np
+
+from jampacked.core.errors import InputError
+from jampacked.core.solids import solid_arrays
+
+from .options import Opening
+
+__all__ = ["cut_window", "drill_drain", "opening_label", "plane_cut"]
+
+#: segments of the cylinders cut for windows and drains
+CYLINDER_SEGMENTS = 48
+
+
+def _axis(axis: str) -> tuple[int, float, np.ndarray]:
+    """'+x' -> (0, +1.0, unit vector)."""
+    a = "xyz".index(axis[1])
+    sign = 1.0 if axis[0] == "+" else -1.0
+    unit = np.zeros(3)
+    unit[a] = sign
+    return a, sign, unit
+
+
+def _cylinder(start: np.ndarray, direction: np.ndarray, length: float,
+              radius: float) -> m3.Manifold:
+    """Solid cylinder of ``radius`` from ``start`` along unit ``direction`` for ``length``."""
+    cyl = m3.Manifold.cylinder(length, radius, radius, CYLINDER_SEGMENTS)
+    d = direction / np.linalg.norm(direction)
+    helper = np.array([1.0, 0.0, 0.0]) if abs(d[0]) < 0.9 else np.array([0.0, 1.0, 0.0])
+    e1 = np.cross(helper, d)
+    e1 /= np.linalg.norm(e1)
+    e2 = np.cross(d, e1)
+    # manifold3d's affine: 3x4 [R | t], columns of R = images of x, y, z
+    mat = np.column_stack([e1, e2, d, np.asarray(start, np.float64)])
+    return cyl.transform(mat)
+
+
+def _disc_offsets(radius: float, e1: np.ndarray, e2: np.ndarray) -> list[np.ndarray]:
+    """Points of a disc (centre, two rings) to cast rays through: the wall across the disc."""
+    out = [np.zeros(3)]
+    for r in (0.5 * radius, radius):
+        for k in range(8):
+            angle = 2 * math.pi * k / 8 + 0.1234  # off the axes: no ray along a box edge
+            out.append(r * (math.cos(angle) * e1 + math.sin(angle) * e2))
+    return out
+
+
+def plane_cut(shell: m3.Manifold, opening: Opening, lo: np.ndarray,
+              hi: np.ndarray) -> m3.Manifold:
+    """Remove the shell beyond the opening plane (see :class:`Opening`)."""
+    a, sign, unit = _axis(opening.axis)
+    at = lo[a] + opening.at * (hi[a] - lo[a]) if sign > 0 else hi[a] - opening.at * (hi[a] - lo[a])
+    # trim keeps the side the normal points to: {-sign x_a >= -sign at}
+    return shell.trim_by_plane(tuple(-unit), float(-sign * at))
+
+
+def _ray_hits(shell: m3.Manifold, start: np.ndarray, direction: np.ndarray,
+              length: float) -> list[tuple[float, bool]]:
+    """Surface crossings along a ray: (distance from ``start``, entering the solid?), sorted.
+
+    Entering when the surface's outward normal faces the ray. Crossings closer together than
+    1e-9 of ``length`` (a ray through an edge meets both triangles) count once.
+    """
+    hits = shell.ray_cast(tuple(start), tuple(start + length * direction))
+    out: list[tuple[float, bool]] = []
+    for h in sorted(hits, key=lambda h: h.distance):
+        t = h.distance * length
+        if out and t - out[-1][0] <= 1e-9 * length:
+            continue
+        out.append((t, float(np.dot(h.normal, direction)) < 0.0))
+    return out
+
+
+def _first_exit(hits: list[tuple[float, bool]]) -> tuple[float | None, float]:
+    """(where the solid is first left, where it is entered again after that or inf)."""
+    for i, (t, entering) in enumerate(hits):
+        if not entering:
+            later = [u for u, e in hits[i + 1:] if e]
+            return t, later[0] if later else math.inf
+    return None, math.inf
+
+
+def cut_window(shell: m3.Manifold, opening: Opening, lo: np.ndarray, hi: np.ndarray,
+               thickness: float, notes: list[str]) -> m3.Manifold:
+    """Cut a round window through the first wall seen from outside along ``opening.axis``.
+
+    The cylinder runs from outside the bounds inward and stops a little past where rays
+    across its disc leave that wall (never past the bounding-box centre), so walls further
+    in (the far side, or the inner ring of a torus) stay intact.
+    """
+    a, _, unit = _axis(opening.axis)
+    radius = 0.5 * opening.size
+    centre = 0.5 * (lo + hi)
+    e1 = np.zeros(3)
+    e1[(a + 1) % 3] = 1.0
+    e2 = np.cross(unit, e1)
+    reach = 0.5 * (hi[a] - lo[a]) + thickness + radius + 1.0  # centre to beyond the bounds
+    depths = []
+    for off in _disc_offsets(radius, e1, e2):
+        exit_at, _ = _first_exit(_ray_hits(shell, centre + off + reach * unit, -unit, reach))
+        if exit_at is not None:
+            depths.append(exit_at)
+    if not depths:
+        raise InputError(
+            f"the window along {opening.axis} misses the shell: the line through the "
+            "container's bounding-box centre along that axis meets no wall within the window's "
+            "diameter. Fix: pick another axis, a larger window, or a plane opening."
+        )
+    inward = max(depths) + 0.5 * thickness  # a little into the cavity
+    if inward >= reach:
+        inward = reach
+        notes.append(f"the window along {opening.axis} reaches the bounding-box centre: the "
+                     "wall there is thicker than the window is deep, or it is solid.")
+    start = centre + (reach - inward) * unit
+    return shell - _cylinder(start, unit, inward + 1.0, radius)
+
+
+def _drain_site(shell: m3.Manifold, cavity_vertices: np.ndarray, thickness: float,
+                size: float) -> np.ndarray:
+    """Where the drain leaves the cavity: its lowest point, or the middle of a flat floor.
+
+    A flat floor's lowest vertex is a corner, where the hole would cut the side walls: so the
+    middle (mean x, y) of the vertices within T/20 of the lowest is used when the floor is
+    really there (just above it is cavity, just below it is wall).
+    """
+    z = cavity_vertices[:, 2]
+    lowest = cavity_vertices[np.argmin(z)]
+    low = cavity_vertices[z <= z.min() + 0.05 * thickness]
+    middle = np.array([low[:, 0].mean(), low[:, 1].mean(), z.min()])
+    eps = 0.05 * thickness + 1e-6 * size
+    start = middle + np.array([0.0, 0.0, 2.0 * eps])
+    hits = _ray_hits(shell, start, np.array([0.0, 0.0, -1.0]), size)
+    if hits and hits[0][1] and hits[0][0] <= 3.0 * eps:  # the first crossing enters the wall
+        return start - np.array([0.0, 0.0, hits[0][0]])
+    return lowest
+
+
+def drill_drain(shell: m3.Manifold, inner: m3.Manifold, diameter: float,
+                thickness: float) -> tuple[m3.Manifold, tuple[float, float, float]]:
+    """Drill a vertical drain hole from the cavity's lowest point down through the wall.
+
+    Resin and powder printers need it: uncured resin or loose powder trapped in a closed
+    cavity cannot escape (resin also causes suction and cracking). The hole sits under the
+    lowest point of the cavities, where liquid pools with the container standing as modelled
+    (-z down). It starts a little above that point (short of the ceiling) and ends a margin
+    below where the wall is left, but never reaches a part of the container further below.
+    """
+    v, _ = solid_arrays(inner)
+    radius = 0.5 * diameter
+    up = np.array([0.0, 0.0, 1.0])
+    size = float(np.ptp(v[:, 2])) + 4.0 * thickness + diameter + 1.0
+    low = _drain_site(shell, v, thickness, size)
+    # the cavity's floor rises across the disc: start up to radius + T/4 above, short of the
+    # ceiling
+    ceiling = [t for t, _ in _ray_hits(shell, low, up, size) if t > 1e-6 * size]
+    rise = radius + 0.25 * thickness
+    if ceiling:
+        rise = min(rise, 0.5 * ceiling[0])
+    top = low + rise * up
+    exit_at, below = _first_exit(_ray_hits(shell, top, -up, size))
+    if exit_at is None:  # pragma: no cover - a point in a closed cavity always gets out
+        exit_at = rise + thickness
+    depth = exit_at + radius + thickness  # clear the outer surface's slope across the disc
+    for off in _disc_offsets(radius, np.array([1.0, 0.0, 0.0]), np.array([0.0, 1.0, 0.0])):
+        _, next_entry = _first_exit(_ray_hits(shell, top + off, -up, size))
+        below = min(below, next_entry)
+    depth = min(depth, 0.5 * (exit_at + below))
+    hole = _cylinder(top, -up, depth, radius)
+    return shell - hole, (float(low[0]), float(low[1]), float(low[2]))
+
+
+def opening_label(opening: Opening | None) -> str | None:
+    """How a report names an opening: ``"plane +z@0.75"``, ``"window +y 30 mm"`` or None."""
+    if opening is None:
+        return None
+    if opening.kind == "plane":
+        return f"plane {opening.axis}@{opening.at:g}"
+    return f"window {opening.axis} {opening.size:g} mm"

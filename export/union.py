@@ -1,0 +1,161 @@
+"""One body from many solids: the union, cleaned of slivers and specks, voids filled.
+
+Frames: the caller's (the packing's container frame, container units). manifold3d does the
+booleans; the arrays go straight to the writer.
+"""
+
+from __future__ import annotations
+
+from dataclasses import dataclass, field
+
+import manifold3d as m3
+import numpy as np
+from scipy.sparse import coo_matrix
+from scipy.sparse.csgraph import connected_components
+
+from jampacked.core.errors import MeshError
+from jampacked.core.solids import solid_arrays
+
+from .cleanup import remove_degenerate_faces
+from .intersect import intersecting_pairs
+from .validate import merge_identical
+
+__all__ = ["SPECK_REL", "Cleaned", "clean_bodies", "clean_arrays", "drop_specks",
+           "union_arrays"]
+
+#: components of a union with less volume than this fraction of its bounding box are specks
+#: (where a strut grazes a surface), dropped
+SPECK_REL = 1e-9
+
+
+def union_arrays(pieces: list[m3.Manifold], shell: m3.Manifold | None,
+                 resolution: float | None, float32: bool = False
+                 ) -> tuple[np.ndarray, np.ndarray, int, int]:
+    """Union of the pieces and the shell: (vertices, faces, bad faces left, triangles the
+    resolution saved); see :func:`clean_arrays` for the bad faces.
+
+    Raises MeshError when manifold3d fails or returns a wrong result (more volume than its
+    parts); nothing is written then.
+    """
+    result = m3.Manifold.batch_boolean(pieces, m3.OpType.Add)
+    if shell is not None:
+        # a separate boolean: batch_boolean with a hollow shell among hundreds of pieces
+        # returned the solid container (cavity filled) in manifold3d 3.x
+        result = result + shell
+    if result.status() != m3.Error.NoError:
+        raise MeshError(f"the union failed in manifold3d ({result.status()}); nothing was "
+                        "written. Check the type meshes (`jampacked validate`) and the "
+                        "packing's placements (`jampacked info`); if both are sound, report "
+                        "this with the packing file.")
+    total = sum(p.volume() for p in pieces) + (shell.volume() if shell else 0.0)
+    if result.volume() > total * (1 + 1e-6) + 1e-9:
+        raise MeshError(f"the union's volume ({result.volume():.6g}) exceeds the sum of its "
+                        f"parts ({total:.6g}): manifold3d returned a wrong result; nothing "
+                        "was written. Check the type meshes (`jampacked validate`) and the "
+                        "packing's placements (`jampacked info`); if both are sound, report "
+                        "this with the packing file.")
+    saved = 0
+    if resolution is not None:
+        before = result.num_tri()
+        result = result.simplify(resolution)
+        saved = before - result.num_tri()
+    v, f, left = clean_arrays(result, float32=float32)
+    return v, f, left, saved
+
+
+def clean_arrays(result: m3.Manifold, float32: bool = False
+                 ) -> tuple[np.ndarray, np.ndarray, int]:
+    """The result's arrays without zero-area faces (see export/cleanup.py), and how many
+    faces are left bad. With `float32` (an STL or PLY will be written) a face that
+    intersects another once the positions are rounded to float32 is bad too: slivers
+    from the booleans, a thousandth of a millimetre wide, can fold over there. Where the
+    local repairs cannot remove them all, manifold3d first simplifies by a tolerance far
+    below any printer's resolution (1e-7 to 1e-5 of the size)."""
+
+    def cleaned(m: m3.Manifold) -> tuple[np.ndarray, np.ndarray, int]:
+        v, f, left = remove_degenerate_faces(*solid_arrays(m))
+        if float32 and left == 0 and len(f):
+            # positions that round to the same float32 are one vertex, as the validator
+            # merges them when it reads the file back
+            p32 = v.astype(np.float32).astype(np.float64)
+            first, remap = merge_identical(p32)
+            _, crossing, _ = intersecting_pairs(p32[first], remap[f])
+            left = int(crossing)
+        return v, f, left
+
+    v, f, left = cleaned(result)
+    if left == 0 or len(v) == 0:
+        return v, f, left
+    diagonal = float(np.linalg.norm(np.ptp(v, axis=0)))
+    for rel in (1e-7, 1e-6, 1e-5):
+        cv, cf, left_here = cleaned(result.simplify(rel * diagonal))
+        if left_here == 0:
+            return cv, cf, 0
+    return v, f, left
+
+
+def drop_specks(v: np.ndarray, f: np.ndarray, speck: float, fill_voids: bool = False
+                ) -> tuple[np.ndarray, np.ndarray, np.ndarray, np.ndarray]:
+    """Split a mesh into its connected components (by shared vertices, as manifold3d
+    writes them), drop those whose |volume| <= speck, with `fill_voids` also every void
+    (a component of negative volume: the inward surface of a sealed cavity), and unused
+    vertices. Returns (vertices, faces, signed volume of each kept component, signed
+    volume of each void filled)."""
+    n = len(v)
+    if len(f) == 0:
+        return v, f, np.zeros(0), np.zeros(0)
+    rows = np.concatenate([f[:, 0], f[:, 1]])
+    cols = np.concatenate([f[:, 1], f[:, 2]])
+    graph = coo_matrix((np.ones(len(rows)), (rows, cols)), shape=(n, n))
+    count, label = connected_components(graph, directed=False)
+    face_label = label[f[:, 0]]
+    tri = v[f]
+    six = np.einsum("ij,ij->i", tri[:, 0], np.cross(tri[:, 1], tri[:, 2]))
+    volumes = np.bincount(face_label, six, minlength=count) / 6.0
+    used = np.zeros(count, bool)
+    used[face_label] = True
+    keep = used & (np.abs(volumes) > speck)
+    filled = keep & (volumes < 0) if fill_voids else np.zeros(count, bool)
+    keep &= ~filled
+    if not np.all(keep[used]) or len(np.unique(f)) < n:
+        f = f[keep[face_label]]
+        verts, inverse = np.unique(f, return_inverse=True)
+        v, f = v[verts], inverse.reshape(-1, 3)
+    return v, f, volumes[keep], volumes[filled]
+
+
+@dataclass
+class Cleaned:
+    """A union made ready to write: its arrays, bodies, volume and the voids filled."""
+
+    vertices: np.ndarray
+    faces: np.ndarray
+    bodies: int
+    volume: float
+    voids_filled: int
+    voids_filled_volume: float
+    warnings: list[str] = field(default_factory=list)
+
+
+def clean_bodies(v: np.ndarray, f: np.ndarray, *, fill_voids: bool,
+                 closed_shell: bool) -> Cleaned:
+    """Drop specks of no volume (where a strut grazes a surface) and, with ``fill_voids``,
+    fill sealed voids, unless ``closed_shell``: a closed shell's cavity is sealed on purpose.
+
+    A closed void inside a solid is a component of negative volume, not a body; dropping its
+    surface fills it, so the print traps no resin or powder there.
+    """
+    speck = SPECK_REL * float(np.prod(np.ptp(v, axis=0))) if len(v) else 0.0
+    v, f, volumes, filled = drop_specks(v, f, speck, fill_voids=fill_voids and not closed_shell)
+    out = Cleaned(vertices=v, faces=f, bodies=int(np.sum(volumes > 0)),
+                  volume=float(volumes.sum()), voids_filled=len(filled),
+                  voids_filled_volume=float(-filled.sum()))
+    voids = int(np.sum(volumes < 0))
+    if voids:
+        why = ("the shell is closed" if closed_shell and fill_voids
+               else "filling was turned off (--keep-voids)")
+        out.warnings.append(
+            f"the result encloses {voids} sealed void{'s' if voids > 1 else ''} (space "
+            f"shut in between objects, struts and shell), kept hollow because {why}; "
+            "resin and powder printers cannot drain them.")
+    return out
