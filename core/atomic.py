@@ -8,16 +8,18 @@ from __future__ import annotations
 import contextlib
 import os
 import tempfile
-from collections.abc import Iterator
+from collections.abc import Callable, Iterator
 from typing import IO
 
 
 @contextlib.contextmanager
-def atomic_output(path: str | os.PathLike, mode: str = "wb", *,
-                  suffix: str = ".tmp") -> Iterator[IO]:
+def atomic_output(path: str | os.PathLike, mode: str = "wb", *, suffix: str = ".tmp",
+                  check: Callable[[str], None] | None = None) -> Iterator[IO]:
     """Open a temporary file in `path`'s folder; on success fsync and rename it to `path`.
 
-    The file keeps an existing target's permission bits (0o644 for a new one).
+    The file keeps an existing target's permission bits (0o644 for a new one). ``check``, if
+    given, is called with the temporary file's path once it is complete on disk and before
+    it is renamed (e.g. to read it back); whatever it raises leaves `path` as it was.
     """
     path = os.fspath(path)
     directory, name = os.path.split(path)
@@ -28,6 +30,8 @@ def atomic_output(path: str | os.PathLike, mode: str = "wb", *,
             yield f
             f.flush()
             os.fsync(f.fileno())
+        if check is not None:
+            check(tmp)
         try:
             perm = os.stat(path).st_mode & 0o777
         except FileNotFoundError:

@@ -24,3 +24,8 @@ class PackingError(JampackedError):
 
 class Cancelled(JampackedError):
     """The user cancelled a job that has nothing worth keeping yet (e.g. an export)."""
+
+
+def plural(n: int, word: str, many: str | None = None) -> str:
+    """A count and its noun for messages: ``"1 edge"``, ``"3 edges"``, ``"2 vertices"``."""
+    return f"{n} {word if n == 1 else (many or word + 's')}"

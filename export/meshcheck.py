@@ -1,5 +1,6 @@
 """numba kernels behind :mod:`jampacked.export.validate`: merging identical positions, per-face
-geometry, the edge structure, fans, winding patches and per-body sums.
+geometry, fans, winding patches, duplicate faces and per-body sums (the edge structure they
+read is :mod:`jampacked.core.mesh_topology`'s).
 
 Each kernel gives exactly (bit for bit) what the numpy formulation it replaced gave; the
 tests hold those formulations as references. Faces are (F, 3) int64 vertex indices; corner
@@ -10,6 +11,8 @@ from __future__ import annotations
 
 import numpy as np
 from numba import njit
+
+from jampacked.core.mesh_topology import uf_flatten, uf_union
 
 # --------------------------------------------------------------------------------------------
 # merging
@@ -141,139 +144,6 @@ def face_geometry(positions: np.ndarray, faces: np.ndarray, origin: np.ndarray
 
 
 @njit(cache=True)
-def edge_structure(faces: np.ndarray, proper: np.ndarray, n_vertices: int
-                   ) -> tuple[np.ndarray, ...]:
-    """The face corners' edges grouped into undirected edges.
-
-    Corner c = 3 * face + slot starts the half-edge from that vertex to the next one of its
-    face; corners whose half-edge is a self-loop (a->a) have no edge. Edges are numbered in
-    order of (smaller vertex, larger vertex), as a sort of their keys would; within an edge
-    its corners are in order. Use counts, pairing and "inconsistent" (two faces running the
-    same way) come from proper faces (three distinct vertices) only.
-
-    Returns:
-        corner_edge: (3F,) edge of each corner, -1 for a self-loop;
-        edge_vertices: (E, 2) smaller, larger vertex;
-        counts: (E,) proper faces using each edge;
-        first_corner, second_corner: (E,) the two proper corners of edges used by exactly
-            two proper faces (in order), else -1;
-        inconsistent: (E,) bool, used twice by faces running the same way;
-        face_of_edge: (E,) the face of each edge's last corner.
-    """
-    n_faces = faces.shape[0]
-    n_corners = 3 * n_faces
-    # corners bucketed by their edge's smaller vertex (a stable counting sort)
-    start = np.zeros(n_vertices + 1, np.int64)
-    for f in range(n_faces):
-        for s in range(3):
-            a = faces[f, s]
-            b = faces[f, 0 if s == 2 else s + 1]
-            if a != b:
-                start[min(a, b) + 1] += 1
-    for v in range(n_vertices):
-        start[v + 1] += start[v]
-    n_half = start[n_vertices]
-    order = np.empty(n_half, np.int64)  # corners
-    other = np.empty(n_half, np.int64)  # their edge's larger vertex
-    fill = start[:-1].copy()
-    for f in range(n_faces):
-        for s in range(3):
-            a = faces[f, s]
-            b = faces[f, 0 if s == 2 else s + 1]
-            if a != b:
-                v = min(a, b)
-                k = fill[v]
-                order[k] = 3 * f + s
-                other[k] = max(a, b)
-                fill[v] = k + 1
-    # each bucket sorted (stably) by the larger vertex; edges numbered as they come
-    corner_edge = np.full(n_corners, -1, np.int64)
-    edge_vertices = np.empty((n_half, 2), np.int64)
-    counts = np.empty(n_half, np.int64)
-    first_corner = np.empty(n_half, np.int64)
-    second_corner = np.empty(n_half, np.int64)
-    face_of_edge = np.empty(n_half, np.int64)
-    e = -1
-    for v in range(n_vertices):
-        s0, s1 = start[v], start[v + 1]
-        if s1 - s0 > 32:
-            sub = np.argsort(other[s0:s1], kind="mergesort")
-            bucket = order[s0:s1].copy()
-            keys = other[s0:s1].copy()
-            for t in range(s1 - s0):
-                order[s0 + t] = bucket[sub[t]]
-                other[s0 + t] = keys[sub[t]]
-        else:
-            for t in range(s0 + 1, s1):  # insertion sort, stable
-                cur = order[t]
-                key = other[t]
-                u = t - 1
-                while u >= s0 and other[u] > key:
-                    order[u + 1] = order[u]
-                    other[u + 1] = other[u]
-                    u -= 1
-                order[u + 1] = cur
-                other[u + 1] = key
-        prev = -1
-        for t in range(s0, s1):
-            c = order[t]
-            if other[t] != prev:
-                prev = other[t]
-                e += 1
-                edge_vertices[e, 0] = v
-                edge_vertices[e, 1] = prev
-                counts[e] = 0
-                first_corner[e] = -1
-                second_corner[e] = -1
-            corner_edge[c] = e
-            face_of_edge[e] = c // 3  # corners come in order: the last one stays
-            if proper[c // 3]:
-                k = counts[e]
-                if k == 0:
-                    first_corner[e] = c
-                elif k == 1:
-                    second_corner[e] = c
-                counts[e] = k + 1
-    n_edges = e + 1
-    inconsistent = np.zeros(n_edges, np.bool_)
-    for e in range(n_edges):
-        if counts[e] == 2:
-            c1, c2 = first_corner[e], second_corner[e]
-            inconsistent[e] = faces[c1 // 3, c1 % 3] == faces[c2 // 3, c2 % 3]
-        else:
-            first_corner[e] = -1
-            second_corner[e] = -1
-    return (corner_edge, edge_vertices[:n_edges], counts[:n_edges], first_corner[:n_edges],
-            second_corner[:n_edges], inconsistent, face_of_edge[:n_edges])
-
-
-@njit(cache=True, inline="always")
-def _find(parent, x):
-    while parent[x] != x:
-        parent[x] = parent[parent[x]]
-        x = parent[x]
-    return x
-
-
-@njit(cache=True, inline="always")
-def _union(parent, a, b):
-    """Join the sets of a and b under the smaller root (so each root ends as the smallest
-    node of its set, whatever the order of the unions)."""
-    x = _find(parent, a)
-    y = _find(parent, b)
-    if x < y:
-        parent[y] = x
-    elif y < x:
-        parent[x] = y
-
-
-@njit(cache=True, inline="always")
-def _flatten(parent):
-    for i in range(parent.shape[0]):  # parent[i] <= i: parents are final when i is reached
-        parent[i] = parent[parent[i]]
-
-
-@njit(cache=True)
 def fans(faces: np.ndarray, proper: np.ndarray, first_corner: np.ndarray,
          second_corner: np.ndarray, inconsistent: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
     """Fans of faces around each vertex, joined across edges used by exactly two faces.
@@ -289,12 +159,12 @@ def fans(faces: np.ndarray, proper: np.ndarray, first_corner: np.ndarray,
         e2 = s2 - s2 % 3 + (s2 % 3 + 1) % 3
         # s1 runs a->b; s2 runs b->a (consistent) or a->b (same way)
         if inconsistent[e]:
-            _union(parent, s1, s2)
-            _union(parent, e1, e2)
+            uf_union(parent, s1, s2)
+            uf_union(parent, e1, e2)
         else:
-            _union(parent, s1, e2)
-            _union(parent, e1, s2)
-    _flatten(parent)
+            uf_union(parent, s1, e2)
+            uf_union(parent, e1, s2)
+    uf_flatten(parent)
     n = 0
     for c in range(n_corners):
         if proper[c // 3] and parent[c] == c:
@@ -324,12 +194,12 @@ def flipped_faces(n_faces: int, first_corner: np.ndarray, second_corner: np.ndar
         f1 = first_corner[e] // 3
         f2 = second_corner[e] // 3
         if inconsistent[e]:
-            _union(parent, f1, f2 + n_faces)
-            _union(parent, f1 + n_faces, f2)
+            uf_union(parent, f1, f2 + n_faces)
+            uf_union(parent, f1 + n_faces, f2)
         else:
-            _union(parent, f1, f2)
-            _union(parent, f1 + n_faces, f2 + n_faces)
-    _flatten(parent)
+            uf_union(parent, f1, f2)
+            uf_union(parent, f1 + n_faces, f2 + n_faces)
+    uf_flatten(parent)
     size = np.zeros(2 * n_faces, np.int64)
     n_flipped = np.zeros(2 * n_faces, np.int64)
     for f in range(n_faces):
@@ -437,53 +307,6 @@ def duplicate_faces(faces: np.ndarray, proper: np.ndarray, corner_edge: np.ndarr
 
 # --------------------------------------------------------------------------------------------
 # bodies
-
-
-@njit(cache=True)
-def face_bodies(n_faces: int, proper: np.ndarray, faces: np.ndarray, corner_edge: np.ndarray,
-                n_edges: int) -> tuple[int, np.ndarray]:
-    """Body of each face, numbered in the order of each body's first face (see
-    ``_bodies`` in validate.py)."""
-    parent = np.arange(n_faces + n_edges)
-    for c in range(corner_edge.shape[0]):
-        f = c // 3
-        if proper[f] and corner_edge[c] >= 0:
-            _union(parent, f, corner_edge[c] + n_faces)
-    _flatten(parent)
-    root = parent[:n_faces].copy()
-    n_vertices = 0
-    all_proper = True
-    for f in range(n_faces):
-        if not proper[f]:
-            all_proper = False
-        for k in range(3):
-            n_vertices = max(n_vertices, faces[f, k] + 1)
-    if not all_proper:
-        # a line or point face joins the body of a proper face at one of its vertices
-        vertex_root = np.full(n_vertices, -1, np.int64)
-        for f in range(n_faces):
-            if proper[f]:
-                for k in range(3):
-                    vertex_root[faces[f, k]] = root[f]
-        for f in range(n_faces):
-            if not proper[f]:
-                owner = max(vertex_root[faces[f, 0]], vertex_root[faces[f, 1]],
-                            vertex_root[faces[f, 2]])
-                if owner >= 0:
-                    root[f] = owner
-    rank = np.full(n_faces, -1, np.int64)
-    n_bodies = 0
-    is_root = np.zeros(n_faces, np.bool_)
-    for f in range(n_faces):
-        is_root[root[f]] = True
-    for f in range(n_faces):
-        if is_root[f]:
-            rank[f] = n_bodies
-            n_bodies += 1
-    body = np.empty(n_faces, np.int64)
-    for f in range(n_faces):
-        body[f] = rank[root[f]]
-    return n_bodies, body
 
 
 @njit(cache=True, inline="always")

@@ -21,12 +21,8 @@ from jampacked.cli.main import main
 from jampacked.core.errors import InputError, MeshError
 from jampacked.export import intersect
 from jampacked.export.io import read_mesh_arrays, write_mesh
-from jampacked.export.validate import (
-    ValidationReport,
-    merge_identical,
-    validate_arrays,
-    validate_file,
-)
+from jampacked.export.validate import ValidationReport, validate_arrays, validate_file
+from jampacked.export.validation_topology import merge_identical
 
 SHARED = Path(__file__).resolve().parents[2] / "shared" / "meshes"
 BROKEN = SHARED / "broken"
@@ -551,9 +547,9 @@ def test_write_errors(tmp_path):
         write_mesh(tmp_path / "out.3mf", [(v, f)], names=["a", "b"])
 
 
-def test_3mf_components_transforms_and_general_parser(tmp_path, monkeypatch):
-    """A 3MF as other tools write it: attributes in another order (so the general XML parser
-    is used), an object made of components, transforms on components and build items."""
+def test_3mf_components_transforms_and_general_parser(tmp_path):
+    """A 3MF as other tools write it: attributes in another order, an object made of
+    components, transforms on components and build items."""
     model = """<?xml version="1.0" encoding="UTF-8"?>
 <model unit="millimeter" xmlns="http://schemas.microsoft.com/3dmanufacturing/core/2015/02">
  <resources>
@@ -577,15 +573,14 @@ def test_3mf_components_transforms_and_general_parser(tmp_path, monkeypatch):
     assert v[4:].tolist() == [[0, 0, 1], [2, 0, 1], [0, 2, 1], [0, 0, 3]]
     r = validate_file(path)
     assert r.passed and len(r.bodies) == 2 and r.volume == pytest.approx(2 * 8 / 6)
-    # the fast reader and the general parser agree on a file written here
+    # a file written here reads back as written, object by object
     out = tmp_path / "two.3mf"
-    write_mesh(out, _two_bodies())
-    fast = read_mesh_arrays(out)
-    from jampacked.export import io as export_io
-
-    monkeypatch.setattr(export_io, "_fast_meshes", lambda xml: None)
-    slow = read_mesh_arrays(out)
-    assert np.array_equal(fast[0], slow[0]) and np.array_equal(fast[1], slow[1])
+    bodies = _two_bodies()
+    write_mesh(out, bodies)
+    v, f = read_mesh_arrays(out)
+    n0 = len(bodies[0][0])
+    assert np.array_equal(v, np.concatenate([bodies[0][0], bodies[1][0]]))
+    assert np.array_equal(f, np.concatenate([bodies[0][1], bodies[1][1] + n0]))
 
 
 def test_read_errors_name_the_file(tmp_path):
@@ -595,6 +590,109 @@ def test_read_errors_name_the_file(tmp_path):
     bad.write_bytes(b"not a zip")
     with pytest.raises(MeshError, match="bad.3mf"):
         read_mesh_arrays(bad)
+
+
+def _damaged_3mf_files(tmp_path: Path) -> dict[str, Path]:
+    """A valid 3MF, then the ways a 3MF is damaged: a cut zip, compressed data changed, no
+    model part, malformed XML, a vertex without a coordinate."""
+    good = tmp_path / "good.3mf"
+    write_mesh(good, *box())
+    data = good.read_bytes()
+    out = {}
+    out["cut"] = tmp_path / "cut.3mf"
+    out["cut"].write_bytes(data[: len(data) // 2])
+    with zipfile.ZipFile(good) as archive:
+        info = archive.getinfo("3D/3dmodel.model")
+    start = info.header_offset + 30 + len(info.filename.encode()) + len(info.extra)
+    flipped = bytearray(data)
+    for k in range(start + 2, start + 40):
+        flipped[k] ^= 0x5A
+    out["zlib"] = tmp_path / "zlib.3mf"
+    out["zlib"].write_bytes(bytes(flipped))
+    out["no_model"] = tmp_path / "no_model.3mf"
+    with zipfile.ZipFile(out["no_model"], "w") as archive:
+        archive.writestr("[Content_Types].xml", "<Types/>")
+    out["bad_xml"] = tmp_path / "bad_xml.3mf"
+    with zipfile.ZipFile(out["bad_xml"], "w") as archive:
+        archive.writestr("3D/3dmodel.model", "<model><resources><object id='1'>")
+    out["no_coordinate"] = tmp_path / "no_coordinate.3mf"
+    with zipfile.ZipFile(out["no_coordinate"], "w") as archive:
+        archive.writestr("3D/3dmodel.model", "<model><resources><object id='1'><mesh>"
+                         "<vertices><vertex x='0' y='0'/></vertices><triangles/></mesh>"
+                         "</object></resources><build><item objectid='1'/></build></model>")
+    return out
+
+
+def test_damaged_3mf_is_a_clear_error_naming_the_file(tmp_path):
+    """Issue 20: a corrupt 3MF raised StopIteration, zlib.error or TypeError."""
+    from jampacked.core.meshes import load_mesh
+
+    for kind, path in _damaged_3mf_files(tmp_path).items():
+        with pytest.raises(MeshError, match=f"{path.name}.*cannot be read as a 3MF") as info:
+            read_mesh_arrays(path)
+        assert "export it again" in str(info.value), kind
+        with pytest.raises(MeshError, match=f"{path.name}.*cannot be read as a 3MF"):
+            load_mesh(path)
+
+
+def test_3mf_is_an_input_format_without_trimesh(tmp_path, monkeypatch):
+    """Issue 20: load_mesh read 3MF through trimesh, which needs lxml and networkx; the
+    project's own reader reads it (and trimesh is not asked)."""
+    from jampacked.core.meshes import load_mesh
+
+    v, f = box()
+    path = tmp_path / "box.3mf"
+    write_mesh(path, v, f)
+
+    def no_trimesh(*args, **kwargs):
+        raise AssertionError("trimesh.load was called for a 3MF file")
+
+    monkeypatch.setattr(trimesh, "load", no_trimesh)
+    mesh = load_mesh(path, role="container")
+    assert mesh.volume == pytest.approx(24.0)
+    assert len(mesh.faces) == 12 and mesh.sha256 is not None
+
+
+def _obj_text(vertices: np.ndarray, faces: list[str]) -> str:
+    return "".join(f"v {x!r} {y!r} {z!r}\n" for x, y, z in vertices.tolist()) + "".join(faces)
+
+
+def test_obj_with_negative_indices_reads_as_positive(tmp_path):
+    """Issue 20: relative (negative) face indices count back from the last vertex defined
+    before the face line; an OBJ of two boxes, each written as its vertices then its faces
+    with relative indices, validated as non-manifold with duplicate faces."""
+    from jampacked.core.meshes import load_mesh
+
+    a, fa = box()
+    b, fb = box(offset=(5.0, 0.0, 0.0))
+    positive = tmp_path / "positive.obj"
+    negative = tmp_path / "negative.obj"
+    positive.write_text(_obj_text(np.vstack([a, b]), [])
+                        + "".join(f"f {i + 1} {j + 1} {k + 1}\n" for i, j, k in fa)
+                        + "".join(f"f {i + 9} {j + 9} {k + 9}\n" for i, j, k in fb))
+    # each body: its 8 vertices, then its faces as -8 ... -1 (texture refs too, f v/vt)
+    negative.write_text(
+        _obj_text(a, []) + "vt 0 0\n"
+        + "".join(f"f {i - 8}/-1 {j - 8}/-1 {k - 8}/-1\n" for i, j, k in fa)
+        + _obj_text(b, []) + "".join(f"f {i - 8} {j - 8} {k - 8}  # body 2\n"
+                                     for i, j, k in fb))
+    want = read_mesh_arrays(positive)
+    got = read_mesh_arrays(negative)
+    assert np.array_equal(got[0], want[0]) and np.array_equal(got[1], want[1])
+    report = validate_file(negative)
+    assert report.passed, report.summary()
+    assert len(report.bodies) == 2
+    one = tmp_path / "one.obj"
+    one.write_text(_obj_text(a, []) + "".join(f"f {i - 8} {j - 8} {k - 8}\n" for i, j, k in fa)
+                   + "v 100 100 100\n")  # a vertex after the faces: not theirs
+    loaded = load_mesh(one)
+    reference = tmp_path / "reference.obj"
+    reference.write_text(_obj_text(a, []) + "".join(f"f {i + 1} {j + 1} {k + 1}\n"
+                                                    for i, j, k in fa))
+    expected = load_mesh(reference)
+    assert np.array_equal(loaded.vertices, expected.vertices)
+    assert np.array_equal(loaded.faces, expected.faces)
+    assert loaded.volume == expected.volume == pytest.approx(24.0)
 
 
 # ------------------------------------------------------------------------------------------

@@ -15,19 +15,19 @@ import numpy as np
 import pytest
 import trimesh
 
-from jampacked.core.meshes import _face_areas2, _signed_six_volumes
-from jampacked.export import intersect, meshcheck, xmlmesh
+from jampacked.core import threemf
+from jampacked.core.mesh_geometry import face_areas2, signed_six_volumes
+from jampacked.core.mesh_topology import edge_topology, union_roots
+from jampacked.export import intersect, meshcheck
 from jampacked.export import io as mesh_io
-from jampacked.export.validate import (
-    _bodies,
-    _duplicates,
-    _fans,
-    _flipped,
-    _largest_faces,
-    _roots,
-    _topology,
+from jampacked.export.nesting import largest_faces
+from jampacked.export.validate import validate_arrays
+from jampacked.export.validation_topology import (
+    duplicate_faces,
+    face_bodies,
+    flipped_faces,
     merge_identical,
-    validate_arrays,
+    vertex_fans,
 )
 
 SHARED = Path(__file__).resolve().parents[2] / "shared" / "meshes"
@@ -145,7 +145,7 @@ def ref_topology(faces, proper, n_vertices):
 def ref_bodies(faces, proper, half_face, edge, n_edges):
     n_faces = len(faces)
     hp = proper[half_face]
-    root = _roots(n_faces + n_edges, half_face[hp], edge[hp] + n_faces)[:n_faces]
+    root = union_roots(n_faces + n_edges, half_face[hp], edge[hp] + n_faces)[:n_faces]
     if not np.all(proper):
         vertex_root = np.full(int(faces.max()) + 1, -1, np.int64)
         vertex_root[faces[proper].reshape(-1)] = np.repeat(root[proper], 3)
@@ -165,7 +165,7 @@ def ref_fans(faces, proper, half_corner, first_half, second_half, inconsistent):
     same = inconsistent[two]
     rows = np.concatenate([s1, e1])
     cols = np.concatenate([np.where(same, s2, e2), np.where(same, e2, s2)])
-    root = _roots(3 * len(faces), rows, cols)
+    root = union_roots(3 * len(faces), rows, cols)
     corners = np.flatnonzero(np.repeat(proper, 3))
     fan_corners = corners[root[corners] == corners]
     return faces.reshape(-1)[fan_corners], fan_corners // 3
@@ -177,7 +177,7 @@ def ref_flipped(n_faces, half_face, first_half, second_half, inconsistent):
     same = inconsistent[two]
     a = np.concatenate([f1, f1 + n_faces])
     b = np.concatenate([np.where(same, f2 + n_faces, f2), np.where(same, f2, f2 + n_faces)])
-    root = _roots(2 * n_faces, a, b)
+    root = union_roots(2 * n_faces, a, b)
     keep, flip = root[:n_faces], root[n_faces:]
     bad = keep == flip
     patch = np.minimum(keep, flip)
@@ -251,9 +251,9 @@ def test_face_geometry_matches_numpy(name, v, f):
     tri = p[mf]
     assert same_bits(repeated, (mf[:, 0] == mf[:, 1]) | (mf[:, 1] == mf[:, 2])
                      | (mf[:, 2] == mf[:, 0]))
-    assert same_bits(area2, _face_areas2(p, mf))
+    assert same_bits(area2, face_areas2(p, mf))
     assert same_bits(longest, np.linalg.norm(tri[:, [1, 2, 0]] - tri, axis=2).max(axis=1))
-    assert same_bits(six, _signed_six_volumes(p, mf))
+    assert same_bits(six, signed_six_volumes(p, mf))
 
 
 def _as_half_edges(topo, faces):
@@ -271,7 +271,7 @@ def test_edges_fans_patches_duplicates_bodies_match_numpy(name, v, f):
     p, mf = _merged(v, f)
     repeated = (mf[:, 0] == mf[:, 1]) | (mf[:, 1] == mf[:, 2]) | (mf[:, 2] == mf[:, 0])
     proper = ~repeated
-    topo = _topology(mf, proper, len(p))
+    topo = edge_topology(mf, len(p), proper)
     (half_corner, half_face, _, edge, edge_vertices, counts, first_half, second_half,
      inconsistent) = ref_topology(mf, proper, len(p))
     got_corner, got_edge, got_first, got_second = _as_half_edges(topo, mf)
@@ -283,18 +283,18 @@ def test_edges_fans_patches_duplicates_bodies_match_numpy(name, v, f):
     face_of_edge[edge] = half_face  # the last half-edge's face
     assert same_bits(topo.face_of_edge, face_of_edge)
 
-    n_bodies, face_body = _bodies(mf, proper, topo)
+    n_bodies, face_body = face_bodies(mf, proper, topo)
     ref_n, ref_body = ref_bodies(mf, proper, half_face, edge, len(counts))
     assert n_bodies == ref_n and same_bits(face_body, ref_body)
-    for got, ref in zip(_fans(mf, proper, topo),
+    for got, ref in zip(vertex_fans(mf, proper, topo),
                         ref_fans(mf, proper, half_corner, first_half, second_half,
                                  inconsistent), strict=True):
         assert same_bits(got, ref)
-    for got, ref in zip(_flipped(len(mf), topo),
+    for got, ref in zip(flipped_faces(len(mf), topo),
                         ref_flipped(len(mf), half_face, first_half, second_half, inconsistent),
                         strict=True):
         assert same_bits(got, ref)
-    assert same_bits(_duplicates(mf, proper, topo), ref_duplicates(mf, proper))
+    assert same_bits(duplicate_faces(mf, proper, topo), ref_duplicates(mf, proper))
 
     marked = np.zeros(len(p), bool)
     marked[::3] = True
@@ -330,7 +330,7 @@ def test_largest_faces_match_lexsort():
     areas[::17] = np.nan
     order = np.lexsort((-areas, body))
     ref = order[np.searchsorted(body[order], np.arange(30))]
-    assert same_bits(_largest_faces(body, areas, 30), ref)
+    assert same_bits(largest_faces(body, areas, 30), ref)
 
 
 # ------------------------------------------------------------------------------------------
@@ -388,7 +388,7 @@ def test_nesting_report_unchanged_by_ray_crossings(monkeypatch):
         w, ok = intersect.ray_winding_numbers(points, vertices, faces)
         return w, np.zeros_like(ok)
 
-    monkeypatch.setattr("jampacked.export.validate.ray_winding_numbers", solid_angles_only)
+    monkeypatch.setattr("jampacked.export.nesting.ray_winding_numbers", solid_angles_only)
     ref = validate_arrays(v, f, check_intersections=False)
     a, b = r.as_dict(), ref.as_dict()
     a.pop("seconds")
@@ -496,31 +496,7 @@ def test_intersecting_pairs_in_a_thread_agree_with_direct_call():
 
 
 # ------------------------------------------------------------------------------------------
-# reading 3MF numbers
-
-
-def test_power_table():
-    rows = []
-    for q in range(-342, 309):
-        if q < 0:
-            power5 = 5**-q
-            z = 0
-            while (1 << z) < power5:
-                z += 1
-            if q >= -27:
-                c = 2 ** (z + 127) // power5 + 1
-            else:
-                c = 2 ** (2 * z + 128) // power5 + 1
-                while c >= (1 << 128):
-                    c //= 2
-        else:
-            c = 5**q
-            while c < (1 << 127):
-                c *= 2
-            while c >= (1 << 128):
-                c //= 2
-        rows.append((c >> 64, c & (2**64 - 1)))
-    assert same_bits(xmlmesh.POW5, np.array(rows, dtype=np.uint64))
+# reading 3MF
 
 
 def _float_tokens(rng: np.random.Generator, n: int) -> list[str]:
@@ -551,29 +527,9 @@ def _float_tokens(rng: np.random.Generator, n: int) -> list[str]:
     return tokens
 
 
-def test_parse_float_is_numpys_conversion():
-    tokens = _float_tokens(np.random.default_rng(8), 30000)
-    text = " ".join(tokens).encode()
-    buf = np.frombuffer(text, np.uint8)
-    ref = np.array([t.encode() for t in tokens], dtype=np.float64)
-    decided = 0
-    pos = 0
-    for t, want in zip(tokens, ref, strict=True):
-        value, status = xmlmesh.parse_float(buf, pos, pos + len(t), xmlmesh.POW5)
-        pos += len(t) + 1
-        assert status in (0, 1), t
-        if status == 0:
-            decided += 1
-            assert same_bits(np.float64(value), want), t
-    assert decided > 0.9 * len(tokens)
-    for bad in ("", "-", ".", "1e", "1e+", "1.2.3", "1-2", "e5", "0x10", "inf", "nan", "1 "):
-        b = np.frombuffer(bad.encode() or b" ", np.uint8)
-        assert xmlmesh.parse_float(b, 0, len(bad), xmlmesh.POW5)[1] == 2, bad
-
-
 def _model(vertex_lines: list[str], triangle_lines: list[str], sep: str = "\n") -> bytes:
     return (f'<?xml version="1.0" encoding="UTF-8"?>\n<model unit="millimeter" '
-            f'xmlns="{mesh_io._3MF_CORE}">\n<resources>\n<object id="1" type="model">\n'
+            f'xmlns="{threemf.CORE_NAMESPACE}">\n<resources>\n<object id="1" type="model">\n'
             f"<mesh>{sep}<vertices>{sep}" + sep.join(vertex_lines) + f"{sep}</vertices>{sep}"
             f"<triangles>{sep}" + sep.join(triangle_lines) + f"{sep}</triangles>{sep}</mesh>\n"
             '</object>\n</resources>\n<build>\n<item objectid="1"/>\n</build>\n</model>\n'
@@ -583,28 +539,30 @@ def _model(vertex_lines: list[str], triangle_lines: list[str], sep: str = "\n") 
 def _package(model: bytes) -> bytes:
     buffer = io.BytesIO()
     with zipfile.ZipFile(buffer, "w", compression=zipfile.ZIP_DEFLATED) as archive:
-        archive.writestr("[Content_Types].xml", mesh_io._3MF_CONTENT_TYPES)
-        archive.writestr("_rels/.rels", mesh_io._3MF_RELS)
+        archive.writestr("[Content_Types].xml", threemf.CONTENT_TYPES)
+        archive.writestr("_rels/.rels", threemf.RELATIONSHIPS)
         archive.writestr("3D/3dmodel.model", model)
     return buffer.getvalue()
 
 
 def _general_read(model: bytes) -> tuple[np.ndarray, np.ndarray]:
-    """The read without the numba scanners: _plain_numbers on every block."""
-    saved = mesh_io._strict_meshes, mesh_io._scanned_vertices, mesh_io.scan_triangles
-    try:
-        mesh_io._strict_meshes = lambda xml, buf: None
-        mesh_io._scanned_vertices = lambda xml, buf, a, b: None
-        mesh_io.scan_triangles = lambda buf, a, b, *words: (np.zeros(0, np.int64), a, False)
-        return mesh_io._read_3mf(_package(model))
-    finally:
-        mesh_io._strict_meshes, mesh_io._scanned_vertices, mesh_io.scan_triangles = saved
+    """The reference read: the standard library's XML parser, Python's float() and int()."""
+    from xml.etree import ElementTree
+
+    root = ElementTree.fromstring(model)
+    ns = {"m": threemf.CORE_NAMESPACE}
+    v = [[float(e.get(a)) for a in "xyz"] for e in root.iterfind(".//m:vertex", ns)]
+    f = [[int(e.get(a)) for a in ("v1", "v2", "v3")]
+         for e in root.iterfind(".//m:triangle", ns)]
+    v = np.array(v, dtype=np.float64).reshape(-1, 3)
+    m = np.eye(4)  # the build item's transform: the identity
+    return v @ m[:3, :3].T + m[:3, 3], np.array(f, dtype=np.int64).reshape(-1, 3)
 
 
 @pytest.mark.filterwarnings("ignore:invalid value encountered in matmul")  # 1e400 * 0
 @pytest.mark.parametrize("case", ["plain", "odd numbers", "spacing", "attribute order",
                                   "float indices", "single line", "bad number"])
-def test_3mf_scanners_read_what_the_general_reader_reads(case):
+def test_3mf_reader_reads_numbers_as_python_does(case):
     rng = np.random.default_rng(9)
     tokens = _float_tokens(rng, 300)[:900]
     vertex_lines = [f'<vertex x="{a}" y="{b}" z="{c}"/>'
@@ -628,13 +586,14 @@ def test_3mf_scanners_read_what_the_general_reader_reads(case):
     elif case == "bad number":
         vertex_lines[7] = '<vertex x="1.2.3" y="0" z="0"/>'
     model = _model(vertex_lines, triangle_lines, sep)
-    try:
-        want = _general_read(model)
-    except ValueError:
-        with pytest.raises(ValueError):
-            mesh_io._read_3mf(_package(model))
+    if case == "bad number":
+        with pytest.raises(threemf.ThreeMFError, match="cannot be read"):
+            threemf.read_3mf(_package(model))
         return
-    got = mesh_io._read_3mf(_package(model))
+    got = threemf.read_3mf(_package(model))
+    if case == "float indices":  # an integral decimal index is read as that integer
+        model = model.replace(b'v1="1.0"', b'v1="1"')
+    want = _general_read(model)
     assert same_bits(got[0], want[0]) and same_bits(got[1], want[1])
     assert got[1].dtype == np.int64
 
@@ -650,13 +609,10 @@ def test_3mf_written_bodies_read_back_exactly(tmp_path):
     path = tmp_path / "bodies.3mf"
     mesh_io.write_mesh(path, bodies, validate=False)
     v, f = mesh_io.read_mesh_arrays(path)
-    with zipfile.ZipFile(path) as archive:
-        want = _general_read(archive.read("3D/3dmodel.model"))
-    assert same_bits(v, want[0]) and same_bits(f, want[1])
-    offset = 0
-    for bv, _ in bodies:
-        assert np.array_equal(v[offset:offset + len(bv)], bv + 0.0)
-        offset += len(bv)
+    offsets = np.cumsum([0] + [len(bv) for bv, _ in bodies[:-1]])
+    assert same_bits(v, np.concatenate([bv + 0.0 for bv, _ in bodies]))
+    assert same_bits(f, np.concatenate([bf + o for (_, bf), o in zip(bodies, offsets,
+                                                                    strict=True)]))
 
 
 def test_small_trees_find_what_brute_force_finds():
@@ -731,9 +687,9 @@ def test_report_is_the_same_with_and_without_the_thread(monkeypatch, spare):
     v[0] *= -1.3
     b = trimesh.creation.box()
     vv, ff = np.vstack([v, np.array(b.vertices) * 0.3]), np.vstack([s.faces, b.faces + len(v)])
-    monkeypatch.setattr("jampacked.export.validate._spare_core", lambda: spare)
+    monkeypatch.setattr("jampacked.export.validate.spare_core", lambda: spare)
     r = validate_arrays(vv, ff)
-    monkeypatch.setattr("jampacked.export.validate._spare_core", lambda: not spare)
+    monkeypatch.setattr("jampacked.export.validate.spare_core", lambda: not spare)
     ref = validate_arrays(vv, ff)
     assert r.intersecting_pairs > 0 and "self_intersections" in r.seconds
     a, b = r.as_dict(max_indices=None), ref.as_dict(max_indices=None)
@@ -743,7 +699,7 @@ def test_report_is_the_same_with_and_without_the_thread(monkeypatch, spare):
 
 
 def test_identity_transform_shortcut_is_the_product():
-    """_read_3mf adds 0.0 where the transform is the identity: what the product gives."""
+    """read_3mf adds 0.0 where the transform is the identity: what the product gives."""
     rng = np.random.default_rng(13)
     v = rng.normal(size=(3000, 3)) * 10.0 ** rng.integers(-300, 300, size=(3000, 1))
     v[::5, 0] = -0.0

@@ -1,0 +1,346 @@
+"""Mesh files as arrays: read a file's bytes, pick a reader, give vertices and triangles.
+
+Nothing here merges, removes or repairs anything: the arrays are the file's as stored (see
+:mod:`jampacked.core.mesh_repair` for the checks). Readers, in order: 3MF with lxml
+(:mod:`jampacked.core.threemf`), STL with trimesh's STL reader, then trimesh
+(``process=False``), a tolerant OBJ reader (comments on face lines), and meshio as the
+fallback. OBJ faces with negative (relative) indices are resolved against the vertices
+defined before them, as the OBJ format says.
+
+Also here: a file's sha256 and the ``box:WxDxH`` specification that stands for a file.
+Units and frame are the file's own.
+"""
+
+from __future__ import annotations
+
+import contextlib
+import hashlib
+import io
+import logging
+import math
+import os
+import re
+from pathlib import Path
+
+import numpy as np
+import trimesh
+
+from .errors import InputError, MeshError
+from .threemf import ThreeMFError, read_3mf
+
+__all__ = [
+    "extension",
+    "file_sha256",
+    "obj_malformed_polygons",
+    "parse_box_spec",
+    "read_arrays",
+    "read_bytes",
+    "read_mesh_arrays",
+]
+
+logger = logging.getLogger(__name__)
+
+_BOX_SPEC = re.compile(r"^\s*box\s*:", re.IGNORECASE)
+_OBJ_FACE_COMMENT = re.compile(rb"^[ \t]*f[ \t][^\n#]*#", re.MULTILINE)
+_OBJ_RELATIVE_INDEX = re.compile(rb"^[ \t]*[fl][ \t][^\n#]*(?<![\w.])-[0-9]", re.MULTILINE)
+
+Arrays = tuple[np.ndarray, np.ndarray]
+
+
+# --------------------------------------------------------------------------------------------
+# files
+
+
+def read_bytes(path: str, role: str) -> bytes:
+    """The bytes of the mesh file at ``path``; ``role`` names it in messages ("object", ...).
+
+    Raises:
+        MeshError: missing, a folder, or unreadable (the message names the file and a fix).
+    """
+    p = Path(path)
+    if not p.exists():
+        raise MeshError(
+            f"{role.capitalize()} mesh file '{path}' does not exist: check the path "
+            "(relative paths are resolved from the current folder)."
+        )
+    if p.is_dir():
+        raise MeshError(
+            f"{role.capitalize()} mesh path '{path}' is a folder, not a file: "
+            "give the mesh file itself (e.g. .stl, .obj, .ply)."
+        )
+    try:
+        return p.read_bytes()
+    except OSError as exc:
+        raise MeshError(
+            f"{role.capitalize()} mesh file '{path}' cannot be read ({exc.strerror or exc}): "
+            "check its permissions, or copy it somewhere readable."
+        ) from exc
+
+
+def extension(path: str) -> str:
+    """The lower-case file extension that picks the reader ("stl", "3mf", "vol.gz", ...)."""
+    name = Path(path).name.lower()
+    for compound in ("dato.gz", "post.gz", "vol.gz"):
+        if name.endswith("." + compound):
+            return compound
+    return Path(name).suffix.lstrip(".")
+
+
+def file_sha256(path: str | os.PathLike) -> str:
+    """Return the sha256 hex digest of the bytes of the file at ``path``.
+
+    Raises:
+        MeshError: the file does not exist or cannot be read.
+    """
+    data = read_bytes(os.fspath(path), "mesh")
+    return hashlib.sha256(data).hexdigest()
+
+
+def parse_box_spec(spec: str) -> tuple[float, float, float] | None:
+    """Parse a box specification ``"box:WxDxH"`` (e.g. ``"box:43.4338x41.8435x45.0059"``).
+
+    Returns:
+        The three side lengths (scene units) as floats, or None if ``spec`` does not start
+        with ``box:`` (case-insensitive), i.e. it is presumably a file path.
+
+    Raises:
+        InputError: it starts with ``box:`` but is not three finite positive numbers
+        separated by ``x``.
+    """
+    if not isinstance(spec, str) or not _BOX_SPEC.match(spec):
+        return None
+    body = spec.split(":", 1)[1].strip()
+    parts = re.split(r"\s*[xX×]\s*", body)
+    values: list[float] = []
+    try:
+        if len(parts) != 3:
+            raise ValueError
+        values = [float(p) for p in parts]
+    except ValueError:
+        raise InputError(
+            f"box spec {spec!r} is malformed: write box:WIDTHxDEPTHxHEIGHT with three numbers, "
+            "e.g. box:40x40x45."
+        ) from None
+    if not all(math.isfinite(v) and v > 0 for v in values):
+        raise InputError(
+            f"box spec {spec!r} has a side that is zero, negative or not finite: "
+            "all three sides must be positive, e.g. box:40x40x45."
+        )
+    return values[0], values[1], values[2]
+
+
+# --------------------------------------------------------------------------------------------
+# OBJ text
+
+
+def _strip_obj_comments(data: bytes) -> bytes:
+    return b"\n".join(line.split(b"#", 1)[0] for line in data.splitlines())
+
+
+def obj_absolute_indices(data: bytes) -> bytes:
+    """OBJ text with every negative (relative) index on face and line elements replaced by
+    the absolute index it stands for: -1 is the last vertex (texture coordinate, normal)
+    defined *before* that line. trimesh counts from the end of the whole file instead.
+
+    Returns ``data`` itself when it has no negative index."""
+    if not _OBJ_RELATIVE_INDEX.search(data):
+        return data
+    counts = {b"v": 0, b"vt": 0, b"vn": 0}
+    out = []
+    for line in data.splitlines():
+        words = line.split()
+        key = words[0] if words else b""
+        if key in counts:
+            counts[key] += 1
+        elif key in (b"f", b"l") and b"-" in line:
+            text, sep, comment = line.partition(b"#")
+            fields = text.split()
+            for k in range(1, len(fields)):
+                refs = fields[k].split(b"/")
+                for slot, kind in enumerate((b"v", b"vt", b"vn")[: len(refs)]):
+                    ref = refs[slot]
+                    if ref.startswith(b"-") and ref[1:].isdigit():
+                        refs[slot] = str(counts[kind] + 1 + int(ref)).encode()
+                fields[k] = b"/".join(refs)
+            line = b" ".join(fields) + (sep + comment if sep else b"")
+        out.append(line)
+    return b"\n".join(out) + b"\n"
+
+
+def obj_malformed_polygons(data: bytes, limit: int = 3) -> list[str]:
+    """Describe OBJ polygon lines (4 or more corners) that list the same vertex twice.
+
+    Such a polygon has no well-defined surface: any triangulation of it is a guess. A
+    triangle with a repeated vertex is merely degenerate and is removed as a repair.
+    """
+    found = []
+    for number, raw in enumerate(data.splitlines(), start=1):
+        line = raw.split(b"#", 1)[0].strip()
+        if not (line.startswith(b"f ") or line.startswith(b"f\t")):
+            continue
+        refs = [t.split(b"/", 1)[0] for t in line.split()[1:]]
+        if len(refs) < 4 or len(set(refs)) == len(refs):
+            continue
+        seen: set[bytes] = set()
+        repeated = next(r for r in refs if r in seen or seen.add(r))
+        text = line.decode("utf-8", "replace")
+        found.append(
+            f"line {number} ('{text}') lists vertex {repeated.decode('utf-8', 'replace')} twice"
+        )
+        if len(found) >= limit:
+            break
+    return found
+
+
+# --------------------------------------------------------------------------------------------
+# readers
+
+
+def _trimesh_arrays(loaded: object) -> Arrays:
+    if isinstance(loaded, trimesh.Scene):
+        geometries = [g for g in loaded.dump() if isinstance(g, trimesh.Trimesh)]
+        loaded = trimesh.util.concatenate(geometries) if geometries else trimesh.Trimesh()
+    vertices = np.asarray(getattr(loaded, "vertices", np.zeros((0, 3))), dtype=np.float64)
+    faces = getattr(loaded, "faces", None)
+    faces = np.zeros((0, 3), np.int64) if faces is None else np.asarray(faces, dtype=np.int64)
+    return vertices.reshape(-1, 3), faces.reshape(-1, 3)
+
+
+def _meshio_arrays(path: str) -> Arrays:
+    import meshio
+
+    # meshio prints to stdout/stderr and calls sys.exit(1) when no reader succeeds
+    sink = io.StringIO()
+    try:
+        with contextlib.redirect_stdout(sink), contextlib.redirect_stderr(sink):
+            mesh = meshio.read(path)
+    except SystemExit:
+        message = " ".join(sink.getvalue().split()) or "no reader succeeded"
+        raise ValueError(message) from None
+    tris = []
+    for block in mesh.cells:
+        data = np.asarray(block.data, dtype=np.int64)
+        if block.type == "triangle":
+            tris.append(data)
+        elif block.type == "quad":
+            tris.append(data[:, [0, 1, 2]])
+            tris.append(data[:, [0, 2, 3]])
+    faces = np.concatenate(tris) if tris else np.zeros((0, 3), np.int64)
+    points = np.asarray(mesh.points, dtype=np.float64)
+    if points.ndim == 2 and points.shape[1] == 2:
+        points = np.column_stack([points, np.zeros(len(points))])
+    return points.reshape(-1, 3), faces
+
+
+def _stl_arrays(data: bytes) -> Arrays | None:
+    """trimesh's STL reader without the Scene/Trimesh wrapping (several times faster), or
+    None where it fails (the general readers then try)."""
+    with contextlib.suppress(Exception):
+        loaded = trimesh.exchange.stl.load_stl(io.BytesIO(data))
+        v = np.asarray(loaded["vertices"], dtype=np.float64).reshape(-1, 3)
+        f = np.asarray(loaded["faces"], dtype=np.int64).reshape(-1, 3)
+        if len(f) and 0 <= f.min() and f.max() < len(v):
+            return v, f
+    return None
+
+
+def _obj_arrays(data: bytes, errors: list[str], reader: str) -> Arrays | None:
+    try:
+        loaded = trimesh.load(io.BytesIO(data), file_type="obj", force="mesh", process=False)
+        return _trimesh_arrays(loaded)
+    except Exception as exc:  # noqa: BLE001 - any reader failure falls through
+        errors.append(f"{reader}: {exc}")
+        return None
+
+
+def read_arrays(path: str, data: bytes, label: str) -> Arrays:
+    """Vertices and triangles of the file ``path`` whose bytes are ``data``, as stored.
+
+    Args:
+        path: the file (its extension picks the reader; meshio and trimesh's scenes read it
+            by path).
+        data: its bytes (for OBJ and OBJ with negative indices resolved, see
+            :func:`obj_absolute_indices`).
+        label: what messages call it, capitalised (e.g. "Object mesh 'a.stl'").
+
+    Raises:
+        MeshError: unknown type, or no reader can read it (damaged, or not really that type).
+    """
+    ext = extension(path)
+    if ext == "3mf":
+        try:
+            return read_3mf(data)
+        except ThreeMFError as exc:
+            raise MeshError(
+                f"{label} cannot be read as a 3MF file ({exc}): the file is damaged or not "
+                "really 3MF; export it again."
+            ) from exc
+    if ext == "stl":
+        arrays = _stl_arrays(data)
+        if arrays is not None:
+            return arrays
+    trimesh_formats = set(trimesh.available_formats())
+    import meshio
+
+    meshio_formats = {e.lstrip(".") for e in meshio.extension_to_filetypes}
+    if ext not in trimesh_formats and ext not in meshio_formats:
+        common = {"stl", "obj", "ply", "off", "glb", "gltf"} & trimesh_formats
+        shown = ", ".join(sorted(common | {"3mf"}))
+        raise MeshError(
+            f"{label} has an unknown file type '.{ext}' (no reader for it): "
+            f"export it as one of {shown} (or another format meshio reads)."
+        )
+    errors: list[str] = []
+    if ext == "obj":
+        absolute = obj_absolute_indices(data)
+        if absolute is not data or _OBJ_FACE_COMMENT.search(data):
+            # trimesh's OBJ reader fails on comments at the end of face lines, and counts
+            # relative indices from the end of the file
+            logger.debug("%s: read with comments and relative indices resolved", label)
+            arrays = _obj_arrays(_strip_obj_comments(absolute), errors, "trimesh")
+            if arrays is not None:
+                return arrays
+    if ext in trimesh_formats and not errors:
+        # materials and textures are not needed: skip them (and missing .mtl files quietly)
+        extra = {"skip_materials": True} if ext in ("obj", "glb", "gltf") else {}
+        try:
+            return _trimesh_arrays(trimesh.load(path, force="mesh", process=False, **extra))
+        except Exception as exc:  # noqa: BLE001 - any reader failure falls through
+            errors.append(f"trimesh: {exc}")
+        if ext == "obj":
+            arrays = _obj_arrays(_strip_obj_comments(data), errors, "tolerant OBJ reader")
+            if arrays is not None:
+                return arrays
+    if ext in meshio_formats:
+        try:
+            return _meshio_arrays(path)
+        except Exception as exc:  # noqa: BLE001
+            errors.append(f"meshio: {exc}")
+    detail = "; ".join(e.strip().replace("\n", " ")[:200] for e in errors)
+    raise MeshError(
+        f"{label} cannot be read as a .{ext} file ({detail}): the file is damaged or not "
+        f"really .{ext}; export it again from your modelling tool, e.g. as binary STL or PLY."
+    )
+
+
+def read_mesh_arrays(path: str | os.PathLike) -> Arrays:
+    """Vertices and triangles of a mesh file, as stored: nothing merged, nothing repaired.
+
+    Args:
+        path: STL, OBJ, PLY, OFF, GLB/GLTF, 3MF, or any format meshio reads. Files with
+            several meshes or objects give all of them, transforms applied, concatenated.
+
+    Returns:
+        ``(vertices, faces)``: (V, 3) float64 in the file's units and frame, (F, 3) int64
+        vertex indices in file order (an STL gives three vertices per face); empty arrays
+        for an empty file.
+
+    Raises:
+        MeshError: missing, a folder, unreadable, of unknown type, or damaged (the message
+            names the file).
+    """
+    path_str = os.fspath(path)
+    data = read_bytes(path_str, "input")
+    if not data.strip():
+        return np.zeros((0, 3)), np.zeros((0, 3), np.int64)
+    return read_arrays(path_str, data, f"Mesh file '{path_str}'")

@@ -1,0 +1,137 @@
+"""Write mesh files atomically: no merging, no repair, no validation.
+
+STL (binary), OBJ and PLY (binary) go through trimesh's exporters on
+``trimesh.Trimesh(..., process=False)``; they hold one mesh, so the bodies are concatenated.
+3MF is written by :func:`jampacked.core.threemf.encode_3mf`: one object per body, named when
+names are given, one build item each, in millimetres. Units and frame are the caller's
+(container units, mm for printing). Validating what was written is
+:func:`jampacked.export.io.write_mesh`'s job.
+"""
+
+from __future__ import annotations
+
+import contextlib
+import os
+from collections.abc import Callable, Iterable, Sequence
+
+import numpy as np
+import trimesh
+
+from jampacked.core.atomic import atomic_output
+from jampacked.core.errors import InputError, MeshError
+from jampacked.core.mesh_files import extension
+from jampacked.core.threemf import encode_3mf
+
+__all__ = ["WRITE_FORMATS", "encode_mesh", "write_mesh_file"]
+
+#: file extensions write_mesh_file can write
+WRITE_FORMATS = ("stl", "obj", "ply", "3mf")
+
+Body = tuple[np.ndarray, np.ndarray]
+
+
+def _as_bodies(vertices: object, faces: object) -> list[Body]:
+    if faces is None:
+        items = list(vertices)  # type: ignore[call-overload]
+    else:
+        items = [(vertices, faces)]
+    bodies = []
+    for v, f in items:
+        v = np.asarray(v, dtype=np.float64).reshape(-1, 3)
+        f = np.asarray(f, dtype=np.int64).reshape(-1, 3)
+        if len(f) and (f.min() < 0 or f.max() >= len(v)):
+            raise InputError("a body's faces refer to vertices that do not exist: give faces "
+                             "as indices into that body's own vertices.")
+        bodies.append((v, f))
+    if not bodies:
+        raise InputError("nothing to write: give at least one body (vertices, faces).")
+    return bodies
+
+
+def _concatenate(bodies: Sequence[Body]) -> Body:
+    offsets = np.cumsum([0] + [len(v) for v, _ in bodies[:-1]])
+    return (np.concatenate([v for v, _ in bodies]),
+            np.concatenate([f + o for (_, f), o in zip(bodies, offsets, strict=True)]))
+
+
+def encode_mesh(ext: str, bodies: Sequence[Body], names: Sequence[str] | None = None) -> bytes:
+    """The bytes of a mesh file of format ``ext`` (one of ``WRITE_FORMATS``) holding
+    ``bodies``, each ``(vertices (V, 3), faces (F, 3))``; ``names`` name 3MF objects."""
+    if ext == "3mf":
+        return encode_3mf(bodies, names)
+    v, f = _concatenate(bodies)
+    mesh = trimesh.Trimesh(vertices=v, faces=f, process=False, validate=False)
+    if ext == "stl":
+        return mesh.export(file_type="stl")
+    if ext == "ply":
+        return mesh.export(file_type="ply", encoding="binary")
+    text = mesh.export(file_type="obj", include_normals=False, include_color=False,
+                       include_texture=False, digits=12)
+    return text.encode("utf-8") if isinstance(text, str) else text
+
+
+def _same_file(a: str, b: str) -> bool:
+    if os.path.realpath(a) == os.path.realpath(b):
+        return True
+    with contextlib.suppress(OSError):
+        return os.path.samefile(a, b)
+    return False
+
+
+def write_mesh_file(
+    path: str | os.PathLike,
+    vertices: object,
+    faces: object = None,
+    *,
+    names: Sequence[str] | None = None,
+    protect: Iterable[str | os.PathLike] = (),
+    check: Callable[[str], None] | None = None,
+) -> None:
+    """Write a mesh atomically.
+
+    Call as ``write_mesh_file(path, vertices, faces)`` for one mesh, or
+    ``write_mesh_file(path, bodies)`` with a list of ``(vertices, faces)`` bodies.
+
+    Args:
+        path: output file; its extension picks the format: .stl (binary), .obj, .ply
+            (binary), .3mf.
+        vertices: (V, 3) positions, or the list of bodies when ``faces`` is None.
+        faces: (F, 3) vertex indices, counter-clockwise seen from outside.
+        names: one name per body for 3MF objects (ignored by the other formats).
+        protect: input files the output must not replace (compared as resolved paths).
+        check: called with the path of the complete temporary file (which ends in the
+            real extension, so it reads back) before it is renamed over ``path``; what it
+            raises leaves ``path`` as it was.
+
+    Raises:
+        InputError: unknown format, a protected input path, names that do not match the
+            bodies, or bad arrays.
+        MeshError: the file cannot be written (missing folder, permissions, disk full).
+    """
+    path_str = os.fspath(path)
+    ext = extension(path_str)
+    if ext not in WRITE_FORMATS:
+        raise InputError(f"cannot write '{path_str}': unknown mesh format '.{ext}'; use one "
+                         f"of {', '.join('.' + e for e in WRITE_FORMATS)}.")
+    for p in protect:
+        if _same_file(path_str, os.fspath(p)):
+            raise InputError(f"refusing to write '{path_str}': it is an input file "
+                             f"('{os.fspath(p)}'); choose another output name.")
+    bodies = _as_bodies(vertices, faces)
+    if names is not None and len(names) != len(bodies):
+        raise InputError(f"{len(names)} names for {len(bodies)} bodies writing '{path_str}': "
+                         "give one name per body.")
+    folder = os.path.dirname(os.path.abspath(path_str))
+    if not os.path.isdir(folder):
+        raise MeshError(f"cannot write '{path_str}': the folder '{folder}' does not exist; "
+                        "create it first.")
+    if os.path.isdir(path_str):
+        raise MeshError(f"cannot write '{path_str}': it is a folder; give a file name.")
+    data = encode_mesh(ext, bodies, names)
+    try:
+        # a hidden name in the same folder, ending in the real extension so it reads back
+        with atomic_output(path_str, "wb", suffix=f".tmp.{ext}", check=check) as handle:
+            handle.write(data)
+    except OSError as exc:
+        raise MeshError(f"cannot write '{path_str}' ({exc.strerror or exc}): check the "
+                        "folder's permissions and free space.") from exc
