@@ -68,12 +68,14 @@ def write_mesh(
             report = replace(validate_file(tmp), path=path_str)
         except MeshError as exc:
             raise MeshError(f"the mesh written to '{path_str}' cannot be read back, so it "
-                            f"was not saved ({exc}). This is a bug in the export; please "
-                            "report it.") from exc
+                            f"was not saved ({exc}). Check that the folder has room and try "
+                            "again, or write another format (.stl, .3mf, .obj, .ply).") from exc
         if require_valid and not report.passed:
             raise MeshError(f"the mesh written to '{path_str}' is not watertight, so it "
-                            f"was not saved: {report.summary()}. This is a bug in the "
-                            "export or in its input meshes; please report it.")
+                            f"was not saved: {report.summary()}. Check the input meshes with "
+                            "`jampacked validate`; with a clearance of 0, touching objects "
+                            "can fuse into non-manifold edges: re-pack with --clearance, or "
+                            "export with --mode union or connect.")
         reports.append(report)
 
     write_mesh_file(path_str, vertices, faces, names=names, protect=protect,
