@@ -56,6 +56,7 @@ class JAMPACKED_PT_pack(_Sidebar, bpy.types.Panel):
         col.prop(s, "fidelity")
         col.prop(s, "mix_tolerance")
         col.prop(s, "time_budget")
+        col.prop(s, "keep_previous")
         if state.running:
             box = layout.box()
             box.progress(factor=state.fraction, type='BAR',
@@ -161,6 +162,7 @@ class JAMPACKED_PT_validate(_Sidebar, bpy.types.Panel):
         row = layout.row(align=True)
         row.operator("jampacked.validate", icon='CHECKMARK')
         row.prop(s, "validate_modifiers", text="", icon='MODIFIER')
+        layout.operator("jampacked.make_manifold", icon='MOD_MESHDEFORM')
         for report in context.window_manager.jampacked_validation.reports:
             box = layout.box()
             box.label(text=report.object_name, icon='CHECKMARK' if report.passed else 'ERROR')

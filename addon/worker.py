@@ -103,7 +103,9 @@ class Job:
                 self._end(CANCELLED)
             else:
                 self._end(FAILED, error=str(exc))
-        except Exception as exc:  # noqa: BLE001 - reported to the user, logged in full
+        except BaseException as exc:  # noqa: BLE001 - reported to the user, logged in full
+            # BaseException too (KeyboardInterrupt, SystemExit): a job left RUNNING would
+            # never be handled and would hold the slot for good
             logger.error("%s failed:\n%s", self.title, traceback.format_exc())
             self._end(FAILED, error=f"{self.title} failed with an internal error "
                                     f"({type(exc).__name__}: {exc}); see the system console.")
@@ -128,7 +130,11 @@ class Job:
         """Start the thread; raises BusyError if another job is still running."""
         _claim(self)
         self._started = time.perf_counter()
-        self._thread.start()
+        try:
+            self._thread.start()
+        except BaseException:
+            _release(self)
+            raise
         return self
 
     def cancel(self) -> None:

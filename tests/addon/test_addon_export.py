@@ -64,3 +64,24 @@ def test_export_needs_a_packing(bpy, addon, scene, tmp_path):
     scene.settings.filepath = str(tmp_path / "x.stl")
     with pytest.raises(RuntimeError, match="no packing to export: run Pack first"):
         bpy.ops.jampacked.export()
+
+
+def test_export_path_takes_blend_relative_paths(bpy, addon, tmp_path):
+    """The File setting declares '//' paths (Blender 4.5 warns on every assignment
+    otherwise), and '//' is resolved against the saved .blend file before the job."""
+    import warnings
+
+    prop = bpy.types.Scene.bl_rna.properties["jampacked"].fixed_type.properties["filepath"]
+    assert prop.is_path_supports_blend_relative
+    s = bpy.context.scene.jampacked
+    with warnings.catch_warnings():
+        warnings.simplefilter("error")
+        s.filepath = "//prints/out.stl"
+    from jampacked.core.errors import InputError
+
+    with pytest.raises(InputError, match="not saved yet"):
+        addon.bridge.output_path(s.filepath, '3MF')
+    bpy.ops.wm.save_as_mainfile(filepath=str(tmp_path / "scene.blend"))
+    (tmp_path / "prints").mkdir()
+    assert addon.bridge.output_path(bpy.context.scene.jampacked.filepath, '3MF') == \
+        str(tmp_path / "prints" / "out.3mf")
