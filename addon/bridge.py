@@ -22,7 +22,7 @@ import bpy
 import numpy as np
 from mathutils import Matrix
 
-from . import summary
+from . import summary, units
 from .engine import PackOutcome, Triangles
 
 
@@ -280,6 +280,7 @@ class ExportRequest:
     types: list[Triangles]
     out_path: str
     options: Any
+    scale: float = 1.0  # millimetres per Blender unit (the scene's units)
 
 
 FORMAT_EXTENSIONS = {'STL': ".stl", '3MF': ".3mf", 'OBJ': ".obj", 'PLY': ".ply"}
@@ -351,8 +352,10 @@ def gather_export(context: bpy.types.Context, options: Any) -> ExportRequest:
             raise _input_error(f"the mesh '{mesh_name}' of type '{rec.name}' is gone: undo "
                                "its removal or pack again.")
         types.append(mesh_triangles(mesh, rec.name, np.linalg.inv(rec.local_from_file)))
+    unit = context.scene.unit_settings
     return ExportRequest(packing_json=text, container=ctris, types=types,
-                         out_path=output_path(s.filepath, s.file_format), options=options)
+                         out_path=output_path(s.filepath, s.file_format), options=options,
+                         scale=units.mm_per_unit(unit.system, unit.scale_length))
 
 
 # ------------------------------------------------------------------------------ validate

@@ -284,7 +284,8 @@ class ExportRunner(JobRunner):
         def run(progress: worker.Progress, should_cancel: worker.ShouldCancel) -> Any:
             return engine.export_triangles(
                 request.packing_json, request.container, request.types, request.out_path,
-                request.options, progress=progress, should_cancel=should_cancel)
+                request.options, progress=progress, should_cancel=should_cancel,
+                scale=request.scale)
 
         return worker.Job(self.job_title, run)
 

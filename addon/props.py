@@ -7,8 +7,9 @@
 - ``WindowManager.jampacked_validation`` (:class:`JAMPACKED_PG_validation`): the last
   Validate results, one entry per object.
 
-Lengths are in Blender units (the scene's world space); set the scene's unit scale so
-that one unit is one millimetre for printing.
+Lengths are in Blender units (the scene's world space), shown and typed in the scene's
+units (with a unit system, "0.5 mm" typed into a length field is converted); Export writes
+millimetres, converting with the scene's unit scale (:mod:`.units`).
 """
 
 # No "from __future__ import annotations" here: Blender reads the property annotations
@@ -96,7 +97,8 @@ class JAMPACKED_PG_settings(bpy.types.PropertyGroup):
     clearance: FloatProperty(
         name="Clearance", default=0.0, min=0.0, soft_max=10.0, subtype='DISTANCE',
         unit='LENGTH', precision=3,
-        description="Minimum gap between objects and to the wall (0: objects may touch)")
+        description="Minimum gap between objects and to the wall, in scene units (type "
+                    "e.g. '0.3 mm' to give millimetres; 0: objects may touch)")
     fidelity: EnumProperty(name="Fidelity", items=FIDELITY_ITEMS, default='AUTO',
                            description="Resolution of the object approximations")
     mix_tolerance: FloatProperty(

@@ -3,7 +3,7 @@
 # No "from __future__ import annotations": Blender reads class annotations.
 import bpy
 
-from . import summary
+from . import summary, units
 
 
 class JAMPACKED_UL_types(bpy.types.UIList):
@@ -126,6 +126,9 @@ class JAMPACKED_PT_export(_Sidebar, bpy.types.Panel):
     def draw(self, context: bpy.types.Context) -> None:
         s = context.scene.jampacked
         layout = self.layout
+        unit = context.scene.unit_settings
+        layout.label(text="Units: " + units.units_line(unit.system, unit.scale_length),
+                     icon='DRIVER_DISTANCE')
         layout.use_property_split = True
         layout.use_property_decorate = False
         layout.prop(s, "export_mode")
