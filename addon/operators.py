@@ -62,6 +62,7 @@ class JobRunner:
     job_title = "Job"
     _job = None  # the worker.Job being followed
     _timer = None  # the window manager timer of the modal UI
+    _log = None  # a worker.ProgressLog: progress lines on stdout (background mode)
 
     @classmethod
     def poll(cls, context: bpy.types.Context) -> bool:
@@ -118,6 +119,9 @@ class JobRunner:
         state.message = snap.message
         state.stopping = snap.stopping
         if snap.state == worker.RUNNING:
+            line = self._log.line(snap) if self._log is not None else None
+            if line:
+                print(line, flush=True)
             hint = "stopping..." if snap.stopping else "Esc to cancel"
             _status(context, f"Jampacked {job.title.lower()}: {snap.fraction:.0%} "
                              f"{snap.message} ({hint})")
@@ -165,6 +169,8 @@ class JobRunner:
         """
         if not self.begin(context):
             return {'CANCELLED'}
+        if bpy.app.background:  # no panel or status bar to watch: print the progress
+            self._log = worker.ProgressLog(self._job.title)
         with self.guard(context):
             while True:
                 result = self.step(context)

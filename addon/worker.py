@@ -189,6 +189,38 @@ class Job:
         _release(self)
 
 
+class ProgressLog:
+    """Progress lines for a console (Blender in background mode), throttled: a line when
+    the fraction has moved by ``step`` since the last line or ``seconds`` have passed, and
+    the first one.
+
+    Args:
+        title: the job, e.g. "Packing".
+        step: fraction between lines.
+        seconds: at most this long without a line while the job runs.
+        clock: seconds, monotonic (a test passes its own).
+    """
+
+    def __init__(self, title: str, *, step: float = 0.05, seconds: float = 2.0,
+                 clock: Callable[[], float] = time.monotonic) -> None:
+        self.title = title
+        self.step = step
+        self.seconds = seconds
+        self._clock = clock
+        self._fraction: float | None = None
+        self._at = 0.0
+
+    def line(self, snap: Snapshot) -> str | None:
+        """The line to print for this snapshot, or None (too soon since the last one)."""
+        now = self._clock()
+        if self._fraction is not None and snap.fraction - self._fraction < self.step and \
+                now - self._at < self.seconds:
+            return None
+        self._fraction, self._at = snap.fraction, now
+        return (f"Jampacked {self.title.lower()}: {snap.fraction:4.0%} {snap.message} "
+                f"({snap.elapsed:.1f} s)")
+
+
 # ---------------------------------------------------------------- one job at a time
 
 _active_lock = threading.Lock()

@@ -313,3 +313,20 @@ def test_keep_previous_keeps_both(bpy, addon, scene):
     names = [c.name for c in _results(bpy)]
     assert names == ["Jampacked Box", "Jampacked Box.001"]
     assert scene.settings.result.name == "Jampacked Box.001"
+
+
+def test_background_pack_prints_throttled_progress(bpy, addon, scene, capsys):
+    """Blender in background mode (as here) has no panel: a blocking Pack prints progress
+    lines to stdout, the fraction rising, at most one per 5% or 2 s."""
+    assert bpy.app.background
+    scene.box.scale = BIG_BOX
+    scene.settings.time_budget = 4.0
+    t0 = time.monotonic()
+    assert bpy.ops.jampacked.pack() == {'FINISHED'}
+    seconds = time.monotonic() - t0
+    lines = [ln for ln in capsys.readouterr().out.splitlines()
+             if ln.startswith("Jampacked packing:")]
+    assert len(lines) >= 3, lines
+    percents = [int(ln.split(":", 1)[1].split("%")[0]) for ln in lines]
+    assert percents == sorted(percents) and percents[-1] > percents[0]
+    assert len(lines) <= 21 + seconds / 2.0 + 1

@@ -260,3 +260,20 @@ def test_scaled_packing_is_the_same_print_larger():
         == pytest.approx((2.0, 3.0, 1.0, 0.1, 10.0))
     assert packing.translations is not out.translations and packing.params["clearance"] == \
         0.002  # the input is unchanged
+
+
+def test_progress_log_is_throttled():
+    now = [0.0]
+    log = worker.ProgressLog("Packing", clock=lambda: now[0])
+
+    def snap(fraction, message="phase 1"):
+        return worker.Snapshot(worker.RUNNING, fraction, message, False, now[0])
+
+    assert log.line(snap(0.0)) == "Jampacked packing:   0% phase 1 (0.0 s)"
+    now[0] = 0.5
+    assert log.line(snap(0.03)) is None  # under 5% and 2 s since the last line
+    assert log.line(snap(0.06)) is not None  # 5% further
+    now[0] = 1.0
+    assert log.line(snap(0.07)) is None
+    now[0] = 2.6
+    assert log.line(snap(0.07, "phase 2")) == "Jampacked packing:   7% phase 2 (2.6 s)"
