@@ -23,7 +23,7 @@ build = load_standalone("build")
 
 
 def test_thread_side_modules_never_import_bpy():
-    for name in ("worker.py", "engine.py", "summary.py", "build.py"):
+    for name in ("worker.py", "engine.py", "summary.py", "build.py", "units.py"):
         tree = ast.parse((ADDON / name).read_text(encoding="utf-8"))
         imported = {alias.name.split(".")[0] for node in ast.walk(tree)
                     if isinstance(node, ast.Import) for alias in node.names}
