@@ -14,6 +14,7 @@ Everything here runs on Blender's main thread.
 """
 
 import os
+from collections.abc import Mapping
 from dataclasses import dataclass, field
 from typing import Any
 
@@ -21,7 +22,7 @@ import bpy
 import numpy as np
 from mathutils import Matrix
 
-from . import summary
+from . import summary, units
 from .engine import PackOutcome, Triangles
 
 
@@ -279,6 +280,7 @@ class ExportRequest:
     types: list[Triangles]
     out_path: str
     options: Any
+    scale: float = 1.0  # millimetres per Blender unit (the scene's units)
 
 
 FORMAT_EXTENSIONS = {'STL': ".stl", '3MF': ".3mf", 'OBJ': ".obj", 'PLY': ".ply"}
@@ -350,8 +352,10 @@ def gather_export(context: bpy.types.Context, options: Any) -> ExportRequest:
             raise _input_error(f"the mesh '{mesh_name}' of type '{rec.name}' is gone: undo "
                                "its removal or pack again.")
         types.append(mesh_triangles(mesh, rec.name, np.linalg.inv(rec.local_from_file)))
+    unit = context.scene.unit_settings
     return ExportRequest(packing_json=text, container=ctris, types=types,
-                         out_path=output_path(s.filepath, s.file_format), options=options)
+                         out_path=output_path(s.filepath, s.file_format), options=options,
+                         scale=units.mm_per_unit(unit.system, unit.scale_length))
 
 
 # ------------------------------------------------------------------------------ validate
@@ -360,6 +364,7 @@ def gather_export(context: bpy.types.Context, options: Any) -> ExportRequest:
 FACE_KINDS = ("flipped_faces", "degenerate_faces", "duplicate_faces", "intersecting_faces")
 EDGE_KINDS = ("open_edges", "nonmanifold_edges", "inconsistent_edges")
 VERTEX_KINDS = ("nonmanifold_vertices",)
+SELECTABLE_KINDS = FACE_KINDS + EDGE_KINDS + VERTEX_KINDS
 
 
 def _polygon_elements(mesh: bpy.types.Mesh, polygons: np.ndarray
@@ -378,15 +383,17 @@ def _polygon_elements(mesh: bpy.types.Mesh, polygons: np.ndarray
     return loop_verts[loops], loop_edges[loops]
 
 
-def select_offending(context: bpy.types.Context, obj: bpy.types.Object, kind: str,
-                     indices: np.ndarray, tris: Triangles, groups: np.ndarray) -> int:
-    """Select the offending elements of ``kind`` on ``obj`` and enter edit mode.
+def select_offending(context: bpy.types.Context, obj: bpy.types.Object,
+                     offending: Mapping[str, np.ndarray], tris: Triangles,
+                     groups: np.ndarray) -> int:
+    """Select the offending elements of every kind in ``offending`` on ``obj`` (only those)
+    and enter edit mode.
 
-    indices: as the validation reports them (triangles, vertex pairs or vertices of
-    ``tris``, which must have the topology of ``obj.data``); groups: (V,) position group of
-    each vertex (coincident vertices share one), so that edges and vertices are found
-    whichever of the coincident vertices they use. Returns the number of elements selected
-    (faces, edges or vertices, by kind).
+    offending: kind -> indices as the validation reports them (triangles, vertex pairs or
+    vertices of ``tris``, which must have the topology of ``obj.data``); groups: (V,)
+    position group of each vertex (coincident vertices share one), so that edges and
+    vertices are found whichever of the coincident vertices they use. The select mode is
+    that of the kinds (faces, edges, vertices). Returns the number of elements selected.
     """
     if context.object is not None and context.object.mode != 'OBJECT':
         bpy.ops.object.mode_set(mode='OBJECT')
@@ -398,32 +405,41 @@ def select_offending(context: bpy.types.Context, obj: bpy.types.Object, kind: st
     vsel = np.zeros(len(mesh.vertices), bool)
     esel = np.zeros(len(mesh.edges), bool)
     fsel = np.zeros(len(mesh.polygons), bool)
-    indices = np.asarray(indices, np.int64)
     edge_verts = np.empty(len(mesh.edges) * 2, np.int32)
     mesh.edges.foreach_get("vertices", edge_verts)
     edge_verts = edge_verts.reshape(-1, 2)
-    if kind in FACE_KINDS:
-        polygons = np.unique(tris.tri_polygon[indices.reshape(-1)])
-        fsel[polygons] = True
-        verts, edges = _polygon_elements(mesh, polygons)
-        vsel[verts] = True
-        esel[edges] = True
-        mode, count = (False, False, True), int(fsel.sum())
-    elif kind in EDGE_KINDS:
-        wanted = {(int(a), int(b)) for a, b in np.sort(groups[indices.reshape(-1, 2)], axis=1)}
-        edge_groups = np.sort(groups[edge_verts], axis=1)
-        esel = np.fromiter(((int(a), int(b)) in wanted for a, b in edge_groups), bool,
-                           count=len(edge_groups))
-        vsel[edge_verts[esel].reshape(-1)] = True
-        mode, count = (False, True, False), int(esel.sum())
-    elif kind in VERTEX_KINDS:
-        vsel = np.isin(groups, groups[indices.reshape(-1)])
-        mode, count = (True, False, False), int(vsel.sum())
-    else:
-        raise _input_error(f"unknown kind of defect {kind!r}.")
+    edge_groups = np.sort(groups[edge_verts], axis=1)
+    mode = [False, False, False]
+    count = 0
+    for kind, indices in offending.items():
+        indices = np.asarray(indices, np.int64)
+        if kind in FACE_KINDS:
+            polygons = np.unique(tris.tri_polygon[indices.reshape(-1)])
+            fsel[polygons] = True
+            verts, edges = _polygon_elements(mesh, polygons)
+            vsel[verts] = True
+            esel[edges] = True
+            mode[2] = True
+            count += len(polygons)
+        elif kind in EDGE_KINDS:
+            wanted = {(int(a), int(b))
+                      for a, b in np.sort(groups[indices.reshape(-1, 2)], axis=1)}
+            hit = np.fromiter(((int(a), int(b)) in wanted for a, b in edge_groups), bool,
+                              count=len(edge_groups))
+            esel |= hit
+            vsel[edge_verts[hit].reshape(-1)] = True
+            mode[1] = True
+            count += int(hit.sum())
+        elif kind in VERTEX_KINDS:
+            hit = np.isin(groups, groups[indices.reshape(-1)])
+            vsel |= hit
+            mode[0] = True
+            count += int(hit.sum())
+        else:
+            raise _input_error(f"unknown kind of defect {kind!r}.")
     mesh.vertices.foreach_set("select", vsel)
     mesh.edges.foreach_set("select", esel)
     mesh.polygons.foreach_set("select", fsel)
-    context.tool_settings.mesh_select_mode = mode
+    context.tool_settings.mesh_select_mode = tuple(mode) if any(mode) else (True, False, False)
     bpy.ops.object.mode_set(mode='EDIT')
     return count

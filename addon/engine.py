@@ -3,7 +3,7 @@
 Frames: the Blender side (:mod:`.bridge`) hands over world-space triangles, so a packing's
 container frame is Blender's world space (``frame_from_file`` is the identity) and a type's
 "file" coordinates are the type object's world-space vertices at packing time. Units are
-Blender units throughout.
+Blender units throughout, until Export scales everything to millimetres (:func:`scaled`).
 
 jampacked itself is imported inside the functions: registering the add-on stays fast, and a
 missing engine (no wheels installed) becomes a clear message instead of a failed register.
@@ -11,6 +11,7 @@ missing engine (no wheels installed) becomes a clear message instead of a failed
 
 from __future__ import annotations
 
+import copy
 import hashlib
 import os
 import tempfile
@@ -135,18 +136,61 @@ def pack_triangles(container: Triangles, types: Sequence[Triangles], shares: Seq
     return PackOutcome(packing=packing, json_text=packing_to_json(packing))
 
 
+def scaled(packing: Packing, container: Triangles, types: Sequence[Triangles],
+           options: ExportOptions, k: float
+           ) -> tuple[Packing, Triangles, list[Triangles], ExportOptions]:
+    """The packing, its meshes and the export lengths with every length multiplied by k
+    (e.g. Blender units to millimetres): the same print at another scale.
+
+    Positions and translations scale by k, frames are conjugated by the scaling (a frame's
+    rotation stays, its offset scales), volumes scale by k cubed; the clearance and the
+    options' lengths (shell, drain, connector, resolution, window size) scale by k.
+    """
+    import dataclasses
+
+    s = np.diag([k, k, k, 1.0])
+    s_inv = np.diag([1.0 / k, 1.0 / k, 1.0 / k, 1.0])
+    out = copy.deepcopy(packing)
+    out.translations = packing.translations * k
+    out.frame_from_file = s @ packing.frame_from_file @ s_inv
+    out.container_volume = packing.container_volume * k ** 3
+    for rec in out.types:
+        rec.local_from_file = s @ rec.local_from_file @ s_inv
+        rec.volume *= k ** 3
+    if "clearance" in out.params:
+        out.params["clearance"] = float(out.params["clearance"]) * k
+
+    def length(v: float | None) -> float | None:
+        return None if v is None else v * k
+
+    opening = options.opening
+    if opening is not None:
+        opening = dataclasses.replace(opening, size=opening.size * k)
+    options = dataclasses.replace(
+        options, shell=length(options.shell), drain=length(options.drain),
+        connector=length(options.connector), resolution=length(options.resolution),
+        opening=opening)
+    return (out, dataclasses.replace(container, vertices=container.vertices * k),
+            [dataclasses.replace(t, vertices=t.vertices * k) for t in types], options)
+
+
 def export_triangles(packing_json: str, container: Triangles, types: Sequence[Triangles],
                      out_path: str, options: ExportOptions, *, progress: Progress,
-                     should_cancel: ShouldCancel) -> ExportReport:
+                     should_cancel: ShouldCancel, scale: float = 1.0) -> ExportReport:
     """Export a packing made in Blender; runs in the worker thread.
 
     container: world-space triangles of the container object; types: each type's triangles
-    in its packing "file" frame (world space at packing time). Raises JampackedError
-    subclasses (Cancelled when should_cancel() said so).
+    in its packing "file" frame (world space at packing time); lengths (these, the
+    packing's and the options') in Blender units. scale: millimetres per Blender unit
+    (:func:`.units.mm_per_unit`): the file is written in millimetres. Raises
+    JampackedError subclasses (Cancelled when should_cancel() said so).
     """
     from jampacked.export.assemble import export_packing
 
     packing = packing_from_json(packing_json)
+    if scale != 1.0:
+        packing, container, types, options = scaled(packing, container, types, options,
+                                                    scale)
     meshes = (container.mesh_data("container"), [t.mesh_data("object") for t in types])
     return export_packing(packing, out_path, options, meshes=meshes, progress=progress,
                           should_cancel=should_cancel)

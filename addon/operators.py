@@ -9,14 +9,16 @@ cancelled or failed job leaves the scene as it was.
 """
 
 # No "from __future__ import annotations": Blender reads operator property annotations.
+import contextlib
 import time
+from collections.abc import Iterator
 from typing import Any
 
 import bpy
 import numpy as np
-from bpy.props import EnumProperty, StringProperty
+from bpy.props import EnumProperty, FloatProperty, StringProperty
 
-from . import bridge, engine, worker
+from . import bridge, engine, repair, results, worker
 from .props import axis_name
 
 #: seconds between progress updates
@@ -60,6 +62,7 @@ class JobRunner:
     job_title = "Job"
     _job = None  # the worker.Job being followed
     _timer = None  # the window manager timer of the modal UI
+    _log = None  # a worker.ProgressLog: progress lines on stdout (background mode)
 
     @classmethod
     def poll(cls, context: bpy.types.Context) -> bool:
@@ -90,11 +93,10 @@ class JobRunner:
             return False
         try:
             job = self.make_job(context)
-            job.start()
+            self._job = job.start()
         except (_errors().JampackedError, worker.BusyError) as exc:
             self._fail(context, str(exc))
             return False
-        self._job = job
         state = context.window_manager.jampacked_job
         state.running = True
         state.title = job.title
@@ -117,6 +119,9 @@ class JobRunner:
         state.message = snap.message
         state.stopping = snap.stopping
         if snap.state == worker.RUNNING:
+            line = self._log.line(snap) if self._log is not None else None
+            if line:
+                print(line, flush=True)
             hint = "stopping..." if snap.stopping else "Esc to cancel"
             _status(context, f"Jampacked {job.title.lower()}: {snap.fraction:.0%} "
                              f"{snap.message} ({hint})")
@@ -144,25 +149,46 @@ class JobRunner:
     def end(self, context: bpy.types.Context) -> None:
         """Remove the timer, clear the status bar, free the job slot."""
         wm = context.window_manager
-        if self._timer is not None:
-            wm.event_timer_remove(self._timer)
-            self._timer = None
-        _status(context, None)
-        wm.jampacked_job.running = False
-        wm.jampacked_job.stopping = False
-        if self._job is not None:
-            self._job.release()
-        _tag_redraw(context)
+        try:
+            if self._timer is not None:
+                wm.event_timer_remove(self._timer)
+                self._timer = None
+            _status(context, None)
+            wm.jampacked_job.running = False
+            wm.jampacked_job.stopping = False
+            _tag_redraw(context)
+        finally:
+            if self._job is not None:
+                self._job.release()
 
     def run_blocking(self, context: bpy.types.Context) -> set[str]:
-        """The modal steps in a loop, for scripts and background mode."""
+        """The modal steps in a loop, for scripts and background mode.
+
+        Any exit but the job's own end (Ctrl-C's KeyboardInterrupt while waiting, an
+        exception in a step) cancels the job and frees its slot before it propagates.
+        """
         if not self.begin(context):
             return {'CANCELLED'}
-        while True:
-            result = self.step(context)
-            if result != {'RUNNING_MODAL'}:
-                return result
-            self._job.wait(POLL_SECONDS)
+        if bpy.app.background:  # no panel or status bar to watch: print the progress
+            self._log = worker.ProgressLog(self._job.title)
+        with self.guard(context):
+            while True:
+                result = self.step(context)
+                if result != {'RUNNING_MODAL'}:
+                    return result
+                self._job.wait(POLL_SECONDS)
+        return {'CANCELLED'}  # not reached: the loop returns or the guard re-raises
+
+    @contextlib.contextmanager
+    def guard(self, context: bpy.types.Context) -> Iterator[None]:
+        """Cancel the job and free the slot if the block is left by an exception."""
+        try:
+            yield
+        except BaseException:
+            if self._job is not None:
+                self._job.cancel()
+            self.end(context)
+            raise
 
     # ---------------------------------------------------------------- operator API
     def execute(self, context: bpy.types.Context) -> set[str]:
@@ -179,13 +205,15 @@ class JobRunner:
         return {'RUNNING_MODAL'}
 
     def modal(self, context: bpy.types.Context, event: Any) -> set[str]:
-        if event.type == 'ESC' and event.value == 'PRESS':
-            if self._job is not None:
-                self._job.cancel()
-            return self.step(context)
-        if event.type == 'TIMER':
-            return self.step(context)
-        return {'PASS_THROUGH'}
+        with self.guard(context):
+            if event.type == 'ESC' and event.value == 'PRESS':
+                if self._job is not None:
+                    self._job.cancel()
+                return self.step(context)
+            if event.type == 'TIMER':
+                return self.step(context)
+            return {'PASS_THROUGH'}
+        return {'CANCELLED'}  # not reached
 
     def cancel(self, context: bpy.types.Context) -> None:
         """Called by Blender when the modal operator is ended from outside (file load)."""
@@ -226,6 +254,8 @@ class PackRunner(JobRunner):
     def apply(self, context: bpy.types.Context, result: engine.PackOutcome) -> set[str]:
         bridge.check_unchanged(context, self._request)
         coll = bridge.build_result(context, self._request, result)
+        if not context.scene.jampacked.keep_previous:
+            results.replace_previous(context.scene, coll)
         p = result.packing
         m, cert = p.metrics, p.certificate
         nni = m.get("nni_mean")
@@ -260,7 +290,8 @@ class ExportRunner(JobRunner):
         def run(progress: worker.Progress, should_cancel: worker.ShouldCancel) -> Any:
             return engine.export_triangles(
                 request.packing_json, request.container, request.types, request.out_path,
-                request.options, progress=progress, should_cancel=should_cancel)
+                request.options, progress=progress, should_cancel=should_cancel,
+                scale=request.scale)
 
         return worker.Job(self.job_title, run)
 
@@ -393,22 +424,18 @@ class JAMPACKED_OT_validate(bpy.types.Operator):
 
     bl_idname = "jampacked.validate"
     bl_label = "Validate"
-    bl_options = {'REGISTER'}
+    bl_options = {'REGISTER', 'UNDO'}  # it may change the selection and enter edit mode
 
     @classmethod
     def poll(cls, context: bpy.types.Context) -> bool:
-        return any(o.type == 'MESH' for o in context.selected_objects) or (
-            context.active_object is not None and context.active_object.type == 'MESH')
+        return bool(_mesh_targets(context))
 
     def execute(self, context: bpy.types.Context) -> set[str]:
         missing = engine.engine_missing()
         if missing:
             self.report({'ERROR'}, missing)
             return {'CANCELLED'}
-        objects = [o for o in context.selected_objects if o.type == 'MESH']
-        active = context.active_object
-        if not objects and active is not None and active.type == 'MESH':
-            objects = [active]
+        objects = _mesh_targets(context)
         apply_modifiers = context.scene.jampacked.validate_modifiers
         depsgraph = context.evaluated_depsgraph_get()
         results = context.window_manager.jampacked_validation.reports
@@ -436,17 +463,42 @@ class JAMPACKED_OT_validate(bpy.types.Operator):
             for kind, label, count in engine.validation_counts(report):
                 check = entry.checks.add()
                 check.kind, check.label, check.count = kind, label, count
-                check.selectable = selectable and kind in (
-                    bridge.FACE_KINDS + bridge.EDGE_KINDS + bridge.VERTEX_KINDS)
+                check.selectable = selectable and kind in bridge.SELECTABLE_KINDS
             failed += not report.passed
         seconds = time.perf_counter() - t0
+        shown = _select_failing(context, objects)
         if failed:
             self.report({'WARNING'}, f"{failed} of {len(objects)} mesh(es) fail: "
                                      + "; ".join(r.summary for r in results if not r.passed))
         else:
             self.report({'INFO'}, f"{len(objects)} mesh(es) pass ({seconds:.1f} s): "
                                   + "; ".join(r.summary for r in results))
+        if shown:
+            self.report({'INFO'}, f"Selected {shown[1]} offending element(s) of "
+                                  f"'{shown[0]}' in edit mode.")
         return {'FINISHED'}
+
+
+def _select_failing(context: bpy.types.Context, objects: list[bpy.types.Object]
+                    ) -> tuple[str, int] | None:
+    """After Validate: select every offending element of the checked object that failed (the
+    active one, else the first) in edit mode. Returns (object name, elements) or None when no
+    failing object can show its elements (modifiers change the topology, not in the view
+    layer)."""
+    active = context.active_object
+    for obj in sorted(objects, key=lambda o: o != active):
+        cached = _validation_cache.get(obj.name)
+        if cached is None or cached[1].passed or not cached[3]:
+            continue
+        if context.view_layer.objects.get(obj.name) is None:
+            continue
+        tris, report, groups, _ = cached
+        offending = {k: v for k, v in report.offending.items()
+                     if k in bridge.SELECTABLE_KINDS and len(v)}
+        if not offending:
+            continue
+        return obj.name, bridge.select_offending(context, obj, offending, tris, groups)
+    return None
 
 
 class JAMPACKED_OT_select_defects(bpy.types.Operator):
@@ -478,8 +530,9 @@ class JAMPACKED_OT_select_defects(bpy.types.Operator):
             self.report({'ERROR'}, f"'{obj.name}' is not in the current view layer.")
             return {'CANCELLED'}
         try:
-            count = bridge.select_offending(context, obj, self.kind,
-                                            report.offending[self.kind], tris, groups)
+            count = bridge.select_offending(context, obj,
+                                            {self.kind: report.offending[self.kind]}, tris,
+                                            groups)
         except _errors().JampackedError as exc:
             self.report({'ERROR'}, str(exc))
             return {'CANCELLED'}
@@ -487,6 +540,51 @@ class JAMPACKED_OT_select_defects(bpy.types.Operator):
             self.kind, self.kind)
         self.report({'INFO'}, f"Selected {count} element(s): {label.lower()} of '{obj.name}'.")
         return {'FINISHED'}
+
+
+class JAMPACKED_OT_make_manifold(bpy.types.Operator):
+    """Repair the selected meshes safely: merge vertices by distance, fill holes and
+    recalculate normals outward (the mesh data, not its modifiers)"""
+
+    bl_idname = "jampacked.make_manifold"
+    bl_label = "Make Manifold"
+    bl_options = {'REGISTER', 'UNDO'}
+
+    merge_distance: FloatProperty(
+        name="Merge Distance", default=0.0001, min=0.0, soft_max=1.0, precision=5,
+        subtype='DISTANCE', unit='LENGTH',
+        description="Vertices closer than this (scene units) are merged into one")
+
+    @classmethod
+    def poll(cls, context: bpy.types.Context) -> bool:
+        return bool(_mesh_targets(context))
+
+    def execute(self, context: bpy.types.Context) -> set[str]:
+        objects = _mesh_targets(context)
+        in_edit = context.object is not None and context.object.mode == 'EDIT'
+        if in_edit:
+            bpy.ops.object.mode_set(mode='OBJECT')
+        done = []
+        for mesh in {o.data for o in objects}:
+            done.append(f"'{mesh.name}': "
+                        f"{repair.make_manifold(mesh, self.merge_distance).summary()}")
+        if in_edit:
+            bpy.ops.object.mode_set(mode='EDIT')
+        # the last Validate no longer describes these meshes
+        context.window_manager.jampacked_validation.reports.clear()
+        _validation_cache.clear()
+        self.report({'INFO'}, "Made manifold: " + "; ".join(done) + ". Validate again to "
+                              "check.")
+        return {'FINISHED'}
+
+
+def _mesh_targets(context: bpy.types.Context) -> list[bpy.types.Object]:
+    """The selected mesh objects, or the active one if none is selected."""
+    objects = [o for o in context.selected_objects if o.type == 'MESH']
+    active = context.active_object
+    if not objects and active is not None and active.type == 'MESH':
+        objects = [active]
+    return objects
 
 
 classes = (
@@ -498,6 +596,7 @@ classes = (
     JAMPACKED_OT_type_move,
     JAMPACKED_OT_validate,
     JAMPACKED_OT_select_defects,
+    JAMPACKED_OT_make_manifold,
 )
 
 __all__ = ["ExportRunner", "JobRunner", "PackRunner", "classes", "validation_cache"]

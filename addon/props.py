@@ -7,8 +7,9 @@
 - ``WindowManager.jampacked_validation`` (:class:`JAMPACKED_PG_validation`): the last
   Validate results, one entry per object.
 
-Lengths are in Blender units (the scene's world space); set the scene's unit scale so
-that one unit is one millimetre for printing.
+Lengths are in Blender units (the scene's world space), shown and typed in the scene's
+units (with a unit system, "0.5 mm" typed into a length field is converted); Export writes
+millimetres, converting with the scene's unit scale (:mod:`.units`).
 """
 
 # No "from __future__ import annotations" here: Blender reads the property annotations
@@ -72,6 +73,12 @@ FORMAT_ITEMS = [
 ]
 
 
+#: Blender 4.5 warns on '//' paths in a FILE_PATH property unless it declares that it takes
+#: them; older versions do not know the option (the manifest allows 4.2)
+BLEND_RELATIVE = ({"options": {'PATH_SUPPORTS_BLEND_RELATIVE'}}
+                  if bpy.app.version >= (4, 5, 0) else {})
+
+
 def axis_name(identifier: str) -> str:
     """'PZ' -> '+z' (enum identifiers cannot hold '+' or '-')."""
     return ("+" if identifier[0] == "P" else "-") + identifier[1].lower()
@@ -90,7 +97,8 @@ class JAMPACKED_PG_settings(bpy.types.PropertyGroup):
     clearance: FloatProperty(
         name="Clearance", default=0.0, min=0.0, soft_max=10.0, subtype='DISTANCE',
         unit='LENGTH', precision=3,
-        description="Minimum gap between objects and to the wall (0: objects may touch)")
+        description="Minimum gap between objects and to the wall, in scene units (type "
+                    "e.g. '0.3 mm' to give millimetres; 0: objects may touch)")
     fidelity: EnumProperty(name="Fidelity", items=FIDELITY_ITEMS, default='AUTO',
                            description="Resolution of the object approximations")
     mix_tolerance: FloatProperty(
@@ -103,6 +111,10 @@ class JAMPACKED_PG_settings(bpy.types.PropertyGroup):
         unit='TIME_ABSOLUTE',
         description="Seconds of placement before the best packing so far is kept "
                     "(0: no limit); certification runs after it")
+    keep_previous: BoolProperty(
+        name="Keep Previous", default=False,
+        description="Keep the earlier results of this container: without it a Pack "
+                    "replaces the last result (one undo brings it back)")
     result: PointerProperty(
         name="Result", type=bpy.types.Collection,
         description="Collection made by the last Pack: its metrics are shown and Export "
@@ -144,7 +156,7 @@ class JAMPACKED_PG_settings(bpy.types.PropertyGroup):
         name="One File per Part", default=False,
         description="Parts mode: write one file per part instead of one file")
     filepath: StringProperty(
-        name="File", default="//jampacked.stl", subtype='FILE_PATH',
+        name="File", default="//jampacked.stl", subtype='FILE_PATH', **BLEND_RELATIVE,
         description="Output file ('//' is the .blend file's folder); the extension follows "
                     "the format")
     file_format: EnumProperty(name="Format", items=FORMAT_ITEMS, default='STL')

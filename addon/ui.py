@@ -3,7 +3,7 @@
 # No "from __future__ import annotations": Blender reads class annotations.
 import bpy
 
-from . import summary
+from . import summary, units
 
 
 class JAMPACKED_UL_types(bpy.types.UIList):
@@ -56,6 +56,7 @@ class JAMPACKED_PT_pack(_Sidebar, bpy.types.Panel):
         col.prop(s, "fidelity")
         col.prop(s, "mix_tolerance")
         col.prop(s, "time_budget")
+        col.prop(s, "keep_previous")
         if state.running:
             box = layout.box()
             box.progress(factor=state.fraction, type='BAR',
@@ -125,6 +126,9 @@ class JAMPACKED_PT_export(_Sidebar, bpy.types.Panel):
     def draw(self, context: bpy.types.Context) -> None:
         s = context.scene.jampacked
         layout = self.layout
+        unit = context.scene.unit_settings
+        layout.label(text="Units: " + units.units_line(unit.system, unit.scale_length),
+                     icon='DRIVER_DISTANCE')
         layout.use_property_split = True
         layout.use_property_decorate = False
         layout.prop(s, "export_mode")
@@ -161,6 +165,7 @@ class JAMPACKED_PT_validate(_Sidebar, bpy.types.Panel):
         row = layout.row(align=True)
         row.operator("jampacked.validate", icon='CHECKMARK')
         row.prop(s, "validate_modifiers", text="", icon='MODIFIER')
+        layout.operator("jampacked.make_manifold", icon='MOD_MESHDEFORM')
         for report in context.window_manager.jampacked_validation.reports:
             box = layout.box()
             box.label(text=report.object_name, icon='CHECKMARK' if report.passed else 'ERROR')

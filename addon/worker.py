@@ -103,7 +103,9 @@ class Job:
                 self._end(CANCELLED)
             else:
                 self._end(FAILED, error=str(exc))
-        except Exception as exc:  # noqa: BLE001 - reported to the user, logged in full
+        except BaseException as exc:  # noqa: BLE001 - reported to the user, logged in full
+            # BaseException too (KeyboardInterrupt, SystemExit): a job left RUNNING would
+            # never be handled and would hold the slot for good
             logger.error("%s failed:\n%s", self.title, traceback.format_exc())
             self._end(FAILED, error=f"{self.title} failed with an internal error "
                                     f"({type(exc).__name__}: {exc}); see the system console.")
@@ -128,7 +130,11 @@ class Job:
         """Start the thread; raises BusyError if another job is still running."""
         _claim(self)
         self._started = time.perf_counter()
-        self._thread.start()
+        try:
+            self._thread.start()
+        except BaseException:
+            _release(self)
+            raise
         return self
 
     def cancel(self) -> None:
@@ -181,6 +187,38 @@ class Job:
     def release(self) -> None:
         """Let another job start (call once this job's outcome has been handled)."""
         _release(self)
+
+
+class ProgressLog:
+    """Progress lines for a console (Blender in background mode), throttled: a line when
+    the fraction has moved by ``step`` since the last line or ``seconds`` have passed, and
+    the first one.
+
+    Args:
+        title: the job, e.g. "Packing".
+        step: fraction between lines.
+        seconds: at most this long without a line while the job runs.
+        clock: seconds, monotonic (a test passes its own).
+    """
+
+    def __init__(self, title: str, *, step: float = 0.05, seconds: float = 2.0,
+                 clock: Callable[[], float] = time.monotonic) -> None:
+        self.title = title
+        self.step = step
+        self.seconds = seconds
+        self._clock = clock
+        self._fraction: float | None = None
+        self._at = 0.0
+
+    def line(self, snap: Snapshot) -> str | None:
+        """The line to print for this snapshot, or None (too soon since the last one)."""
+        now = self._clock()
+        if self._fraction is not None and snap.fraction - self._fraction < self.step and \
+                now - self._at < self.seconds:
+            return None
+        self._fraction, self._at = snap.fraction, now
+        return (f"Jampacked {self.title.lower()}: {snap.fraction:4.0%} {snap.message} "
+                f"({snap.elapsed:.1f} s)")
 
 
 # ---------------------------------------------------------------- one job at a time

@@ -21,6 +21,28 @@ os.environ.setdefault("BLENDER_USER_RESOURCES", tempfile.mkdtemp(prefix="jampack
 
 _registered: list[ModuleType] = []
 
+#: marks the test that builds the extension zip with its wheels (a download of about
+#: 100 MB unless addon/wheels/ has them) and packs with it; run only with JAMPACKED_TEST_ZIP=1
+ZIP_MARKER = "extension_zip"
+
+
+def pytest_configure(config: pytest.Config) -> None:
+    config.addinivalue_line(
+        "markers", f"{ZIP_MARKER}: builds and installs the extension zip with its linux-x64 "
+                   "wheels (downloads about 100 MB once); deselected unless "
+                   "JAMPACKED_TEST_ZIP=1")
+
+
+def pytest_collection_modifyitems(config: pytest.Config, items: list[pytest.Item]) -> None:
+    """Deselect (counted in pytest's summary, not skipped silently) the zip test unless
+    JAMPACKED_TEST_ZIP=1."""
+    if os.environ.get("JAMPACKED_TEST_ZIP") == "1":
+        return
+    zip_tests = [item for item in items if item.get_closest_marker(ZIP_MARKER)]
+    if zip_tests:
+        config.hook.pytest_deselected(items=zip_tests)
+        items[:] = [item for item in items if item not in zip_tests]
+
 
 def _unregister_at_exit() -> None:
     # Blender hangs at exit while Python callbacks (pointer polls) are still registered

@@ -235,3 +235,98 @@ def test_one_undo_step_removes_the_result(bpy, addon, scene):
     bpy.ops.ed.undo()
     assert scene_state(bpy) == before
     assert bpy.context.scene.jampacked.result is None
+
+
+def _interrupt(*_args, **_kwargs):
+    raise KeyboardInterrupt
+
+
+def test_ctrl_c_in_a_blocking_pack_frees_the_job(bpy, addon, scene, monkeypatch):
+    """Ctrl-C lands in the main thread while a blocking Pack waits for its thread: the job
+    is cancelled, the slot freed and the scene unchanged, so the next Pack runs."""
+    scene.box.scale = BIG_BOX
+    before = scene_state(bpy)
+    monkeypatch.setattr(addon.worker.Job, "wait", _interrupt)
+    with pytest.raises((KeyboardInterrupt, RuntimeError)):
+        bpy.ops.jampacked.pack()
+    monkeypatch.undo()
+    assert not addon.worker.busy()
+    assert not bpy.context.window_manager.jampacked_job.running
+    assert scene_state(bpy) == before
+    scene.box.scale = (10.0, 9.5, 11.0)
+    assert bpy.ops.jampacked.pack.poll()
+    assert bpy.ops.jampacked.pack() == {'FINISHED'}
+
+
+def test_interrupt_in_the_engine_frees_the_job(bpy, addon, scene, monkeypatch):
+    """A KeyboardInterrupt (any BaseException) raised by the engine call ends the job as
+    failed instead of leaving it running for ever; the next Pack runs."""
+    before = scene_state(bpy)
+    monkeypatch.setattr(addon.engine, "pack_triangles", _interrupt)
+    run = runner(addon)
+    assert run.begin(bpy.context)
+    assert drive(run, bpy.context, timeout=30.0) == {'CANCELLED'}
+    assert "KeyboardInterrupt" in run.reports[-1][1]
+    assert not addon.worker.busy()
+    with pytest.raises(RuntimeError, match="KeyboardInterrupt"):
+        bpy.ops.jampacked.pack()  # the blocking path ends too
+    monkeypatch.undo()
+    assert scene_state(bpy) == before
+    assert bpy.ops.jampacked.pack() == {'FINISHED'}
+
+
+def _results(bpy) -> list:
+    return sorted((c for c in bpy.context.scene.collection.children_recursive
+                   if "jampacked_packing" in c.keys()), key=lambda c: c.name)
+
+
+def test_a_second_pack_replaces_the_first(bpy, addon, scene):
+    """Trying another seed replaces the container's result (names reused, nothing left
+    behind), in one undo step that brings the first result back."""
+    inputs = {o.name for o in bpy.data.objects}
+    bpy.ops.ed.undo_push(message="before pack")
+    assert bpy.ops.jampacked.pack('EXEC_DEFAULT', True) == {'FINISHED'}
+    first = scene_state(bpy)
+    bpy.context.scene.jampacked.seed = 2
+    assert bpy.ops.jampacked.pack('EXEC_DEFAULT', True) == {'FINISHED'}
+    (coll,) = _results(bpy)
+    assert coll.name == "Jampacked Box" and bpy.context.scene.jampacked.result == coll
+    packing = _packing(addon, coll)
+    assert packing.seed == 2 and len(coll.objects) == packing.n
+    assert {o.name for o in bpy.data.objects} == inputs | {o.name for o in coll.objects}
+    jam_meshes = {m.name for m in bpy.data.meshes if m.name.startswith("Jampacked")}
+    assert jam_meshes == {"Jampacked P5", "Jampacked P4"}
+    assert list(coll["jampacked_type_meshes"]) == ["Jampacked P5", "Jampacked P4"]
+    assert {m.name for m in bpy.data.materials} == jam_meshes
+    assert {o.data.name for o in coll.objects} == jam_meshes
+    assert first != scene_state(bpy)
+    bpy.ops.ed.undo()
+    assert scene_state(bpy) == first
+    assert _packing(addon, bpy.context.scene.jampacked.result).seed == 1
+
+
+def test_keep_previous_keeps_both(bpy, addon, scene):
+    scene.settings.keep_previous = True
+    assert bpy.ops.jampacked.pack() == {'FINISHED'}
+    scene.settings.seed = 2
+    assert bpy.ops.jampacked.pack() == {'FINISHED'}
+    names = [c.name for c in _results(bpy)]
+    assert names == ["Jampacked Box", "Jampacked Box.001"]
+    assert scene.settings.result.name == "Jampacked Box.001"
+
+
+def test_background_pack_prints_throttled_progress(bpy, addon, scene, capsys):
+    """Blender in background mode (as here) has no panel: a blocking Pack prints progress
+    lines to stdout, the fraction rising, at most one per 5% or 2 s."""
+    assert bpy.app.background
+    scene.box.scale = BIG_BOX
+    scene.settings.time_budget = 4.0
+    t0 = time.monotonic()
+    assert bpy.ops.jampacked.pack() == {'FINISHED'}
+    seconds = time.monotonic() - t0
+    lines = [ln for ln in capsys.readouterr().out.splitlines()
+             if ln.startswith("Jampacked packing:")]
+    assert len(lines) >= 3, lines
+    percents = [int(ln.split(":", 1)[1].split("%")[0]) for ln in lines]
+    assert percents == sorted(percents) and percents[-1] > percents[0]
+    assert len(lines) <= 21 + seconds / 2.0 + 1

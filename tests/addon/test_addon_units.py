@@ -23,7 +23,7 @@ build = load_standalone("build")
 
 
 def test_thread_side_modules_never_import_bpy():
-    for name in ("worker.py", "engine.py", "summary.py", "build.py"):
+    for name in ("worker.py", "engine.py", "summary.py", "build.py", "units.py"):
         tree = ast.parse((ADDON / name).read_text(encoding="utf-8"))
         imported = {alias.name.split(".")[0] for node in ast.walk(tree)
                     if isinstance(node, ast.Import) for alias in node.names}
@@ -206,3 +206,74 @@ def test_build_without_wheels(tmp_path):
             "engine.py", "summary.py", "blender_manifest.toml"} <= names
     assert "build.py" not in names and not any(n.startswith("wheels/") for n in names)
     assert manifest["wheels"] == [] and manifest["platforms"] == ["linux-x64"]
+
+
+def test_scene_units_to_millimetres():
+    units = load_standalone("units")
+    assert units.mm_per_unit("METRIC", 1.0) == 1000.0  # Blender's default scene
+    assert units.mm_per_unit("METRIC", 0.001) == 1.0
+    assert units.mm_per_unit("IMPERIAL", 0.0254) == pytest.approx(25.4)
+    assert units.mm_per_unit("NONE", 1.0) == 1.0
+    assert units.units_line("METRIC", 1.0) == "1 BU = 1 m, exported in mm"
+    assert units.units_line("METRIC", 0.001) == "1 BU = 1 mm, exported in mm"
+    assert units.units_line("IMPERIAL", 0.0254) == "1 BU = 2.54 cm, exported in mm"
+    assert units.units_line("NONE", 1.0) == "No scene units: 1 BU exported as 1 mm"
+
+
+def test_scaled_packing_is_the_same_print_larger():
+    """Scaling a packing, its meshes and the export lengths by k moves every placed vertex
+    to k times its place."""
+    import numpy as np
+
+    from jampacked.core.packing import Packing, TypeRecord
+
+    engine = load_standalone("engine")
+    rng = np.random.default_rng(0)
+    local = np.eye(4)
+    local[:3, :3] = np.linalg.qr(rng.normal(size=(3, 3)))[0]
+    local[:3, 3] = rng.normal(size=3)
+    packing = Packing(
+        container_path="blender:Box", container_sha256=None, frame_from_file=np.eye(4),
+        container_volume=8.0,
+        types=[TypeRecord("t", None, None, 1.0, local, volume=0.5)],
+        type_index=np.zeros(2, np.int64),
+        rotations=np.array([[1.0, 0, 0, 0], [0.0, 1.0, 0, 0]]),
+        translations=rng.normal(size=(2, 3)), scales=np.ones(2),
+        params={"clearance": 0.002})
+    verts = rng.normal(size=(4, 3))
+    tri = engine.Triangles("t", verts, np.array([[0, 1, 2]]), np.zeros(1, np.int64), 1)
+    box = engine.Triangles("Box", verts * 3, np.array([[0, 1, 2]]), np.zeros(1, np.int64), 1)
+    options = engine.export_options("CONNECT", 0.002, "WINDOW", "+z", 0.7, 0.01, 0.003,
+                                    0.001, 0.0001, False)
+    out, cbox, (ctri,), copts = engine.scaled(packing, box, [tri], options, 1000.0)
+
+    def placed(p, t):
+        m = p.matrices() @ p.types[0].local_from_file
+        return np.einsum("nij,vj->nvi", m[:, :3, :3], t.vertices) + m[:, None, :3, 3]
+
+    np.testing.assert_allclose(placed(out, ctri), 1000.0 * placed(packing, tri), atol=1e-9)
+    np.testing.assert_allclose(cbox.vertices, 3000.0 * verts)
+    assert out.container_volume == pytest.approx(8e9) and out.types[0].volume == \
+        pytest.approx(5e8)
+    assert out.params["clearance"] == pytest.approx(2.0)
+    assert (copts.shell, copts.drain, copts.connector, copts.resolution, copts.opening.size) \
+        == pytest.approx((2.0, 3.0, 1.0, 0.1, 10.0))
+    assert packing.translations is not out.translations and packing.params["clearance"] == \
+        0.002  # the input is unchanged
+
+
+def test_progress_log_is_throttled():
+    now = [0.0]
+    log = worker.ProgressLog("Packing", clock=lambda: now[0])
+
+    def snap(fraction, message="phase 1"):
+        return worker.Snapshot(worker.RUNNING, fraction, message, False, now[0])
+
+    assert log.line(snap(0.0)) == "Jampacked packing:   0% phase 1 (0.0 s)"
+    now[0] = 0.5
+    assert log.line(snap(0.03)) is None  # under 5% and 2 s since the last line
+    assert log.line(snap(0.06)) is not None  # 5% further
+    now[0] = 1.0
+    assert log.line(snap(0.07)) is None
+    now[0] = 2.6
+    assert log.line(snap(0.07, "phase 2")) == "Jampacked packing:   7% phase 2 (2.6 s)"

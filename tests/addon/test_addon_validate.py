@@ -6,7 +6,8 @@ import pytest
 
 pytest.importorskip("bpy")
 
-from addon_helpers import CUBE_FACES, cube_object  # noqa: E402
+import numpy as np  # noqa: E402
+from addon_helpers import CUBE_FACES, CUBE_VERTICES, cube_object, mesh_object  # noqa: E402
 
 
 def _select_only(bpy, objects) -> None:
@@ -84,3 +85,53 @@ def test_validate_uses_world_space_and_modifiers(bpy, addon):
     assert not reports["Holed"].passed and _counts(reports["Holed"])["open_edges"] == 4
     assert bpy.ops.jampacked.select_defects(object_name="Holed", kind="open_edges") == \
         {'FINISHED'}
+
+
+def test_validate_selects_the_hole_and_make_manifold_fixes_it(bpy, addon):
+    """A cube with a hole: Validate alone selects the hole's boundary edges in edit mode;
+    Make Manifold (one undo step) closes it so that Validate passes."""
+    holed = cube_object(bpy, "Holed", faces=CUBE_FACES[:-1])
+    _select_only(bpy, [holed])
+    bpy.ops.ed.undo_push(message="before validate")
+    assert bpy.ops.jampacked.validate('EXEC_DEFAULT', True) == {'FINISHED'}
+    (report,) = bpy.context.window_manager.jampacked_validation.reports
+    assert not report.passed
+    assert holed.mode == 'EDIT'
+    assert _selected(bpy, holed) == (4, 4, 0)
+    assert tuple(bpy.context.tool_settings.mesh_select_mode) == (False, True, False)
+    bm = __import__("bmesh").from_edit_mesh(holed.data)
+    assert all(e.is_boundary for e in bm.edges if e.select)
+
+    bpy.ops.object.mode_set(mode='OBJECT')
+    bpy.ops.ed.undo_push(message="before repair")
+    assert bpy.ops.jampacked.make_manifold('EXEC_DEFAULT', True) == {'FINISHED'}
+    assert len(holed.data.polygons) == 6
+    assert bpy.ops.jampacked.validate() == {'FINISHED'}
+    (report,) = bpy.context.window_manager.jampacked_validation.reports
+    assert report.passed, report.summary
+    assert holed.mode == 'OBJECT'  # nothing to select
+
+    bpy.ops.ed.undo()  # one step undoes the repair
+    assert len(bpy.data.objects["Holed"].data.polygons) == 5
+
+
+def test_make_manifold_merges_and_turns_faces_outward(bpy, addon):
+    """A cube whose faces do not share vertices (split seams) and with one face flipped:
+    merged by distance and turned outward, it passes."""
+    verts, faces = [], []
+    for i, face in enumerate(CUBE_FACES):
+        face = face[::-1] if i == 2 else face
+        faces.append([len(verts) + k for k in range(4)])
+        verts.extend(np.array(CUBE_VERTICES, float)[list(face)] * 3.0)
+    split = mesh_object(bpy, "Split", verts, faces)
+    _select_only(bpy, [split])
+    bpy.ops.jampacked.validate()
+    assert not bpy.context.window_manager.jampacked_validation.reports[0].passed
+    assert split.mode == 'EDIT'  # with the open seams selected
+    assert bpy.ops.jampacked.make_manifold() == {'FINISHED'}
+    assert split.mode == 'EDIT'  # the repair keeps the mode it found
+    bpy.ops.object.mode_set(mode='OBJECT')
+    assert len(split.data.vertices) == 8
+    bpy.ops.jampacked.validate()
+    report = bpy.context.window_manager.jampacked_validation.reports[0]
+    assert report.passed, report.summary

@@ -1,0 +1,66 @@
+"""Result collections of earlier Packs: find them and remove them when a Pack replaces them.
+
+A result is a collection "Jampacked <container>" made by :func:`.bridge.build_result`: its
+custom properties name the container (``jampacked_container``) and the type meshes it made
+(``jampacked_type_meshes``). Runs on Blender's main thread, inside the Pack operator, so the
+removal is part of Pack's one undo step.
+"""
+
+import bpy
+
+from . import summary
+
+
+def is_result(coll: bpy.types.Collection) -> bool:
+    """True for a collection made by Pack (it holds the packing JSON)."""
+    return summary.PREFIX + "packing" in coll.keys()
+
+
+def previous_results(scene: bpy.types.Scene, container_name: str
+                     ) -> list[bpy.types.Collection]:
+    """The results of ``container_name`` linked anywhere in the scene's collection tree."""
+    return [c for c in scene.collection.children_recursive
+            if is_result(c) and c.get(summary.PREFIX + "container") == container_name]
+
+
+def remove_result(coll: bpy.types.Collection) -> None:
+    """Remove a result: its placed objects (those in no other collection), then the type
+    meshes and their materials once nothing else uses them, then the collection."""
+    meshes = [bpy.data.meshes.get(str(name))
+              for name in coll.get(summary.PREFIX + "type_meshes", [])]
+    objects = [o for o in coll.objects
+               if "jampacked_type" in o.keys() and len(o.users_collection) == 1]
+    if objects:
+        bpy.data.batch_remove(objects)
+    for mesh in meshes:
+        if mesh is None or mesh.users:
+            continue
+        materials = [m for m in mesh.materials if m is not None]
+        bpy.data.meshes.remove(mesh)
+        for mat in materials:
+            if not mat.users and mat.name.startswith("Jampacked "):
+                bpy.data.materials.remove(mat)
+    bpy.data.collections.remove(coll)
+
+
+def replace_previous(scene: bpy.types.Scene, new: bpy.types.Collection) -> int:
+    """Remove the other results of ``new``'s container in the scene, then give ``new`` and
+    its type meshes and materials the names the removed ones had (no ".001" suffixes).
+    Returns the number of results removed."""
+    container = str(new.get(summary.PREFIX + "container", ""))
+    old = [c for c in previous_results(scene, container) if c != new]
+    for coll in old:
+        remove_result(coll)
+    new.name = f"Jampacked {container}"
+    names = []
+    for mesh_name, type_name in zip(new.get(summary.PREFIX + "type_meshes", []),
+                                    new.get(summary.PREFIX + "type_names", []), strict=True):
+        mesh = bpy.data.meshes[str(mesh_name)]
+        base = f"Jampacked {type_name}"
+        mesh.name = base
+        for mat in mesh.materials:
+            if mat is not None and mat.name.startswith(base + "."):
+                mat.name = base
+        names.append(mesh.name)
+    new[summary.PREFIX + "type_meshes"] = names
+    return len(old)
