@@ -58,7 +58,7 @@ ABI = "cp311"
 #: at the versions the add-on is tested with (numpy<2, bpy 4.5). meshio needs rich, and rich
 #: needs markdown-it-py, mdurl and pygments.
 BINARY_PINS = {"numba": "0.68.1", "llvmlite": "0.50.0", "scipy": "1.17.1",
-               "manifold3d": "3.5.4"}
+               "manifold3d": "3.5.4", "lxml": "6.1.3"}
 PURE_PINS = {"trimesh": "5.2.0", "meshio": "5.3.5", "rich": "15.0.0",
              "markdown-it-py": "4.3.0", "mdurl": "0.1.2", "pygments": "2.21.0"}
 PINS = {**BINARY_PINS, **PURE_PINS}
