@@ -5,9 +5,10 @@ in a temporary folder, so the session's registered add-on is not disturbed.
 
 - The add-on-only zip (``build.py --no-wheels``) is installed and enabled here: it checks
   the manifest and package as Blender reads them, in a few seconds.
-- The full zip with its wheels is tested only when ``JAMPACKED_BARE_BLENDER_PYTHON`` names
-  a Python that has nothing but ``bpy`` and ``numpy<2`` installed (so that the engine can
-  only come from the zip's wheels): it installs the linux-x64 zip (about 100 MB; wheels
+- The full zip with its wheels is tested only with ``pytest --wheels`` (see
+  tests/conftest.py), and ``JAMPACKED_BARE_BLENDER_PYTHON`` must name a Python that has
+  nothing but ``bpy`` and ``numpy<2`` installed (so that the engine can only come from the
+  zip's wheels): it installs the linux-x64 zip (about 100 MB; wheels
   downloaded into addon/wheels/ unless there already), packs a small scene and exports it
   with a shell. It takes a minute or more (numba compiles the engine's kernels on first use),
   hence opt-in.
@@ -94,11 +95,11 @@ def test_addon_zip_installs_and_enables(tmp_path):
     assert {"pack", "export", "validate", "cancel"} <= set(result["operators"])
 
 
-@pytest.mark.skipif(not os.environ.get("JAMPACKED_BARE_BLENDER_PYTHON"),
-                    reason="set JAMPACKED_BARE_BLENDER_PYTHON to a Python with only bpy and "
-                           "numpy<2 to test the zip with its wheels (about 100 MB, a minute)")
+@pytest.mark.wheels
 def test_zip_with_wheels_runs_in_a_bare_blender(tmp_path):
-    python = os.environ["JAMPACKED_BARE_BLENDER_PYTHON"]
+    python = os.environ.get("JAMPACKED_BARE_BLENDER_PYTHON")
+    assert python, ("set JAMPACKED_BARE_BLENDER_PYTHON to a Python with only bpy and numpy<2 "
+                    "to test the zip with its wheels (about 100 MB, a minute)")
     # builds the jampacked wheel from this checkout; downloads only wheels not in addon/wheels
     (zip_path,) = build.build(["linux-x64"], output_dir=tmp_path)
     result = _install(python, zip_path, "full", tmp_path, timeout=900)
