@@ -9,15 +9,13 @@ from __future__ import annotations
 import importlib.util
 import sys
 import time
-from pathlib import Path
 from types import ModuleType, SimpleNamespace
 
 import numpy as np
 import pytest
+from testdata import REPO, mesh_path
 
-REPO = Path(__file__).resolve().parents[2]
 ADDON = REPO / "addon"
-MESHES = REPO.parent / "shared" / "meshes"
 MODULE = "jampacked_blender_addon"
 
 
@@ -61,12 +59,9 @@ def mesh_object(bpy, name: str, vertices, faces, *, location=(0.0, 0.0, 0.0),
 
 
 def shared_mesh_object(bpy, relative: str, name: str, **transform):
-    """A mesh object from a file of ../shared/meshes (read with trimesh, not processed)."""
+    """A mesh object from a test mesh of tests/data/meshes (read with trimesh, not processed)."""
     trimesh = pytest.importorskip("trimesh")
-    path = MESHES / relative
-    if not path.is_file():
-        pytest.skip(f"shared test mesh {path} not found")
-    m = trimesh.load(path, process=False, force="mesh")
+    m = trimesh.load(mesh_path(relative), process=False, force="mesh")
     return mesh_object(bpy, name, m.vertices, m.faces, **transform)
 
 

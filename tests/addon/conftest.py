@@ -78,7 +78,7 @@ def bpy(addon: ModuleType):
 @pytest.fixture
 def scene(bpy):
     """A small packing scene: a rotated, moved, non-uniformly scaled box (20 x 19 x 22 units,
-    from Blender's cube) and two convex polyhedra of ../shared/meshes as types, one scaled
+    from Blender's cube) and two convex polyhedra of tests/data/meshes as types, one scaled
     by 0.8 in the scene. Low fidelity: a pack places about ten objects in a second, well within
     its time budget, so it is the same on every run (``BIG_BOX`` makes one that runs long)."""
     box = cube_object(bpy, "Box", location=(5.0, -3.0, 2.0), rotation_euler=(0.3, 0.2, 0.1),

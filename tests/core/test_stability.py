@@ -10,22 +10,18 @@ from __future__ import annotations
 
 import json
 import sys
-from pathlib import Path
 
 import manifold3d as m3
 import numpy as np
 import pytest
 import trimesh
+from testdata import MESHES, REPO, mesh_path
 
 from jampacked.core.api import pack
 from jampacked.core.errors import PackingError
 from jampacked.core.meshes import load_mesh, mesh_from_arrays
 
-ROOT = Path(__file__).resolve().parents[1]
-MESHES = ROOT.parent / "shared" / "meshes"
-pytestmark = pytest.mark.skipif(not MESHES.is_dir(), reason="../shared/meshes not present")
-
-FRUIT = [str(MESHES / "fruit" / "ycb_lowpoly" / f"{n}.obj") for n in
+FRUIT = [str(mesh_path(f"fruit/ycb_lowpoly/{n}.obj")) for n in
          ("011_banana", "012_strawberry", "014_lemon", "015_peach", "017_orange")]
 BANANA, STRAWBERRY, LEMON, PEACH, ORANGE = FRUIT
 
@@ -110,7 +106,7 @@ def test_clearance_too_large_is_a_clear_error():
 
 @pytest.mark.parametrize("container,kwargs", [
     ("box:80x80x80", {"clearance": 32.0}),  # depth 40 > 4.3 + 32, yet no lemon fits
-    (str(MESHES / "containers" / "bunny.obj"), {"container_size": 30.0}),
+    (str(mesh_path("containers/spot.obj")), {"container_size": 30.0}),
 ])
 def test_nothing_fits_past_the_up_front_check_is_a_clear_error(container, kwargs):
     """The first check (depth against half the smallest equivalent radius) passes here; the
@@ -194,7 +190,7 @@ def test_elongated_banana_alone_is_certified():
 def test_thin_features_hand_is_certified_nothing_outside():
     """A 150 mm hand: fruit (13-22 mm) fit the palm, not the fingers; every placed mesh is
     inside the hand (exact volume outside, manifold3d) and every centre too."""
-    hand = str(MESHES / "containers" / "hand.obj")
+    hand = str(mesh_path("containers/hand.obj"))
     p = pack(hand, FRUIT, container_size=150.0, type_scale=300.0, seed=1, fidelity="low",
              time_budget=4.0)
     _assert_sane(p, hand, min_objects=5, exact_outside=True)
@@ -234,11 +230,11 @@ def test_tens_of_thousands_of_lattice_objects_keep_the_budget():
 
 @pytest.fixture(scope="module")
 def stability():
-    sys.path.insert(0, str(ROOT / "bench"))
+    sys.path.insert(0, str(REPO / "bench"))
     try:
         import stability
     finally:
-        sys.path.remove(str(ROOT / "bench"))
+        sys.path.remove(str(REPO / "bench"))
     return stability
 
 

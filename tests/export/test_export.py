@@ -14,6 +14,7 @@ import pytest
 import trimesh
 from scipy.sparse import coo_matrix
 from scipy.sparse.csgraph import connected_components
+from testdata import DATA, mesh_path
 
 from jampacked.core.distance import point_triangle_distance
 from jampacked.core.errors import Cancelled, InputError, MeshError
@@ -25,12 +26,9 @@ from jampacked.export.closest import Surface, closest_on_triangles
 from jampacked.export.options import ExportOptions, Opening
 from jampacked.export.validate import validate_file
 
-SHARED = Path(__file__).resolve().parents[2] / "shared" / "meshes"
-P1 = SHARED / "polyhedra" / "convex5" / "polytope1.obj"
-P3 = SHARED / "polyhedra" / "convex5" / "polytope3.obj"
-LEMON = SHARED / "fruit" / "ycb_lowpoly" / "014_lemon.obj"
-pytestmark = pytest.mark.skipif(not (P1.is_file() and LEMON.is_file()),
-                                reason=f"shared test meshes not found under {SHARED}")
+P1 = mesh_path("polyhedra/convex5/polytope1.obj")
+P3 = mesh_path("polyhedra/convex5/polytope3.obj")
+LEMON = mesh_path("fruit/ycb_lowpoly/014_lemon.obj")
 
 
 # --------------------------------------------------------------------------- closest points
@@ -464,7 +462,7 @@ def test_needle_is_collapsed():
 
 # --------------------------------------------------------------------------- float32 files
 
-SLIVERS = Path(__file__).resolve().parent / "data" / "spot-float32-slivers.json"
+SLIVERS = DATA / "spot-float32-slivers.json"
 
 
 def test_stl_export_survives_slivers_that_fold_over_in_float32(tmp_path):

@@ -1,7 +1,7 @@
 """Tests for jampacked.export.validate, export.io and `jampacked validate`.
 
 Test meshes are built with trimesh.creation and manifold3d (small: the whole file runs in
-seconds once numba's cache is warm), plus the broken files of ../shared/meshes/broken.
+seconds once numba's cache is warm), plus the broken files of tests/data/meshes/broken.
 """
 
 from __future__ import annotations
@@ -16,6 +16,7 @@ import meshio
 import numpy as np
 import pytest
 import trimesh
+from testdata import MESHES, mesh_path
 
 from jampacked.cli.main import main
 from jampacked.core.errors import InputError, MeshError
@@ -23,17 +24,6 @@ from jampacked.export import intersect
 from jampacked.export.io import read_mesh_arrays, write_mesh
 from jampacked.export.validate import ValidationReport, validate_arrays, validate_file
 from jampacked.export.validation_topology import merge_identical
-
-SHARED = Path(__file__).resolve().parents[2] / "shared" / "meshes"
-BROKEN = SHARED / "broken"
-
-
-def shared(relative: str) -> Path:
-    """Path of a shared test mesh; skip the test if shared/ is not beside the checkout."""
-    path = SHARED / relative
-    if not path.exists():
-        pytest.skip(f"shared test mesh {relative} not found under {SHARED}")
-    return path
 
 
 def box(extents=(2.0, 3.0, 4.0), offset=(0.0, 0.0, 0.0)) -> tuple[np.ndarray, np.ndarray]:
@@ -257,11 +247,11 @@ def test_bad_arrays():
 
 
 # ------------------------------------------------------------------------------------------
-# the shared broken files
+# the broken test meshes
 
-#: what each file in ../shared/meshes/broken must be reported for (attribute of body 0 > 0)
+#: what each file in tests/data/meshes/broken must be reported for (attribute of body 0 > 0)
 BROKEN_EXPECTED = {
-    "bunny_with_holes.obj": {"open_edges": 223, "holes": 5},
+    "spot_with_holes.obj": {"open_edges": 84, "holes": 5},
     "pear_five_bodies.ply": {"nonmanifold_edges": 2, "duplicate_faces": 2,
                              "degenerate_faces": 4},
     "polytope_malformed_face.obj": {"degenerate_faces": 2},
@@ -271,7 +261,7 @@ BROKEN_EXPECTED = {
 
 @pytest.mark.parametrize("name", sorted(BROKEN_EXPECTED))
 def test_shared_broken_files_fail(name):
-    r = validate_file(shared(f"broken/{name}"))
+    r = validate_file(mesh_path(f"broken/{name}"))
     assert not r.passed
     assert r.summary().startswith(f"FAIL {name}: ")
     body = r.bodies[0]
@@ -282,22 +272,20 @@ def test_shared_broken_files_fail(name):
 
 def test_polytope_internal_faces_intersect():
     """Its internal faces cross the inside of the solid."""
-    r = validate_file(shared("broken/polytope_internal_faces.obj"))
+    r = validate_file(mesh_path("broken/polytope_internal_faces.obj"))
     assert r.bodies[0].self_intersections > 0
 
 
 def test_vase_thin_wall_is_watertight():
     """The vase's defect is its use as a container (a thin wall, rejected by core.meshes), not
     its watertightness: as a print it is a closed solid."""
-    r = validate_file(shared("broken/vase_thin_wall_shell.stl"))
+    r = validate_file(mesh_path("broken/vase_thin_wall_shell.stl"))
     assert r.passed, r.summary()
     assert len(r.bodies) == 1 and r.bodies[0].genus == 0
 
 
-def test_every_shared_broken_file_is_covered():
-    if not BROKEN.is_dir():
-        pytest.skip(f"shared test meshes not found under {SHARED}")
-    names = {p.name for p in BROKEN.iterdir() if p.is_file()}
+def test_every_broken_test_mesh_is_covered():
+    names = {p.name for p in (MESHES / "broken").iterdir() if p.is_file()}
     assert names <= set(BROKEN_EXPECTED) | {"vase_thin_wall_shell.stl"}
 
 
@@ -325,7 +313,7 @@ def _exact_segment_meets_triangle(a, b, t) -> bool:
 def test_ycb_peach_scan_has_a_real_fold():
     """The 16k YCB peach scan folds over itself at two spots (faces 12206/15824/15825, about
     1e-7 m deep): found, and confirmed here in exact rational arithmetic."""
-    path = shared("fruit/ycb/015_peach.ply")
+    path = mesh_path("fruit/ycb/015_peach.ply")
     r = validate_file(path)
     assert not r.passed and r.bodies[0].closed and r.bodies[0].inconsistent_edges == 0
     pairs = r.offending["intersecting_pairs"].tolist()
@@ -342,7 +330,7 @@ def test_ycb_peach_scan_has_a_real_fold():
 
 
 def test_shared_torus_container_genus_one():
-    r = validate_file(shared("containers/torus.obj"))
+    r = validate_file(mesh_path("containers/torus.obj"))
     assert r.passed and r.bodies[0].genus == 1
 
 

@@ -10,6 +10,7 @@ import manifold3d
 import numpy as np
 import pytest
 import trimesh
+from testdata import mesh_path, mesh_paths
 
 from jampacked.core.errors import InputError, MeshError
 from jampacked.core.meshes import (
@@ -20,24 +21,6 @@ from jampacked.core.meshes import (
     mesh_volume_centroid,
     parse_box_spec,
 )
-
-SHARED = Path(__file__).resolve().parents[2] / "shared" / "meshes"
-
-
-def shared(relative: str) -> Path:
-    """Path of a shared test mesh; skip the test if shared/ is not beside the checkout."""
-    if not SHARED.is_dir():
-        pytest.skip(f"shared test meshes not found at {SHARED} (shared/ beside the checkout)")
-    path = SHARED / relative
-    if not path.exists():
-        pytest.skip(f"shared test mesh {relative} not found under {SHARED}")
-    return path
-
-
-def shared_glob(pattern: str) -> list[str]:
-    if not SHARED.is_dir():
-        return []
-    return sorted(str(p.relative_to(SHARED)) for p in SHARED.glob(pattern))
 
 
 def assert_closed_oriented(mesh: MeshData) -> None:
@@ -74,21 +57,21 @@ def unit_box() -> tuple[np.ndarray, np.ndarray]:
 
 
 # ------------------------------------------------------------------------------------------
-# the broken shared files
+# the broken test meshes
 
 
-def test_bunny_with_holes_is_open():
-    path = shared("broken/bunny_with_holes.obj")
+def test_spot_with_holes_is_open():
+    path = mesh_path("broken/spot_with_holes.obj")
     with pytest.raises(MeshError) as info:
         load_mesh(path)
     msg = str(info.value)
-    assert "bunny_with_holes.obj" in msg
+    assert "spot_with_holes.obj" in msg
     assert "not closed" in msg and "open boundary edges" in msg and "5 holes" in msg
     assert "Fix:" in msg
 
 
 def test_pear_five_bodies_slivers_removed(caplog):
-    path = shared("broken/pear_five_bodies.ply")
+    path = mesh_path("broken/pear_five_bodies.ply")
     with caplog.at_level(logging.WARNING, logger="jampacked.core.meshes"):
         mesh = load_mesh(path)
     assert_closed_oriented(mesh)
@@ -100,14 +83,14 @@ def test_pear_five_bodies_slivers_removed(caplog):
     logged = [r.getMessage() for r in caplog.records]
     assert all(w in logged for w in mesh.warnings)
     # same solid as the cleaned copy of the pear
-    clean = load_mesh(shared("fruit/ycb/016_pear.ply"))
+    clean = load_mesh(mesh_path("fruit/ycb/016_pear.ply"))
     assert clean.warnings == ()
     assert len(mesh.faces) == len(clean.faces)
     assert mesh.volume == pytest.approx(clean.volume, rel=1e-9)
 
 
 def test_polytope_malformed_face():
-    path = shared("broken/polytope_malformed_face.obj")
+    path = mesh_path("broken/polytope_malformed_face.obj")
     with pytest.raises(MeshError) as info:
         load_mesh(path)
     msg = str(info.value)
@@ -118,7 +101,7 @@ def test_polytope_malformed_face():
 def test_polytope_internal_faces():
     # trimesh's OBJ reader fails on the comments on face lines: the tolerant reader reads it,
     # then the internal faces are found.
-    path = shared("broken/polytope_internal_faces.obj")
+    path = mesh_path("broken/polytope_internal_faces.obj")
     with pytest.raises(MeshError) as info:
         load_mesh(path)
     msg = str(info.value)
@@ -128,7 +111,7 @@ def test_polytope_internal_faces():
 
 
 def test_vase_thin_wall():
-    path = shared("broken/vase_thin_wall_shell.stl")
+    path = mesh_path("broken/vase_thin_wall_shell.stl")
     mesh = load_mesh(path, role="object")
     assert_closed_oriented(mesh)
     with pytest.raises(MeshError) as info:
@@ -139,25 +122,25 @@ def test_vase_thin_wall():
 
 
 # ------------------------------------------------------------------------------------------
-# the good shared files
+# the good test meshes
 
 
-@pytest.mark.parametrize("relative", shared_glob("containers/*") or ["containers/"])
+@pytest.mark.parametrize("relative", mesh_paths("containers/*"))
 def test_shared_containers(relative):
-    mesh = load_mesh(shared(relative), role="container")
+    mesh = load_mesh(mesh_path(relative), role="container")
     assert_closed_oriented(mesh)
     assert mesh.warnings == ()
 
 
 @pytest.mark.parametrize(
     "relative",
-    shared_glob("fruit/ycb_lowpoly/*.obj")
-    + ["fruit/ycb/014_lemon.ply", "fruit/ycb/016_pear.ply"]
-    + shared_glob("polyhedra/*/*.obj"),
+    mesh_paths("fruit/ycb_lowpoly/*.obj")
+    + ["fruit/ycb/015_peach.ply", "fruit/ycb/016_pear.ply"]
+    + mesh_paths("polyhedra/*/*.obj"),
 )
 def test_shared_objects(relative, caplog):
     with caplog.at_level(logging.WARNING):
-        mesh = load_mesh(shared(relative))
+        mesh = load_mesh(mesh_path(relative))
     assert_closed_oriented(mesh)
     assert mesh.warnings == ()
     # the lowpoly OBJ files name missing .mtl files: that stays quiet
@@ -165,7 +148,7 @@ def test_shared_objects(relative, caplog):
 
 
 def test_blender_uv_seams_merged():
-    path = shared("fruit/ycb_lowpoly/011_banana.obj")
+    path = mesh_path("fruit/ycb_lowpoly/011_banana.obj")
     raw = trimesh.load(path, force="mesh", process=False)
     mesh = load_mesh(path)
     assert len(mesh.vertices) < len(raw.vertices)  # split at UV seams in the file
@@ -173,7 +156,7 @@ def test_blender_uv_seams_merged():
 
 
 def test_sha256_and_metadata():
-    path = shared("polyhedra/convex5/polytope1.obj")
+    path = mesh_path("polyhedra/convex5/polytope1.obj")
     mesh = load_mesh(str(path))
     digest = hashlib.sha256(path.read_bytes()).hexdigest()
     assert mesh.sha256 == digest == file_sha256(path)
@@ -185,13 +168,13 @@ def test_sha256_and_metadata():
 @pytest.mark.parametrize(
     "relative",
     [
-        "containers/bunny.obj",
+        "containers/hand.obj",
         "fruit/ycb_lowpoly/014_lemon.obj",
         "polyhedra/nonconvex10/polytope3.obj",
     ],
 )
 def test_volume_centroid_against_trimesh(relative):
-    mesh = load_mesh(shared(relative))
+    mesh = load_mesh(mesh_path(relative))
     tm = trimesh.Trimesh(np.array(mesh.vertices), np.array(mesh.faces), process=False)
     volume, centroid = mesh_volume_centroid(mesh.vertices, mesh.faces)
     assert volume == pytest.approx(tm.volume, rel=1e-9)

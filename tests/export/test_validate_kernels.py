@@ -9,11 +9,11 @@ from __future__ import annotations
 import io
 import math
 import zipfile
-from pathlib import Path
 
 import numpy as np
 import pytest
 import trimesh
+from testdata import mesh_path
 
 from jampacked.core import threemf
 from jampacked.core.mesh_geometry import face_areas2, signed_six_volumes
@@ -29,9 +29,6 @@ from jampacked.export.validation_topology import (
     merge_identical,
     vertex_fans,
 )
-
-SHARED = Path(__file__).resolve().parents[2] / "shared" / "meshes"
-
 
 # ------------------------------------------------------------------------------------------
 # meshes: real ones (closed, open, non-manifold, several bodies) and random soups
@@ -59,12 +56,10 @@ def _meshes() -> list[tuple[str, np.ndarray, np.ndarray]]:
     f = np.vstack([f, f[10:11], [[f[20, 0], f[20, 1], len(v)]], [[f[30, 0], f[30, 0], f[31, 2]]]])
     v = np.vstack([v, [[0.0, 0.0, 2.0]]])
     out.append(("defects", v, np.delete(f, 50, axis=0)))
-    for name in ("broken/bunny_with_holes.obj", "broken/pear_five_bodies.ply",
+    for name in ("broken/spot_with_holes.obj", "broken/pear_five_bodies.ply",
                  "broken/polytope_internal_faces.obj", "containers/torus.obj"):
-        path = SHARED / name
-        if path.exists():
-            v, f = mesh_io.read_mesh_arrays(path)
-            out.append((name, v, f))
+        v, f = mesh_io.read_mesh_arrays(mesh_path(name))
+        out.append((name, v, f))
     # lone copies: a face and its reverse (edges used twice), three copies (three times)
     v = np.arange(27, dtype=float).reshape(9, 3) ** 1.5
     f = np.array([[0, 1, 2], [2, 1, 0], [3, 4, 5], [3, 4, 5], [5, 3, 4], [6, 7, 8],

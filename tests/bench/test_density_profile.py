@@ -6,16 +6,14 @@ from __future__ import annotations
 import importlib.util
 import itertools
 import sys
-from pathlib import Path
 
 import numpy as np
 import pytest
 import trimesh
+from testdata import REPO
 
 from jampacked.core.meshes import load_mesh
 from jampacked.core.packing import Packing, TypeRecord, save_packing
-
-REPO = Path(__file__).resolve().parents[1]
 
 
 def _load():

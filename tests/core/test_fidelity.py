@@ -2,16 +2,13 @@
 
 from __future__ import annotations
 
-from pathlib import Path
-
 import numpy as np
 import pytest
 import trimesh
+from testdata import mesh_path
 
 from jampacked.core.api import PackParams, pack
 from jampacked.core.fidelity import CLEARANCE_POINTS, PRESETS, choose_fidelity, thickness_ratio
-
-MESHES = Path(__file__).resolve().parents[2] / "shared" / "meshes"
 
 
 def _box(x: float, y: float, z: float, turn: bool = False) -> np.ndarray:
@@ -72,9 +69,8 @@ def test_tight_container_gets_a_finer_container_grid():
     assert roomy.container_cells == PRESETS["medium"].container_cells
 
 
-@pytest.mark.skipif(not MESHES.is_dir(), reason="../shared/meshes not present")
 def test_pack_records_the_fidelity_and_applies_overrides():
-    poly = [str(MESHES / "polyhedra" / "convex5" / f"polytope{i}.obj") for i in (1, 3)]
+    poly = [str(mesh_path(f"polyhedra/convex5/polytope{i}.obj")) for i in (1, 3)]
     p = pack("box:34x30x32", poly, seed=1, time_budget=2.0,
              params=PackParams(spheres=12, container_cells=3.5, extra_passes=()))
     d = p.params["fidelity_detail"]

@@ -3,12 +3,12 @@
 from __future__ import annotations
 
 import itertools
-from pathlib import Path
 
 import manifold3d as m3
 import numpy as np
 import pytest
 import trimesh
+from testdata import mesh_path
 
 from jampacked.core.api import PackParams, pack
 from jampacked.core.errors import InputError, MeshError, PackingError
@@ -16,10 +16,7 @@ from jampacked.core.metrics import compute_metrics
 from jampacked.core.packing import load_packing, save_packing
 from jampacked.core.phases import best_tvd
 
-MESHES = Path(__file__).resolve().parents[2] / "shared" / "meshes"
-pytestmark = pytest.mark.skipif(not MESHES.is_dir(), reason="../shared/meshes not present")
-
-POLY = [str(MESHES / "polyhedra" / "convex5" / f"polytope{i}.obj") for i in (1, 3)]
+POLY = [str(mesh_path(f"polyhedra/convex5/polytope{i}.obj")) for i in (1, 3)]
 BOX = "box:34x30x32"
 
 
@@ -152,13 +149,13 @@ def test_bad_clearance_and_fidelity():
 
 
 def test_broken_container_names_file():
-    bad = MESHES / "broken" / "bunny_with_holes.obj"
-    with pytest.raises(MeshError, match="bunny_with_holes.obj"):
+    bad = mesh_path("broken/spot_with_holes.obj")
+    with pytest.raises(MeshError, match="spot_with_holes.obj"):
         pack(str(bad), POLY)
 
 
 def test_thin_wall_container_refused():
-    bad = MESHES / "broken" / "vase_thin_wall_shell.stl"
+    bad = mesh_path("broken/vase_thin_wall_shell.stl")
     with pytest.raises(MeshError, match="thin wall"):
         pack(str(bad), POLY)
 

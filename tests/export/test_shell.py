@@ -2,7 +2,7 @@
 shell, its openings and its accuracy.
 
 Small meshes (trimesh.creation boxes, icospheres and a torus, in mm) keep the file fast; one
-test runs Spot the cow from ../shared/meshes at 150 mm.
+test runs Spot the cow (tests/data/meshes) at 150 mm.
 """
 
 from __future__ import annotations
@@ -10,12 +10,12 @@ from __future__ import annotations
 import json
 import math
 import re
-from pathlib import Path
 
 import manifold3d as m3
 import numpy as np
 import pytest
 import trimesh
+from testdata import mesh_path
 
 from jampacked.core.errors import InputError
 from jampacked.export.marching import march_tetrahedra
@@ -23,8 +23,6 @@ from jampacked.export.options import Opening
 from jampacked.export.shell import ShellReport, make_shell
 from jampacked.export.validate import validate_arrays
 from jampacked.export.wall import measure_wall_thickness, surface_distance
-
-SHARED = Path(__file__).resolve().parents[2] / "shared" / "meshes"
 
 
 def arrays(m: m3.Manifold) -> tuple[np.ndarray, np.ndarray]:
@@ -291,9 +289,7 @@ def test_progress_reports_and_resolution(sphere):
 
 
 def test_spot_the_cow_at_150_mm():
-    path = SHARED / "containers" / "spot.obj"
-    if not path.exists():
-        pytest.skip(f"shared test mesh not found: {path}")
+    path = mesh_path("containers/spot.obj")
     from jampacked.core.meshes import load_mesh
 
     cow = load_mesh(path, role="container")

@@ -13,6 +13,7 @@ from pathlib import Path
 
 import numpy as np
 import pytest
+from testdata import mesh_path
 
 from jampacked.cli import pack_cmd
 from jampacked.cli.args import UsageError
@@ -24,12 +25,8 @@ from jampacked.core.errors import InputError
 from jampacked.core.metrics import compute_metrics
 from jampacked.core.packing import load_packing
 
-#: shared/ beside the checkout (as in test_meshes.py)
-SHARED = Path(__file__).resolve().parents[2] / "shared" / "meshes"
-P1 = SHARED / "polyhedra" / "convex5" / "polytope1.obj"
-P3 = SHARED / "polyhedra" / "convex5" / "polytope3.obj"
-needs_meshes = pytest.mark.skipif(not (P1.is_file() and P3.is_file()),
-                                  reason=f"shared test meshes not found under {SHARED}")
+P1 = mesh_path("polyhedra/convex5/polytope1.obj")
+P3 = mesh_path("polyhedra/convex5/polytope3.obj")
 
 SMALL = ["--fidelity", "low", "--time-budget", "4", "--seed", "1"]
 
@@ -45,8 +42,6 @@ def run(argv: list[str]) -> tuple[int, str, str]:
 @pytest.fixture(scope="module")
 def packed(tmp_path_factory):
     """One small pack with a preview: (folder, json path, png path, rc, stdout, stderr)."""
-    if not (P1.is_file() and P3.is_file()):
-        pytest.skip(f"shared test meshes not found under {SHARED}")
     d = tmp_path_factory.mktemp("cli")
     out, png = d / "packing.json", d / "preview.png"
     rc, so, se = run(["pack", "box:30x30x30", "--type", f"{P1}=40%", "--type", str(P3),
@@ -150,7 +145,6 @@ def test_info_reports_changed_source(packed, capsys):
     assert "polytope1" in err and "changed" in err
 
 
-@needs_meshes
 def test_ctrl_c_saves_best_certified_packing(tmp_path, monkeypatch, capsys):
     """The first Ctrl-C makes should_cancel() true; the packing so far is certified and saved."""
     real_pack = pack_cmd.pack
@@ -185,7 +179,6 @@ def not_a_mesh(tmp_path):
     return f
 
 
-@needs_meshes
 @pytest.mark.parametrize(
     "argv, code, words",
     [
@@ -214,14 +207,12 @@ def test_bad_input_exits_with_message(argv, code, words, tmp_path, not_a_mesh, c
     assert not (tmp_path / "p.json").exists()
 
 
-@needs_meshes
 def test_missing_output_folder(tmp_path, capsys):
     out = tmp_path / "nope" / "p.json"
     assert main(["pack", "box:30x30x30", "--type", str(P1), "-o", str(out)]) == 2
     assert "does not exist" in capsys.readouterr().err
 
 
-@needs_meshes
 def test_bad_numbers_are_usage_errors(tmp_path, capsys):
     rc = main(["pack", "box:30x30x30", "--type", str(P1), "--clearance", "-1",
                "-o", str(tmp_path / "p.json")])
@@ -233,7 +224,6 @@ def test_bad_numbers_are_usage_errors(tmp_path, capsys):
     assert not (tmp_path / "p.json").exists()
 
 
-@needs_meshes
 def test_mix_tolerance_reaches_the_late_passes(tmp_path):
     """--mix-tolerance sets the cap the extra cavity passes keep the type mix error under;
     the packing file records it."""
@@ -276,7 +266,6 @@ def test_resolve_shares():
         resolve_shares([0.6, 0.4, None], ["a", "b", "c"])
 
 
-@needs_meshes
 def test_default_scene_resolves_bundled_files(tmp_path):
     args = build_parser().parse_args(["pack", "default", "-o", str(tmp_path / "p.json")])
     with contextlib.ExitStack() as stack:

@@ -10,11 +10,11 @@ with known names do not break the tests.
 from __future__ import annotations
 
 import inspect
-from pathlib import Path
 
 import numpy as np
 import pytest
 import trimesh
+from testdata import mesh_path
 
 from jampacked.core import kernels, solver
 from jampacked.core.container import Container, build_container
@@ -23,8 +23,6 @@ from jampacked.core.objects import build_type, point_clusters
 from jampacked.core.packing import quat_to_matrix
 from jampacked.core.spheres import inner_spheres, sphere_coverage
 
-POLYTOPE = Path(__file__).resolve().parents[2] / "shared" / "meshes" / "polyhedra" / "convex5" \
-    / "polytope1.obj"
 HALF_CONTAINER = 15.0  # the container is the box |x_i| <= 15
 
 # ---------------------------------------------------------------- numpy references
@@ -214,10 +212,7 @@ def random_quats(rng: np.random.Generator, n: int) -> np.ndarray:
 def types():
     """Two small object types (local frame, extents about 4): a convex polytope and a box."""
     out = []
-    if POLYTOPE.exists():
-        m = trimesh.load(POLYTOPE, force="mesh")
-    else:  # a stand-in convex polytope when shared/ is not beside the checkout
-        m = trimesh.convex.convex_hull(np.random.default_rng(0).normal(size=(12, 3)))
+    m = trimesh.load(mesh_path("polyhedra/convex5/polytope1.obj"), force="mesh")
     out.append(build_type("poly", m.vertices, m.faces, path=None, sha256=None, share=0.5,
                           type_scale=4.0 / m.extents.max(), fidelity="low", use_cache=False))
     b = trimesh.creation.box(extents=(2.0, 3.0, 4.0))
