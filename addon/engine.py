@@ -89,7 +89,7 @@ class PackOutcome:
 
 def packing_to_json(packing: Packing) -> str:
     """The packing file's text (as ``jampacked pack -o`` writes it)."""
-    from jampacked.core.packing import save_packing
+    from jampacked.core.packing_json import save_packing
 
     with tempfile.TemporaryDirectory(prefix="jampacked-") as tmp:
         path = os.path.join(tmp, "packing.json")
@@ -100,7 +100,7 @@ def packing_to_json(packing: Packing) -> str:
 
 def packing_from_json(text: str) -> Packing:
     """Read a packing from its JSON text (InputError on a damaged text)."""
-    from jampacked.core.packing import load_packing
+    from jampacked.core.packing_json import load_packing
 
     with tempfile.TemporaryDirectory(prefix="jampacked-") as tmp:
         path = os.path.join(tmp, "packing.json")

@@ -39,7 +39,8 @@ from jampacked.cli.export_cmd import add_export_parser
 from jampacked.core.api import PackParams, pack
 from jampacked.core.errors import InputError, JampackedError
 from jampacked.core.meshes import parse_box_spec
-from jampacked.core.packing import Packing, is_spec, load_packing, save_packing, verify_sources
+from jampacked.core.packing import Packing, is_spec
+from jampacked.core.packing_json import load_packing, save_packing, verify_sources
 
 if TYPE_CHECKING:  # imported when needed: validation pulls in numba kernels
     from jampacked.export.validate import ValidationReport

@@ -28,11 +28,6 @@ class Fidelity:
     container_cells: float
     reasons: tuple[str, ...] = ()
 
-    def as_dict(self) -> dict:
-        return {"name": self.name, "spheres": self.spheres, "grid_cells": self.grid_cells,
-                "surface_points": self.surface_points,
-                "container_cells": self.container_cells, "reasons": list(self.reasons)}
-
 
 PRESETS = {
     "low": Fidelity("low", 24, 28, 96, 3.0),

@@ -35,6 +35,7 @@ from scipy.spatial import cKDTree
 from .distance import DistanceGrid
 from .kernels import sample_grid_many
 from .meshes import sample_surface
+from .report import MarginReport
 
 #: grid error (cells) at the 1st percentile of the surface up to which a surface is smooth
 SMOOTH_ERROR = 0.17
@@ -96,11 +97,12 @@ class Margins:
     wall_error: float
     sampling_gaps: list[float] | None = None
 
-    def as_dict(self) -> dict:
-        return {"object_cells": self.object_cells, "wall_cells": self.wall_cells,
-                "object_grid_errors_cells": self.object_errors,
-                "container_grid_error_cells": self.wall_error,
-                "sampling_gaps": self.sampling_gaps}
+    def report(self) -> MarginReport:
+        """What the packing records (without the margins themselves)."""
+        return MarginReport(object_cells=list(self.object_cells), wall_cells=self.wall_cells,
+                            object_grid_errors_cells=list(self.object_errors),
+                            container_grid_error_cells=self.wall_error,
+                            sampling_gaps=self.sampling_gaps)
 
 
 def contact_margins(types: list, container_grid: DistanceGrid, container_vertices: np.ndarray,

@@ -23,6 +23,7 @@ import numpy as np
 from .distance import DistanceGrid, distance_grid
 from .fidelity import PRESETS, Fidelity
 from .meshes import mesh_volume_centroid
+from .metrics import equivalent_radius
 from .spheres import inner_spheres
 
 _CACHE_VERSION = "1"
@@ -50,7 +51,7 @@ class ObjectType:
     @property
     def equivalent_radius(self) -> float:
         """f(V) = (3V/4pi)^(1/3): radius of the sphere of equal volume."""
-        return float((3.0 * self.volume / (4.0 * np.pi)) ** (1.0 / 3.0))
+        return float(equivalent_radius(self.volume))
 
 
 def cache_dir() -> Path:

@@ -25,13 +25,8 @@ from scipy.spatial import cKDTree
 
 from jampacked.core.errors import Cancelled, InputError, MeshError
 from jampacked.core.meshes import MeshData, load_mesh
-from jampacked.core.packing import (
-    Packing,
-    container_mesh,
-    is_spec,
-    load_packing,
-    verify_sources,
-)
+from jampacked.core.packing import Packing, container_mesh, is_spec
+from jampacked.core.packing_json import load_packing, verify_sources
 from jampacked.core.solids import solid_arrays, to_solid
 
 from .cleanup import remove_degenerate_faces

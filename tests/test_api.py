@@ -13,7 +13,7 @@ import trimesh
 from jampacked.core.api import PackParams, pack
 from jampacked.core.errors import InputError, MeshError, PackingError
 from jampacked.core.metrics import compute_metrics
-from jampacked.core.packing import load_packing, save_packing
+from jampacked.core.packing_json import load_packing, save_packing
 from jampacked.core.phases import best_tvd
 
 MESHES = Path(__file__).resolve().parents[2] / "shared" / "meshes"
@@ -182,7 +182,8 @@ def test_in_memory_container_round_trips_without_a_missing_file(tmp_path):
     packing file keeps verbatim and verify_sources does not look for on disk."""
     from jampacked.core.api import _source_name
     from jampacked.core.meshes import box_mesh
-    from jampacked.core.packing import Packing, verify_sources
+    from jampacked.core.packing import Packing
+    from jampacked.core.packing_json import verify_sources
 
     mesh = box_mesh((10.0, 10.0, 10.0))
     name = _source_name(mesh, mesh)

@@ -19,7 +19,7 @@ from jampacked.cli.main import main, parse_type_arg, resolve_shares
 from jampacked.cli.preview import write_preview
 from jampacked.core.errors import InputError
 from jampacked.core.metrics import compute_metrics
-from jampacked.core.packing import load_packing
+from jampacked.core.packing_json import load_packing
 
 #: shared/ beside the checkout (as in test_meshes.py)
 SHARED = Path(__file__).resolve().parents[2] / "shared" / "meshes"

@@ -18,7 +18,9 @@ from scipy.sparse.csgraph import connected_components
 from jampacked.core.distance import point_triangle_distance
 from jampacked.core.errors import Cancelled, InputError, MeshError
 from jampacked.core.meshes import load_mesh
-from jampacked.core.packing import Packing, TypeRecord, save_packing
+from jampacked.core.packing import Packing, TypeRecord
+from jampacked.core.packing_json import save_packing
+from jampacked.core.report import PackInputs
 from jampacked.core.solids import to_solid
 from jampacked.export.assemble import export_packing
 from jampacked.export.closest import Surface, closest_on_triangles
@@ -87,14 +89,14 @@ def _packing(tmp: Path, centres: np.ndarray, types: list[int], *, clearance: flo
     p = Packing(container_path=f"box:{box}x{box}x{box}", container_sha256=None,
                 frame_from_file=np.eye(4), container_volume=box ** 3, types=recs,
                 type_index=np.array(types), rotations=rot, translations=centres,
-                scales=np.ones(n), params={"clearance": clearance})
+                scales=np.ones(n), inputs=PackInputs(clearance=clearance))
     out = tmp / "packing.json"
     save_packing(p, out)
     return out
 
 
 def _solids(packing_json: Path) -> list[m3.Manifold]:
-    from jampacked.core.packing import load_packing
+    from jampacked.core.packing_json import load_packing
 
     p = load_packing(packing_json)
     mats = p.matrices()
@@ -331,7 +333,7 @@ def _hollow_cube(tmp: Path) -> Path:
     p = Packing(container_path="box:40x40x40", container_sha256=None,
                 frame_from_file=np.eye(4), container_volume=40.0 ** 3, types=[rec],
                 type_index=np.zeros(6, np.int64), rotations=rot, translations=pos,
-                scales=np.ones(6), params={"clearance": 0.0})
+                scales=np.ones(6), inputs=PackInputs(clearance=0.0))
     out = tmp / "hollow.json"
     save_packing(p, out)
     return out

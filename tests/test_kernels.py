@@ -20,7 +20,7 @@ from jampacked.core import kernels, solver
 from jampacked.core.container import Container, build_container
 from jampacked.core.distance import DistanceGrid, distance_grid, min_pyramid
 from jampacked.core.objects import build_type, point_clusters
-from jampacked.core.packing import quat_to_matrix
+from jampacked.core.rotations import quat_to_matrix
 from jampacked.core.spheres import inner_spheres, sphere_coverage
 
 POLYTOPE = Path(__file__).resolve().parents[2] / "shared" / "meshes" / "polyhedra" / "convex5" \
