@@ -49,9 +49,9 @@ def profile(packing_path: Path, target: float = 0.55, samples: int = SAMPLES,
     from jampacked.core.distance import distance_grid
     from jampacked.core.kernels import sample_grid_many
     from jampacked.core.meshes import load_mesh
+    from jampacked.core.metrics import equivalent_radius
     from jampacked.core.packing import container_mesh
     from jampacked.core.packing_json import load_packing
-    from jampacked.core.metrics import equivalent_radius
 
     p = load_packing(packing_path)
     cm = container_mesh(p)

@@ -110,14 +110,14 @@ def test_cancel_returns_certified_packing():
         return calls["n"] > 40
 
     p = pack(BOX, POLY, seed=1, fidelity="low", should_cancel=cancel)
-    assert p.params["stopped"] == "cancelled"
+    assert p.report.stopped == "cancelled"
     assert p.certificate["certified"]
     assert np.allclose(p.scales, 1.0)
 
 
 def test_time_budget_stops_early():
     p = pack(BOX, POLY, seed=1, fidelity="low", time_budget=0.0)
-    assert p.params["stopped"] == "deadline"
+    assert p.report.stopped == "deadline"
     assert p.certificate["certified"]
     assert p.n == 0
 
@@ -171,9 +171,9 @@ def test_repair_time_cap_removes_what_still_fails():
     params = PackParams(repair_seconds=0.0, safety=0.0, safety_sharp=0.0, wall_safety=0.0,
                         wall_safety_sharp=0.0, extra_passes=())
     p = pack(BOX, POLY, seed=1, fidelity="low", params=params)
-    rep = p.params["repair"]
-    assert not rep["first"]["certified"]  # the scene really needs repair
-    assert rep["timed_out"] and rep["moved"] == 0 and rep["removed"] >= 1
+    rep = p.report.repair
+    assert not rep.first["certified"]  # the scene really needs repair
+    assert rep.timed_out and rep.moved == 0 and rep.removed >= 1
     assert p.certificate["certified"]
 
 
@@ -222,17 +222,17 @@ def test_extra_passes_repeat_while_they_add_objects_and_time_is_left():
     round adds objects; without one they run once (so an unbudgeted pack ends)."""
     p = pack(BOX, POLY, seed=2, fidelity="low", time_budget=20.0,
              params=PackParams(extra_patience=4))  # short passes: round 0 ends early
-    extra = p.params["extra_passes"]
-    rounds = sorted({e["round"] for e in extra})
+    extra = p.report.extra_passes
+    rounds = sorted({e.round for e in extra})
     assert rounds == list(range(len(rounds))) and len(rounds) >= 2
     for r in rounds[:-1]:  # every round but the last added something
-        assert sum(e["grown"] for e in extra if e["round"] == r) > 0
-    last = [e for e in extra if e["round"] == rounds[-1]]
-    ended = (sum(e["grown"] for e in last) == 0 or p.params["stopped"] == "deadline"
+        assert sum(e.grown for e in extra if e.round == r) > 0
+    last = [e for e in extra if e.round == rounds[-1]]
+    ended = (sum(e.grown for e in last) == 0 or p.report.stopped == "deadline"
              or len(rounds) == 8)
     assert ended
     q = pack(BOX, POLY, seed=2, fidelity="low", params=PackParams(extra_rounds=8))
-    assert {e["round"] for e in q.params["extra_passes"]} == {0}
+    assert {e.round for e in q.report.extra_passes} == {0}
 
 
 @pytest.mark.parametrize("tolerance", [0.0, 0.05])
@@ -256,26 +256,26 @@ def test_time_left_after_an_attempt_goes_to_new_attempts_and_the_densest_is_kept
     attempt; the packing is the densest attempt's, and every attempt is recorded."""
     p = pack(BOX, POLY, seed=2, fidelity="low", time_budget=8.0,
              params=PackParams(extra_patience=4))
-    attempts = p.params["attempts"]
+    attempts = p.report.attempts
     assert len(attempts) >= 2, attempts
     kept = p.metrics["after_extra"]["density"]
-    assert kept == max(a["density"] for a in attempts)
+    assert kept == max(a.density for a in attempts)
     for a in attempts:
-        assert a["seconds"] == pytest.approx(a["phase1"] + a["phase2"] + a["extra"])
+        assert a.seconds == pytest.approx(a.phase1 + a.phase2 + a.extra)
     # the phase times are the kept attempt's; the others have a line of their own
     assert p.timings["other_attempts"] > 0
     placing = sum(p.timings[k] for k in ("phase1", "phase2", "extra", "other_attempts"))
-    assert placing == pytest.approx(sum(a["seconds"] for a in attempts), abs=0.5)
+    assert placing == pytest.approx(sum(a.seconds for a in attempts), abs=0.5)
     assert placing < 8.0 + 5.0
     assert p.certificate["certified"]
     # a different random stream per attempt: not the same packing over and over
-    assert len({(a["count"], round(a["density"], 9)) for a in attempts}) > 1
+    assert len({(a.count, round(a.density, 9)) for a in attempts}) > 1
 
 
 def test_one_attempt_without_a_budget_or_when_attempts_are_capped():
     p = pack(BOX, POLY, seed=2, fidelity="low", params=PackParams(extra_patience=4))
-    assert len(p.params["attempts"]) == 1 and "other_attempts" not in p.timings
+    assert len(p.report.attempts) == 1 and "other_attempts" not in p.timings
     q = pack(BOX, POLY, seed=2, fidelity="low", time_budget=8.0,
              params=PackParams(extra_patience=4, max_attempts=1))
-    assert len(q.params["attempts"]) == 1 and "other_attempts" not in q.timings
+    assert len(q.report.attempts) == 1 and "other_attempts" not in q.timings
     assert q.timings["phase1"] + q.timings["phase2"] + q.timings["extra"] < 8.0 + 5.0

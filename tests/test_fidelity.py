@@ -77,8 +77,8 @@ def test_pack_records_the_fidelity_and_applies_overrides():
     poly = [str(MESHES / "polyhedra" / "convex5" / f"polytope{i}.obj") for i in (1, 3)]
     p = pack("box:34x30x32", poly, seed=1, time_budget=2.0,
              params=PackParams(spheres=12, container_cells=3.5, extra_passes=()))
-    d = p.params["fidelity_detail"]
-    assert d["name"] == "auto" and d["spheres"] == 12 and d["container_cells"] == 3.5
-    assert max(p.params["spheres_per_type"]) <= 12
-    assert any("overridden" in r for r in d["reasons"])
+    d = p.report.fidelity_detail
+    assert d.name == "auto" and d.spheres == 12 and d.container_cells == 3.5
+    assert max(p.report.spheres_per_type) <= 12
+    assert any("overridden" in r for r in d.reasons)
     assert p.certificate["certified"]

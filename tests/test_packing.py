@@ -9,20 +9,12 @@ import re
 import numpy as np
 import pytest
 
-from jampacked.core import packing as pk
+from jampacked.core import packing_json as pk
 from jampacked.core.errors import InputError
-from jampacked.core.packing import (
-    Packing,
-    TypeRecord,
-    file_sha256,
-    load_packing,
-    matrix_to_quat,
-    placement_matrices,
-    quat_to_matrix,
-    save_packing,
-    to_jsonable,
-    verify_sources,
-)
+from jampacked.core.meshes import file_sha256
+from jampacked.core.packing import Packing, TypeRecord
+from jampacked.core.packing_json import load_packing, save_packing, to_jsonable, verify_sources
+from jampacked.core.rotations import matrix_to_quat, placement_matrices, quat_to_matrix
 
 
 def random_quats(rng: np.random.Generator, n: int) -> np.ndarray:
@@ -66,11 +58,12 @@ def scene(tmp_path):
         rotations=random_quats(rng, n),
         translations=rng.normal(size=(n, 3)) * 17.3,
         scales=np.ones(n),
-        params={"grid": np.int64(12), "stiffness": np.float32(0.5), "shares": np.array([0.6, 0.4]),
-                "name": "default", "flags": (True, np.bool_(False)), "bad": float("nan"),
-                "text": "[ 1, 2 ]\n[\n3 ]"},
         seed=42,
-        metrics={"density": np.float64(0.61234567890123456), "nni_per_type": [1.1, None]},
+        metrics={"density": np.float64(0.61234567890123456), "nni_per_type": [1.1, None],
+                 "grid": np.int64(12), "stiffness": np.float32(0.5),
+                 "shares": np.array([0.6, 0.4]), "name": "default",
+                 "flags": (True, np.bool_(False)), "bad": float("nan"),
+                 "text": "[ 1, 2 ]\n[\n3 ]"},
         timings={"phase1": 1.25},
         certificate={"worst_overlap": np.float64(3e-7), "pairs": np.array([[0, 1], [2, 3]])},
     )
@@ -163,8 +156,9 @@ def test_round_trip_preserves_everything(scene):
     save_packing(p, out)
     doc = json.loads(out.read_text())
 
-    assert doc["format"] == "jampacked.packing" and doc["version"] == 1
-    assert set(doc) >= {"format", "version", "container", "types", "placements", "params",
+    assert doc["format"] == "jampacked.packing" and doc["version"] == 2
+    assert set(doc) >= {"format", "version", "container", "types", "placements", "inputs",
+                        "report",
                         "seed", "metrics", "timings", "certificate"}
     assert set(doc["container"]) >= {"path", "sha256", "frame_from_file", "volume"}
     assert set(doc["types"][0]) >= {"name", "path", "sha256", "share", "local_from_file",
@@ -174,10 +168,10 @@ def test_round_trip_preserves_everything(scene):
     assert doc["container"]["path"] == "../meshes/container.stl"
     assert [t["path"] for t in doc["types"]] == ["../meshes/apple.obj", "../meshes/lemon.obj"]
     # numpy values became plain JSON
-    assert doc["params"]["grid"] == 12 and doc["params"]["shares"] == [0.6, 0.4]
-    assert doc["params"]["flags"] == [True, False] and doc["params"]["bad"] is None
+    assert doc["metrics"]["grid"] == 12 and doc["metrics"]["shares"] == [0.6, 0.4]
+    assert doc["metrics"]["flags"] == [True, False] and doc["metrics"]["bad"] is None
     assert doc["certificate"]["pairs"] == [[0, 1], [2, 3]]
-    assert doc["params"]["text"] == "[ 1, 2 ]\n[\n3 ]"
+    assert doc["metrics"]["text"] == "[ 1, 2 ]\n[\n3 ]"
     assert re.search(r'"rotation": \[-?\d', out.read_text())  # number lists on one line
     np.testing.assert_allclose(np.array([pl["matrix"] for pl in doc["placements"]]),
                                p.matrices(), rtol=0, atol=1e-12)
@@ -201,7 +195,8 @@ def test_round_trip_preserves_everything(scene):
     np.testing.assert_array_equal(q.scales, p.scales)
     np.testing.assert_allclose(q.matrices(), p.matrices(), rtol=0, atol=1e-12)
     assert q.seed == 42
-    assert q.params == to_jsonable(p.params)
+    assert q.inputs == p.inputs and q.report == p.report
+    assert q.metrics == to_jsonable(p.metrics)
     assert q.metrics["density"] == 0.61234567890123456
     assert q.timings == {"phase1": 1.25}
     assert q.certificate == {"worst_overlap": 3e-7, "pairs": [[0, 1], [2, 3]]}
@@ -232,10 +227,10 @@ def test_atomic_write_leaves_no_temp_files(scene, monkeypatch):
     before = out.read_bytes()
 
     # a value that cannot be written: nothing changes, nothing left behind
-    p.params["oops"] = object()
-    with pytest.raises(InputError, match="params.oops"):
+    p.metrics["oops"] = object()
+    with pytest.raises(InputError, match="metrics.oops"):
         save_packing(p, out)
-    del p.params["oops"]
+    del p.metrics["oops"]
     assert out.read_bytes() == before
 
     # a failure at the last step: the old file stays whole and the temp file is removed
@@ -303,13 +298,13 @@ def test_wrong_format(saved):
 
 def test_newer_version(saved):
     out, doc = saved
-    _bad(out, dict(doc, version=2), "newer jampacked")
+    _bad(out, dict(doc, version=3), "newer jampacked")
     _bad(out, dict(doc, version="1"), "version must be an integer")
 
 
 @pytest.mark.parametrize(
     "remove",
-    [("version",), ("container",), ("types",), ("placements",), ("seed",), ("params",),
+    [("version",), ("container",), ("types",), ("placements",), ("seed",), ("inputs",), ("report",),
      ("metrics",), ("timings",), ("certificate",), ("container", "frame_from_file"),
      ("container", "path"), ("types", 0, "volume"), ("types", 1, "local_from_file"),
      ("placements", 2, "rotation"), ("placements", 0, "type"), ("placements", 4, "matrix")],
