@@ -757,11 +757,15 @@ def ours_child(scene: str, seed: int, budget: float, out: Path) -> None:
              time_budget=budget)
     wall = time.perf_counter() - t0
     mats = placement_matrices(p.rotations, p.translations, p.scales)
-    keep = ("clearance", "fidelity", "time_budget", "container_size", "type_scale",
-            "container_grid_spacing", "stopped", "spheres_per_type", "repair")
     rec = {
         "wall_seconds": wall, "seed": seed, "timings": p.timings, "metrics": p.metrics,
-        "certificate": p.certificate, "params": {k: p.params[k] for k in keep},
+        "certificate": p.certificate, "params": {
+            "clearance": p.inputs.clearance, "fidelity": p.report.fidelity,
+            "time_budget": p.inputs.time_budget, "container_size": p.inputs.container_size,
+            "type_scale": p.inputs.type_scale,
+            "container_grid_spacing": p.report.container_grid_spacing,
+            "stopped": p.report.stopped, "spheres_per_type": p.report.spheres_per_type,
+            "repair": asdict(p.report.repair)},
         "type_index": p.type_index.tolist(), "matrices": mats.tolist(),
         "type_volumes": [t.volume for t in p.types],
         "local_from_file": [t.local_from_file.tolist() for t in p.types],

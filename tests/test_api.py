@@ -279,3 +279,17 @@ def test_one_attempt_without_a_budget_or_when_attempts_are_capped():
              params=PackParams(extra_patience=4, max_attempts=1))
     assert len(q.report.attempts) == 1 and "other_attempts" not in q.timings
     assert q.timings["phase1"] + q.timings["phase2"] + q.timings["extra"] < 8.0 + 5.0
+
+
+@pytest.mark.parametrize("kwargs, name", [
+    ({"seed": 1.5}, "seed"), ({"seed": "7"}, "seed"), ({"seed": None}, "seed"),
+    ({"seed": -1}, "seed"), ({"seed": True}, "seed"),
+    ({"time_budget": float("nan")}, "time_budget"), ({"time_budget": -1.0}, "time_budget"),
+    ({"time_budget": "5"}, "time_budget"),
+    ({"names": [None, "b"]}, "names"), ({"names": ["a", 3]}, "names"),
+    ({"names": ["a", ""]}, "names"),
+    ({"clearance": "1"}, "clearance"), ({"type_scale": None}, "type scale"),
+])
+def test_bad_arguments_are_refused_by_name_before_any_work(kwargs, name):
+    with pytest.raises(InputError, match=name):
+        pack(BOX, ["/nonexistent/a.obj", "/nonexistent/b.obj"], **kwargs)

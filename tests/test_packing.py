@@ -378,3 +378,73 @@ def test_verify_sources(scene):
     q.container_path = "box:1x1x1"
     q.types[0].path = None
     assert verify_sources(q) == []
+
+
+# --------------------------------------------------------------------------- hostile files
+
+
+@pytest.mark.parametrize("where", [("container", "volume"), ("types", 0, "share"),
+                                   ("placements", 1, "rotation", 2),
+                                   ("placements", 0, "translation", 0)])
+def test_huge_integer_in_a_number_field_is_refused_by_name(saved, where):
+    out, doc = saved
+    obj = doc
+    for key in where[:-1]:
+        obj = obj[key]
+    obj[where[-1]] = 10 ** 400
+    _bad(out, doc, f"{where[0]}.*must be a finite number")
+
+
+def test_deeply_nested_json_is_refused(saved):
+    out, _ = saved
+    out.write_text('{"format": "jampacked.packing", "version": 2, "x": '
+                   + "[" * 200000 + "]" * 200000 + "}")
+    with pytest.raises(InputError, match="nested too deeply") as err:
+        load_packing(out)
+    assert str(out) in str(err.value)
+
+
+def test_odd_report_fields_are_ignored_and_odd_inputs_refused(saved):
+    out, doc = saved
+    doc["report"].update(repair="x", attempts=5, stopped=["no"], fidelity={"a": 1},
+                         spheres_per_type=[1, "two"], warnings="text")
+    _write(out, doc)
+    q = load_packing(out)
+    assert q.report.repair.rounds == 0 and q.report.attempts == []
+    assert q.report.stopped is None and q.report.warnings == []
+    for key, value in (("clearance", [1.0]), ("clearance", "0.5"), ("time_budget", {}),
+                       ("options", "fast"), ("clearance", 10 ** 400)):
+        bad = json.loads(json.dumps(doc))
+        bad["inputs"][key] = value
+        _bad(out, bad, f"inputs.{key}")
+
+
+def test_version_1_params_map_to_the_typed_fields(saved):
+    out, doc = saved
+    params = {"clearance": 0.5, "fidelity": "low", "fidelity_requested": "auto",
+              "extra_max_tvd": 0.01, "extra_passes": [0.8, 0.5], "mode": 0, "k_obj": 1.0,
+              "stopped": "deadline", "time_budget": 20.0, "unknown_key": [1, 2],
+              "repair": {"rounds": 2, "moved": 3, "removed": 1, "first": {"certified": False},
+                         "timed_out": False},
+              "attempts": [{"density": 0.4, "count": 30, "seconds": 2.5, "phase1": 1.0,
+                            "phase2": 0.5, "extra": 1.0, "stopped": None}],
+              "phase1": {"inserted": 9, "grown": 7, "failed": 2, "seconds": 1.0,
+                         "stopped": "", "extra": {}},
+              "fidelity_detail": {"name": "low", "spheres": 24, "grid_cells": 28,
+                                  "surface_points": 96, "container_cells": 3.0,
+                                  "reasons": ["preset"]},
+              "threads": {"most": 2, "switches": 0, "probes": 1,
+                          "seconds_by_threads": {"1": 0.5, "2": 1.0}}}
+    old = {k: v for k, v in doc.items() if k not in ("inputs", "report")}
+    _write(out, dict(old, version=1, params=params))
+    q = load_packing(out)
+    assert q.inputs.clearance == 0.5 and q.inputs.fidelity == "auto"
+    assert q.inputs.time_budget == 20.0
+    assert q.inputs.options.cavity.max_tvd == 0.01
+    assert q.inputs.options.cavity.factors == (0.8, 0.5)
+    assert q.report.fidelity == "low" and q.report.stopped == "deadline"
+    assert q.report.repair.moved == 3 and q.report.repair.first == {"certified": False}
+    assert q.report.attempts[0].count == 30 and q.report.phase1.grown == 7
+    assert q.report.fidelity_detail.spheres == 24
+    assert q.report.fidelity_detail.reasons == ("preset",)
+    assert q.report.threads.seconds_by_threads == {"1": 0.5, "2": 1.0}
