@@ -158,8 +158,7 @@ def build_type(name: str, vertices_file: np.ndarray, faces: np.ndarray, *, path:
     fidelity: a preset name or a `Fidelity` (spheres, grid cells, surface points).
     reach: how far from the surface (container units; the clearance) the distance grid
     must still hold true distances. Beyond the grid's box distances are extrapolated and
-    read too large (an orange x300 at 5 mm: 0.28 mm at the 99th percentile with the
-    default 2-cell pad), so the grid extends this much further.
+    read too large (docs/notes-core.md), so the grid extends this much further.
     """
     if isinstance(fidelity, str):
         if fidelity not in PRESETS:

@@ -176,8 +176,8 @@ class Solver:
 
     def warm_up(self) -> None:
         """Compile (or load from numba's cache) the kernels the phases call, on empty input,
-        so that a time budget starts with them ready: compiling takes 15-20 s on a fresh
-        install."""
+        so that a time budget starts with them ready (compiling takes seconds on a fresh
+        install)."""
         self.resolve(np.zeros(0, np.int64), 1, rollback=True)
         self.free_distances(np.zeros((1, 3)))
 
