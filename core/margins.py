@@ -15,8 +15,9 @@ larger margin: so the smaller margins are for scenes whose every type is smooth
 With a clearance the exact check is of gaps, with no tolerance, and a second error shows:
 the solver measures a gap from the other object to a type's surface points, and between
 those points the surface comes closer (with every vertex as a surface point no pair was
-too close; docs/notes-core.md). So with a clearance each type's margin also covers half that sampling gap (`sampling_gap`; a pair is
-tested from both sides, and the better side misses at most the mean of the two).
+too close; docs/notes-core.md). So with a clearance each type's margin also covers half
+that sampling gap (`sampling_gap`; a pair is tested from both sides, and the better side
+misses at most the mean of the two).
 """
 
 from __future__ import annotations
@@ -108,8 +109,9 @@ def contact_margins(types: list, container_grid: DistanceGrid, container_vertice
     others too); `wall_smooth` or `wall_sharp` cells of the container grid by its own
     error. With a clearance > 0 always the sharp ones: certification then checks exact gaps,
     which have no tolerance, where overlaps below 1e-4 of an object's volume pass
-    (certification removed fewer objects with these: docs/notes-core.md). With a clearance each type's margin also holds half its
-    `sampling_gap` at that clearance (container units, recorded as sampling_gaps).
+    (certification removed fewer objects with these: docs/notes-core.md). With a clearance
+    each type's margin also holds half its `sampling_gap` at that clearance (container
+    units, recorded as sampling_gaps).
     """
     errors = [surface_error(t.grid, t.vertices, t.faces, solid=True) for t in types]
     all_smooth = clearance <= 0 and all(e <= SMOOTH_ERROR for e in errors)
