@@ -157,10 +157,9 @@ def _check_arguments(inputs: PackInputs, seed: object, n_types: int,
     if names is not None:
         if len(names) != n_types:
             raise InputError(f"{len(names)} names given for {n_types} object types.")
-        bad = [n for n in names if not isinstance(n, str) or not n.strip()]
+        bad = [n for n in names if not isinstance(n, str)]
         if bad:
-            raise InputError(f"names must be non-empty strings, one per object type; got "
-                             f"{bad[0]!r}.")
+            raise InputError(f"names must be strings, one per object type; got {bad[0]!r}.")
     return int(seed)
 
 
