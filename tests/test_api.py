@@ -10,9 +10,16 @@ import numpy as np
 import pytest
 import trimesh
 
-from jampacked.core.api import PackParams, pack
+from jampacked.core.api import pack
 from jampacked.core.errors import InputError, MeshError, PackingError
 from jampacked.core.metrics import compute_metrics
+from jampacked.core.options import (
+    AttemptOptions,
+    CavityPassOptions,
+    MarginOptions,
+    PackOptions,
+    RepairOptions,
+)
 from jampacked.core.packing_json import load_packing, save_packing
 from jampacked.core.phases import best_tvd
 
@@ -166,11 +173,10 @@ def test_thin_wall_container_refused():
 def test_repair_time_cap_removes_what_still_fails():
     """With no safety margins certification finds violations; with no time to push them
     apart, the offenders are removed (no long repair) and the result is still certified."""
-    from jampacked.core.api import PackParams
-
-    params = PackParams(repair_seconds=0.0, safety=0.0, safety_sharp=0.0, wall_safety=0.0,
-                        wall_safety_sharp=0.0, extra_passes=())
-    p = pack(BOX, POLY, seed=1, fidelity="low", params=params)
+    options = PackOptions(repair=RepairOptions(seconds=0.0),
+                          margins=MarginOptions(0.0, 0.0, 0.0, 0.0),
+                          cavity=CavityPassOptions(factors=()))
+    p = pack(BOX, POLY, seed=1, fidelity="low", options=options)
     rep = p.report.repair
     assert not rep.first["certified"]  # the scene really needs repair
     assert rep.timed_out and rep.moved == 0 and rep.removed >= 1
@@ -221,7 +227,7 @@ def test_extra_passes_repeat_while_they_add_objects_and_time_is_left():
     """With a time budget the extra cavity passes run again on new lattices as long as a
     round adds objects; without one they run once (so an unbudgeted pack ends)."""
     p = pack(BOX, POLY, seed=2, fidelity="low", time_budget=20.0,
-             params=PackParams(extra_patience=4))  # short passes: round 0 ends early
+             options=PackOptions(cavity=CavityPassOptions(patience=4)))  # round 0 ends early
     extra = p.report.extra_passes
     rounds = sorted({e.round for e in extra})
     assert rounds == list(range(len(rounds))) and len(rounds) >= 2
@@ -231,7 +237,8 @@ def test_extra_passes_repeat_while_they_add_objects_and_time_is_left():
     ended = (sum(e.grown for e in last) == 0 or p.report.stopped == "deadline"
              or len(rounds) == 8)
     assert ended
-    q = pack(BOX, POLY, seed=2, fidelity="low", params=PackParams(extra_rounds=8))
+    q = pack(BOX, POLY, seed=2, fidelity="low",
+             options=PackOptions(cavity=CavityPassOptions(rounds=8)))
     assert {e.round for e in q.report.extra_passes} == {0}
 
 
@@ -242,7 +249,7 @@ def test_extra_passes_keep_the_mix_within_the_tolerance(tolerance):
     nothing closer (within one object of the best mix for that count)."""
     shares = np.array([0.7, 0.3])
     p = pack(BOX, POLY, shares, seed=4, fidelity="low",
-             params=PackParams(extra_max_tvd=tolerance))
+             options=PackOptions(cavity=CavityPassOptions(max_tvd=tolerance)))
     before, after = p.metrics["after_phase2"], p.metrics["after_extra"]
     assert after["count"] > before["count"]  # the passes added objects: the check bites
     bound = max([tolerance, before["tvd"]] + [best_tvd(shares, k) + 1.0 / k for k in
@@ -255,7 +262,7 @@ def test_time_left_after_an_attempt_goes_to_new_attempts_and_the_densest_is_kept
     followed by new attempts from scratch while the time left is at least the shortest
     attempt; the packing is the densest attempt's, and every attempt is recorded."""
     p = pack(BOX, POLY, seed=2, fidelity="low", time_budget=8.0,
-             params=PackParams(extra_patience=4))
+             options=PackOptions(cavity=CavityPassOptions(patience=4)))
     attempts = p.report.attempts
     assert len(attempts) >= 2, attempts
     kept = p.metrics["after_extra"]["density"]
@@ -273,10 +280,12 @@ def test_time_left_after_an_attempt_goes_to_new_attempts_and_the_densest_is_kept
 
 
 def test_one_attempt_without_a_budget_or_when_attempts_are_capped():
-    p = pack(BOX, POLY, seed=2, fidelity="low", params=PackParams(extra_patience=4))
+    p = pack(BOX, POLY, seed=2, fidelity="low",
+             options=PackOptions(cavity=CavityPassOptions(patience=4)))
     assert len(p.report.attempts) == 1 and "other_attempts" not in p.timings
     q = pack(BOX, POLY, seed=2, fidelity="low", time_budget=8.0,
-             params=PackParams(extra_patience=4, max_attempts=1))
+             options=PackOptions(cavity=CavityPassOptions(patience=4),
+                                 attempts=AttemptOptions(max_attempts=1)))
     assert len(q.report.attempts) == 1 and "other_attempts" not in q.timings
     assert q.timings["phase1"] + q.timings["phase2"] + q.timings["extra"] < 8.0 + 5.0
 
