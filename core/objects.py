@@ -23,7 +23,6 @@ import numpy as np
 from .distance import DistanceGrid, distance_grid
 from .fidelity import PRESETS, Fidelity
 from .meshes import mesh_volume_centroid
-from .metrics import equivalent_radius
 from .spheres import inner_spheres
 
 _CACHE_VERSION = "1"
@@ -50,8 +49,12 @@ class ObjectType:
 
     @property
     def equivalent_radius(self) -> float:
-        """f(V) = (3V/4pi)^(1/3): radius of the sphere of equal volume."""
-        return float(equivalent_radius(self.volume))
+        """f(V) = (3V/4pi)^(1/3): radius of the sphere of equal volume.
+
+        Computed with a power, not `metrics.equivalent_radius`'s cube root: the two differ
+        in the last bit, and the contact margins' probe with a clearance takes this value,
+        so a clearance packing would change with the other."""
+        return float((3.0 * self.volume / (4.0 * np.pi)) ** (1.0 / 3.0))
 
 
 def cache_dir() -> Path:
