@@ -376,6 +376,9 @@ def _inputs_and_report(r: _Reader, doc: dict, version: int) -> dict[str, Any]:
         params = r.dict_(r.get(doc, "params", ""), "params")
         options: dict[str, dict[str, Any]] = {}
         for key, value in params.items():
+            if key == "extra_passes" and not (
+                    isinstance(value, list) and all(_is_number(v) for v in value)):
+                continue  # pack() wrote the passes' statistics over the option's factors
             if key in FLAT_KEYS:
                 group, name = FLAT_KEYS[key]
                 options.setdefault(group, {})[name] = value
@@ -394,6 +397,10 @@ def _inputs_and_report(r: _Reader, doc: dict, version: int) -> dict[str, Any]:
         raise r.fail(f"{exc.where} {exc.what}") from None
     return {"inputs": inputs,
             "report": from_plain(RunReport, raw_report, "report", lenient=True)}
+
+
+def _is_number(value: Any) -> bool:
+    return isinstance(value, (int, float)) and not isinstance(value, bool)
 
 
 class _Bad(Exception):

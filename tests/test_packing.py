@@ -448,3 +448,11 @@ def test_version_1_params_map_to_the_typed_fields(saved):
     assert q.report.fidelity_detail.spheres == 24
     assert q.report.fidelity_detail.reasons == ("preset",)
     assert q.report.threads.seconds_by_threads == {"1": 0.5, "2": 1.0}
+    # pack() wrote the extra passes' statistics over the option of the same name
+    params["extra_passes"] = [{"inserted": 5, "grown": 4, "failed": 1, "seconds": 0.2,
+                               "stopped": "patience", "extra": {}, "round": 0,
+                               "factor": 0.8}]
+    _write(out, dict(old, version=1, params=params))
+    q = load_packing(out)
+    assert q.inputs.options.cavity.factors == (0.8, 0.6, 0.5, 0.4)
+    assert q.report.extra_passes[0].grown == 4 and q.report.extra_passes[0].factor == 0.8
