@@ -235,10 +235,7 @@ def build_result(context: bpy.types.Context, request: PackRequest,
             obj.color = colour
             obj["jampacked_type"] = t
             coll.objects.link(obj)
-        props = summary.collection_properties(
-            packing.metrics, packing.certificate, packing.params, packing.timings,
-            [rec.name for rec in packing.types], [rec.share for rec in packing.types],
-            packing.seed)
+        props = summary.collection_properties(packing)
         for key, value in props.items():
             coll[summary.PREFIX + key] = value
         coll[summary.PREFIX + "packing"] = outcome.json_text

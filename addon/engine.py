@@ -90,7 +90,7 @@ class PackOutcome:
 
 def packing_to_json(packing: Packing) -> str:
     """The packing file's text (as ``jampacked pack -o`` writes it)."""
-    from jampacked.core.packing import save_packing
+    from jampacked.core.packing_json import save_packing
 
     with tempfile.TemporaryDirectory(prefix="jampacked-") as tmp:
         path = os.path.join(tmp, "packing.json")
@@ -101,7 +101,7 @@ def packing_to_json(packing: Packing) -> str:
 
 def packing_from_json(text: str) -> Packing:
     """Read a packing from its JSON text (InputError on a damaged text)."""
-    from jampacked.core.packing import load_packing
+    from jampacked.core.packing_json import load_packing
 
     with tempfile.TemporaryDirectory(prefix="jampacked-") as tmp:
         path = os.path.join(tmp, "packing.json")
@@ -122,7 +122,8 @@ def pack_triangles(container: Triangles, types: Sequence[Triangles], shares: Seq
     engine's default). Raises JampackedError subclasses (MeshError naming the object,
     InputError, ...).
     """
-    from jampacked.core.api import PackParams, pack
+    from jampacked.core.api import pack
+    from jampacked.core.options import CavityPassOptions, PackOptions
 
     progress(0.0, f"checking {container.name}")
     cmesh = container.mesh_data("container")
@@ -130,8 +131,8 @@ def pack_triangles(container: Triangles, types: Sequence[Triangles], shares: Seq
     packing = pack(cmesh, tmeshes, list(shares), seed=seed, clearance=clearance,
                    fidelity=fidelity, time_budget=time_budget, progress=progress,
                    should_cancel=should_cancel, names=[t.name for t in types],
-                   params=None if mix_tolerance is None
-                   else PackParams(extra_max_tvd=mix_tolerance))
+                   options=None if mix_tolerance is None
+                   else PackOptions(cavity=CavityPassOptions(max_tvd=mix_tolerance)))
     packing.container_path = CONTAINER_SPEC + container.name
     return PackOutcome(packing=packing, json_text=packing_to_json(packing))
 
@@ -157,8 +158,7 @@ def scaled(packing: Packing, container: Triangles, types: Sequence[Triangles],
     for rec in out.types:
         rec.local_from_file = s @ rec.local_from_file @ s_inv
         rec.volume *= k ** 3
-    if "clearance" in out.params:
-        out.params["clearance"] = float(out.params["clearance"]) * k
+    out.inputs = dataclasses.replace(out.inputs, clearance=out.inputs.clearance * k)
 
     def length(v: float | None) -> float | None:
         return None if v is None else v * k

@@ -11,7 +11,10 @@ from __future__ import annotations
 
 import colorsys
 from collections.abc import Mapping
-from typing import Any
+from typing import TYPE_CHECKING, Any
+
+if TYPE_CHECKING:
+    from jampacked.core.packing import Packing
 
 PREFIX = "jampacked_"
 
@@ -50,38 +53,34 @@ def _number(value: Any) -> float | None:
     return f if f == f and abs(f) != float("inf") else None
 
 
-def collection_properties(metrics: Mapping[str, Any], certificate: Mapping[str, Any],
-                          params: Mapping[str, Any], timings: Mapping[str, Any],
-                          type_names: list[str], shares: list[float], seed: int,
-                          ) -> dict[str, Any]:
-    """The custom properties of a result collection (keys without the prefix).
+def collection_properties(packing: Packing) -> dict[str, Any]:
+    """The custom properties of a result collection (keys without the prefix), from the
+    packing's summary (`jampacked.core.summary`).
 
     Values are ints, floats, strings, bools or lists of them (what Blender's ID properties
     hold); undefined values are left out, except per-type NNI (-1).
     """
-    n_types = len(type_names)
+    from jampacked.core.summary import summarize
+
+    summ = summarize(packing)
     out: dict[str, Any] = {
-        "count": int(metrics.get("count", 0)),
-        "count_per_type": [int(c) for c in metrics.get("count_per_type", [0] * n_types)],
-        "type_names": list(type_names),
-        "target_shares": [float(s) for s in shares],
-        "nni_per_type": [(_number(r) if _number(r) is not None else -1.0)
-                         for r in (metrics.get("nni_per_type") or [None] * n_types)],
-        "certified": bool(certificate.get("certified", False)),
-        "seed": int(seed),
-        "fidelity": str(params.get("fidelity", "")),
-        "stopped": str(params.get("stopped") or ""),
+        "count": summ.count,
+        "count_per_type": [t.count for t in summ.types],
+        "type_names": [t.name for t in summ.types],
+        "target_shares": [float(t.target) for t in summ.types],
+        "nni_per_type": [t.nni if t.nni is not None else -1.0 for t in summ.types],
+        "certified": bool(summ.certified),
+        "seed": int(summ.seed),
+        "fidelity": summ.fidelity,
+        "stopped": summ.stopped or "",
     }
-    for key, source in (("density", metrics), ("tvd", metrics), ("nni_mean", metrics),
-                        ("worst_overlap", certificate), ("worst_outside", certificate),
-                        ("min_pair_gap", certificate), ("min_wall_gap", certificate),
-                        ("clearance", params)):
-        value = _number(source.get(key))
+    for key in ("density", "tvd", "nni_mean", "worst_overlap", "worst_outside",
+                "min_pair_gap", "min_wall_gap", "clearance"):
+        value = _number(getattr(summ, key))
         if value is not None:
             out[key] = value
-    total = _number(timings.get("total"))
-    if total is not None:
-        out["time_s"] = total
+    if summ.total_seconds is not None:
+        out["time_s"] = summ.total_seconds
     return out
 
 

@@ -43,7 +43,7 @@ from scenes import (  # noqa: E402
     write_json,
 )
 
-SETTINGS = {  # name -> (environment additions, PackParams overrides)
+SETTINGS = {  # name -> (environment additions, PackOptions.from_flat keys)
     "tuned": ({}, {}),
     "every thread": ({}, {"tune_threads": False}),
     "one thread": ({"NUMBA_NUM_THREADS": "1"}, {}),

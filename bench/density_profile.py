@@ -49,8 +49,9 @@ def profile(packing_path: Path, target: float = 0.55, samples: int = SAMPLES,
     from jampacked.core.distance import distance_grid
     from jampacked.core.kernels import sample_grid_many
     from jampacked.core.meshes import load_mesh
-    from jampacked.core.packing import container_mesh, load_packing
-    from jampacked.core.phases import equivalent_radius
+    from jampacked.core.metrics import equivalent_radius
+    from jampacked.core.packing import container_mesh
+    from jampacked.core.packing_json import load_packing
 
     p = load_packing(packing_path)
     cm = container_mesh(p)
@@ -108,7 +109,7 @@ def profile(packing_path: Path, target: float = 0.55, samples: int = SAMPLES,
 
 def _pack_scene(scene: str, seed: int, meshes: Path, out: Path) -> None:
     from jampacked.core.api import pack
-    from jampacked.core.packing import save_packing
+    from jampacked.core.packing_json import save_packing
 
     spec = SCENES[scene]
     container = spec["container"]

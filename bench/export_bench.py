@@ -31,7 +31,7 @@ BARS = {"union_seconds": 10.0, "validate_seconds": 2.0}
 
 def _make_packing(meshes: Path) -> None:
     from jampacked.core.api import pack
-    from jampacked.core.packing import save_packing
+    from jampacked.core.packing_json import save_packing
 
     p = pack(str(meshes / "containers" / "bunny.obj"), [str(meshes / f) for f in FRUIT],
              seed=1, time_budget=150.0, container_size=260.0,
@@ -46,7 +46,7 @@ def main(argv: list[str] | None = None) -> int:
     ap.add_argument("--shell", type=float, default=2.0)
     args = ap.parse_args(argv)
 
-    from jampacked.core.packing import load_packing
+    from jampacked.core.packing_json import load_packing
     from jampacked.export.assemble import export_packing
     from jampacked.export.options import ExportOptions
     from jampacked.export.validate import validate_file

@@ -41,7 +41,7 @@ from scenes import (  # noqa: E402
     write_text,
 )
 
-#: name -> (fidelity argument, PackParams overrides)
+#: name -> (fidelity argument, PackOptions.from_flat keys)
 CONFIGS: dict[str, tuple[str, dict]] = {
     "low": ("low", {}),
     "medium": ("medium", {}),

@@ -353,7 +353,7 @@ def certify_placements(geom: Geometry, certifier, typ: np.ndarray, matrices: np.
 
 def random_rotations(rng: np.random.Generator, n: int) -> np.ndarray:
     """(n,3,3) uniformly random rotations."""
-    from jampacked.core.packing import quat_to_matrix
+    from jampacked.core.rotations import quat_to_matrix
 
     q = rng.normal(size=(n, 4))
     return quat_to_matrix(q / np.linalg.norm(q, axis=1, keepdims=True))
@@ -576,7 +576,7 @@ def run_bullet(geom: Geometry, container, params: BulletParams, seed: int, time_
 
     signal.signal(signal.SIGINT, signal.default_int_handler)  # importing bpy ignores Ctrl-C
     from jampacked.core.container import interior_points
-    from jampacked.core.packing import matrix_to_quat
+    from jampacked.core.rotations import matrix_to_quat
 
     rng = np.random.default_rng(seed)
     s = params.unit_scale
@@ -748,7 +748,7 @@ def run_bullet(geom: Geometry, container, params: BulletParams, seed: int, time_
 def ours_child(scene: str, seed: int, budget: float, out: Path) -> None:
     """Child process: pack() the scene and write its record and placements."""
     from jampacked.core.api import pack
-    from jampacked.core.packing import placement_matrices
+    from jampacked.core.rotations import placement_matrices
 
     spec = SCENES[scene]
     t0 = time.perf_counter()
@@ -757,11 +757,15 @@ def ours_child(scene: str, seed: int, budget: float, out: Path) -> None:
              time_budget=budget)
     wall = time.perf_counter() - t0
     mats = placement_matrices(p.rotations, p.translations, p.scales)
-    keep = ("clearance", "fidelity", "time_budget", "container_size", "type_scale",
-            "container_grid_spacing", "stopped", "spheres_per_type", "repair")
     rec = {
         "wall_seconds": wall, "seed": seed, "timings": p.timings, "metrics": p.metrics,
-        "certificate": p.certificate, "params": {k: p.params[k] for k in keep},
+        "certificate": p.certificate, "params": {
+            "clearance": p.inputs.clearance, "fidelity": p.report.fidelity,
+            "time_budget": p.inputs.time_budget, "container_size": p.inputs.container_size,
+            "type_scale": p.inputs.type_scale,
+            "container_grid_spacing": p.report.container_grid_spacing,
+            "stopped": p.report.stopped, "spheres_per_type": p.report.spheres_per_type,
+            "repair": asdict(p.report.repair)},
         "type_index": p.type_index.tolist(), "matrices": mats.tolist(),
         "type_volumes": [t.volume for t in p.types],
         "local_from_file": [t.local_from_file.tolist() for t in p.types],

@@ -16,6 +16,7 @@ import subprocess
 import sys
 import tempfile
 import time
+from dataclasses import asdict
 from pathlib import Path
 
 _DENSITY = re.compile(r"density ([0-9.]+)%")
@@ -78,13 +79,13 @@ SCENES: dict[str, dict] = {
 def run_record(container: str, types: list[str], seed: int, kwargs: dict,
                params: dict | None = None, meshes: Path = MESHES) -> dict:
     """Pack one scene in this process and return its record (see the module doc)."""
-    from jampacked.core.api import PackParams, pack
+    from jampacked.core.api import pack
+    from jampacked.core.options import PackOptions
 
     if not container.startswith("box:"):
         container = str(meshes / container)
     type_paths = [str(meshes / t) for t in types]
-    pp = PackParams(**{k: tuple(v) if isinstance(v, list) else v
-                       for k, v in (params or {}).items()})
+    options = PackOptions.from_flat(params or {})
     trace: list[tuple[float, float]] = []
 
     def progress(fraction: float, message: str) -> None:
@@ -94,9 +95,9 @@ def run_record(container: str, types: list[str], seed: int, kwargs: dict,
             trace.append((time.perf_counter() - t0, float(m.group(1)) / 100))
 
     t0 = time.perf_counter()
-    p = pack(container, type_paths, seed=seed, params=pp, progress=progress, **kwargs)
+    p = pack(container, type_paths, seed=seed, options=options, progress=progress, **kwargs)
     wall = time.perf_counter() - t0
-    rep = p.params["repair"]
+    rep, run = asdict(p.report.repair), p.report
     return {
         "seed": seed, "wall_seconds": wall, "timings": p.timings,
         "metrics": dict(p.metrics),
@@ -105,13 +106,13 @@ def run_record(container: str, types: list[str], seed: int, kwargs: dict,
         "certificate": p.certificate,
         "before_certification": rep["first"],
         "repair": {k: v for k, v in rep.items() if k != "first"},
-        "fidelity": p.params["fidelity"], "fidelity_detail": p.params["fidelity_detail"],
-        "spheres_per_type": p.params["spheres_per_type"],
-        "container_grid_spacing": p.params["container_grid_spacing"],
-        "phase1": p.params["phase1"], "phase2": p.params["phase2"],
-        "attempts": p.params.get("attempts", []),
-        "stopped": p.params["stopped"], "kwargs": kwargs, "params": params or {},
-        "threads": p.params.get("threads"),
+        "fidelity": run.fidelity, "fidelity_detail": asdict(run.fidelity_detail),
+        "spheres_per_type": run.spheres_per_type,
+        "container_grid_spacing": run.container_grid_spacing,
+        "phase1": asdict(run.phase1), "phase2": asdict(run.phase2),
+        "attempts": [asdict(a) for a in run.attempts],
+        "stopped": run.stopped, "kwargs": kwargs, "params": params or {},
+        "threads": None if run.threads is None else asdict(run.threads),
         "density_trace": trace,
     }
 

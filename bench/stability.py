@@ -41,6 +41,7 @@ import subprocess
 import sys
 import tempfile
 import time
+from dataclasses import asdict
 from pathlib import Path
 
 sys.path.insert(0, str(Path(__file__).resolve().parent))
@@ -306,12 +307,12 @@ def check_packing(p, case: dict, meshes: Path, types) -> tuple[dict, dict]:
         "objects": int(n), "count_per_type": [int(c) for c in counts],
         "density": float(m["density"]), "density_recomputed": dens, "tvd": float(m["tvd"]),
         "nni": m.get("nni_mean"), "centres_outside": int(np.sum(~inside)),
-        "stopped": p.params.get("stopped"), "fidelity": p.params.get("fidelity"),
+        "stopped": p.report.stopped, "fidelity": p.report.fidelity,
         "timings": p.timings, "certificate": cert,
-        "before_certification": p.params["repair"]["first"],
-        "repair": {k: v for k, v in p.params["repair"].items() if k != "first"},
-        "phase1": p.params.get("phase1"), "phase2": p.params.get("phase2"),
-        "extra_passes_grown": [e.get("grown") for e in p.params.get("extra_passes", [])],
+        "before_certification": p.report.repair.first,
+        "repair": {k: v for k, v in asdict(p.report.repair).items() if k != "first"},
+        "phase1": asdict(p.report.phase1), "phase2": asdict(p.report.phase2),
+        "extra_passes_grown": [e.grown for e in p.report.extra_passes],
     }
     return checks, facts
 

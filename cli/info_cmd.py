@@ -42,7 +42,7 @@ def cmd_info(args: argparse.Namespace) -> int:
     out, err = consoles()
     packing = load_packing(args.packing)
     print_summary(packing, out, title=f"packing {args.packing}")
-    for w in packing.params.get("warnings") or []:
+    for w in packing.report.warnings:
         warn(err, w)
     problems = verify_sources(packing)
     n_files = len(packing.types) + (0 if is_spec(packing.container_path) else 1)

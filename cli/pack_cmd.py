@@ -16,7 +16,8 @@ from jampacked.cli.exits import EXIT_INTERRUPTED
 from jampacked.cli.interrupt import CancelOnInterrupt
 from jampacked.cli.reports import consoles, print_summary, progress_bar, warn
 from jampacked.cli.scene import DEFAULT_CONTAINER_SIZE, DEFAULT_TYPE_SCALE, resolve_scene
-from jampacked.core.api import PackParams, pack
+from jampacked.core.api import pack
+from jampacked.core.options import CavityPassOptions, PackOptions
 from jampacked.core.packing import save_packing
 
 PACK_EPILOG = """\
@@ -96,7 +97,7 @@ def add_pack_parser(sub: argparse._SubParsersAction) -> None:
         help="how far the type mix may drift from the shares (total variation distance, 0 "
              "to 1) for the late passes to add an object to a small hole; the types a mix "
              "lacks late are often big ones that no longer fit, so a tight mix can leave "
-             f"holes unfilled (default: {PackParams().extra_max_tvd:g}; 0 keeps the mix as "
+             f"holes unfilled (default: {CavityPassOptions().max_tvd:g}; 0 keeps the mix as "
              "close as the count allows)")
     p.add_argument(
         "--seed", type=seed, default=0, metavar="N",
@@ -131,10 +132,10 @@ def cmd_pack(args: argparse.Namespace) -> int:
             clearance=args.clearance, fidelity=args.fidelity, time_budget=args.time_budget,
             progress=progress_cb, should_cancel=cancel, container_size=scene.container_size,
             type_scale=scene.type_scale, names=scene.names,
-            params=None if args.mix_tolerance is None
-            else PackParams(extra_max_tvd=args.mix_tolerance))
+            options=None if args.mix_tolerance is None
+            else PackOptions(cavity=CavityPassOptions(max_tvd=args.mix_tolerance)))
     save_packing(packing, args.output)
-    for w in packing.params.get("warnings") or []:
+    for w in packing.report.warnings:
         warn(err, w)
     if not args.quiet:
         print_summary(packing, out)
@@ -145,7 +146,7 @@ def cmd_pack(args: argparse.Namespace) -> int:
     if not args.quiet:
         out.print(f"wrote {args.output}" + (f" and {args.preview}" if args.preview else ""),
                   highlight=False)
-    if packing.params.get("stopped") == "cancelled":
+    if packing.report.stopped == "cancelled":
         err.print(f"[yellow]interrupted:[/] saved the best certified packing found so far "
                   f"({packing.n} objects) to {escape(args.output)}", highlight=False)
         return EXIT_INTERRUPTED

@@ -14,7 +14,6 @@ from collections.abc import Callable
 from pathlib import Path
 from typing import TYPE_CHECKING
 
-import numpy as np
 from rich.console import Console
 from rich.markup import escape
 from rich.progress import BarColumn, Progress, TaskProgressColumn, TextColumn, TimeElapsedColumn
@@ -22,6 +21,7 @@ from rich.table import Table
 
 from jampacked.cli.interrupt import CancelOnInterrupt
 from jampacked.core.packing import Packing, is_spec
+from jampacked.core.summary import summarize
 
 if TYPE_CHECKING:  # imported when needed: validation pulls in numba kernels
     from jampacked.export.assemble import ExportReport
@@ -93,114 +93,81 @@ def _container_label(packing: Packing) -> str:
 def print_summary(packing: Packing, console: Console, title: str | None = None) -> None:
     """Print the summary tables of a packing: per type, quality and certificate, phases.
 
-    Reads only what the packing holds (metrics, certificate, params, timings), so a packing
-    loaded from JSON prints the same as one fresh from pack().
+    Renders `jampacked.core.summary.summarize(packing)`, which the add-on's panel shares,
+    so a packing loaded from JSON prints the same as one fresh from pack().
     """
-    m = packing.metrics or {}
-    cert = packing.certificate or {}
-    params = packing.params or {}
-    n_types = len(packing.types)
-    counts = np.bincount(packing.type_index, minlength=n_types) if n_types else np.zeros(0)
-    total = int(counts.sum())
-    nni = list(m.get("nni_per_type") or [None] * n_types)
-    nni += [None] * (n_types - len(nni))
-
+    s = summarize(packing)
     types = Table(title=title or "packing", title_justify="left", show_footer=True)
     types.add_column("type", footer="all")
-    types.add_column("count", justify="right", footer=str(total))
-    types.add_column("share", justify="right", footer="100%" if total else "-")
+    types.add_column("count", justify="right", footer=str(s.count))
+    types.add_column("share", justify="right", footer="100%" if s.count else "-")
     types.add_column("target", justify="right", footer="100%")
-    types.add_column("NNI", justify="right", footer=_num(m.get("nni_mean"), "{:.2f}"))
-    for t, rec in enumerate(packing.types):
-        share = counts[t] / total if total else None
-        types.add_row(escape(rec.name), str(int(counts[t])), _pct(share), _pct(rec.share),
-                      _num(nni[t], "{:.2f}"))
+    types.add_column("NNI", justify="right", footer=_num(s.nni_mean, "{:.2f}"))
+    for t in s.types:
+        types.add_row(escape(t.name), str(t.count), _pct(t.share), _pct(t.target),
+                      _num(t.nni, "{:.2f}"))
     console.print(types)
 
-    clearance = float(cert.get("clearance", params.get("clearance", 0.0)) or 0.0)
-    tol = cert.get("tol")
     summary = Table(show_header=False, title="quality", title_justify="left")
     summary.add_column("what", style="bold")
     summary.add_column("value")
     cs = escape(_container_label(packing))
     summary.add_row("container", f"{cs}, volume {_volume(packing.container_volume)} units³")
-    summary.add_row("density", _pct(m.get("density")) + "  (object volume / container volume)")
-    summary.add_row("TVD", _num(m.get("tvd"), "{:.3f}") + "  (type-share error: 0 = exact mix)")
-    summary.add_row("NNI mean", _num(m.get("nni_mean"), "{:.2f}")
+    summary.add_row("density", _pct(s.density) + "  (object volume / container volume)")
+    summary.add_row("TVD", _num(s.tvd, "{:.3f}") + "  (type-share error: 0 = exact mix)")
+    summary.add_row("NNI mean", _num(s.nni_mean, "{:.2f}")
                     + "  (<1 clumped, ≈1 random, >1 regular)")
-    summary.add_row("seed / fidelity", f"{packing.seed} / {params.get('fidelity', '-')}")
-    fd = params.get("fidelity_detail")
-    if fd:
-        summary.add_row("resolution", f"{fd['spheres']} spheres, {fd['grid_cells']} grid cells, "
-                        f"{fd['surface_points']} surface points per type; container grid "
-                        f"{fd['container_cells']:g} cells per smallest radius"
-                        + "".join(f"\n{r}" for r in fd.get("reasons", [])))
-    stopped = params.get("stopped")
-    if stopped:
-        why = {"deadline": "time budget reached", "cancelled": "interrupted"}.get(stopped,
-                                                                                 stopped)
+    summary.add_row("seed / fidelity", f"{s.seed} / {s.fidelity or '-'}")
+    fd = s.fidelity_detail
+    if fd is not None:
+        summary.add_row("resolution", f"{fd.spheres} spheres, {fd.grid_cells} grid cells, "
+                        f"{fd.surface_points} surface points per type; container grid "
+                        f"{fd.container_cells:g} cells per smallest radius"
+                        + "".join(f"\n{r}" for r in fd.reasons))
+    if s.stopped:
+        why = {"deadline": "time budget reached", "cancelled": "interrupted"}.get(s.stopped,
+                                                                                 s.stopped)
         summary.add_row("stopped early", why)
     summary.add_section()
-    certified = cert.get("certified")
-    summary.add_row("certified", "[green]yes[/]" if certified else
-                    ("[red]NO[/]" if certified is False else "-"))
-    summary.add_row("worst overlap", _num(cert.get("worst_overlap"), "{:.2e}")
-                    + f"  of the smaller object (limit {_num(tol, '{:.0e}')})")
-    summary.add_row("worst wall violation", _num(cert.get("worst_outside"), "{:.2e}")
-                    + f"  of an object outside (limit {_num(tol, '{:.0e}')})")
-    if clearance > 0:
-        none = "no pair that close"
-        summary.add_row("min gap objects", _num(cert.get("min_pair_gap"), "{:.3g}", none)
-                        + f"  (clearance {clearance:g})")
-        summary.add_row("min gap wall", _num(cert.get("min_wall_gap"), "{:.3g}",
-                                              "no object that close")
-                        + f"  (clearance {clearance:g})")
+    summary.add_row("certified", "[green]yes[/]" if s.certified else
+                    ("[red]NO[/]" if s.certified is False else "-"))
+    summary.add_row("worst overlap", _num(s.worst_overlap, "{:.2e}")
+                    + f"  of the smaller object (limit {_num(s.tol, '{:.0e}')})")
+    summary.add_row("worst wall violation", _num(s.worst_outside, "{:.2e}")
+                    + f"  of an object outside (limit {_num(s.tol, '{:.0e}')})")
+    if s.clearance > 0:
+        summary.add_row("min gap objects", _num(s.min_pair_gap, "{:.3g}", "no pair that close")
+                        + f"  (clearance {s.clearance:g})")
+        summary.add_row("min gap wall", _num(s.min_wall_gap, "{:.3g}", "no object that close")
+                        + f"  (clearance {s.clearance:g})")
     else:
         summary.add_row("clearance", "0 (objects may touch)")
-    summary.add_row("checked", f"{cert.get('pairs_checked', '-')} pairs, "
-                               f"{cert.get('walls_checked', '-')} objects near the wall")
-    repair = params.get("repair") or {}
-    if repair:
-        extra = repair.get("removed_after_final")
-        summary.add_row("repair", f"{repair.get('rounds', 0)} rounds, "
-                                  f"{repair.get('moved', 0)} moved, "
-                                  f"{repair.get('removed', 0)} removed"
-                        + (f" (+{extra} final removal rounds)" if extra else ""))
-    attempts = params.get("attempts") or []
-    if len(attempts) > 1:
-        kept = max(range(len(attempts)), key=lambda i: attempts[i]["density"])
-        for i, a in enumerate(attempts):
-            summary.add_row(f"attempt {i + 1}", f"{a['count']} objects, {_pct(a['density'])}"
-                            f", {_seconds(a['seconds'])}" + (" (kept)" if i == kept else ""))
+    summary.add_row("checked", f"{'-' if s.pairs_checked is None else s.pairs_checked} "
+                               f"pairs, {'-' if s.walls_checked is None else s.walls_checked}"
+                               " objects near the wall")
+    if s.repair is not None:
+        summary.add_row("repair", f"{s.repair.rounds} rounds, {s.repair.moved} moved, "
+                                  f"{s.repair.removed} removed")
+    if len(s.attempts) > 1:
+        for i, a in enumerate(s.attempts):
+            summary.add_row(f"attempt {i + 1}", f"{a.count} objects, {_pct(a.density)}"
+                            f", {_seconds(a.seconds)}"
+                            + (" (kept)" if i == s.kept_attempt else ""))
     console.print(summary)
 
-    timings = packing.timings or {}
-    phases = Table(title="phases", title_justify="left")
-    phases.add_column("phase")
-    phases.add_column("time", justify="right")
-    phases.add_column("objects", justify="right")
-    phases.add_column("density", justify="right")
-    after = {"phase1": m.get("after_phase1"), "phase2": m.get("after_phase2"),
-             "extra": m.get("after_extra")}
-    labels = {"load": "load meshes", "approximate": "approximate",
-              "compile": "compile kernels", "phase1": "1 place & grow",
-              "phase2": "2 fill cavities", "extra": "more cavity passes",
-              "other_attempts": "attempts not kept", "certify": "certify & repair"}
-    for key, label in labels.items():
-        if key not in timings:
-            continue
-        snap = after.get(key) or {}
-        if key == "certify":
-            snap = {"count": total, "density": m.get("density")}
-        phases.add_row(label, _seconds(timings[key]), str(snap.get("count", "")),
-                       _pct(snap.get("density")) if snap else "")
-    for key, value in timings.items():
-        if key not in labels and key != "total":
-            phases.add_row(key, _seconds(value), "", "")
-    if "total" in timings:
-        phases.add_section()
-        phases.add_row("total", _seconds(timings["total"]), str(total), _pct(m.get("density")))
-    if timings:
+    if s.phases:
+        phases = Table(title="phases", title_justify="left")
+        phases.add_column("phase")
+        phases.add_column("time", justify="right")
+        phases.add_column("objects", justify="right")
+        phases.add_column("density", justify="right")
+        for line in s.phases:
+            if line.key == "total":
+                phases.add_section()
+            known = line.count is not None or line.density is not None
+            phases.add_row(line.label, _seconds(line.seconds),
+                           "" if line.count is None else str(line.count),
+                           _pct(line.density) if known else "")
         console.print(phases)
 
 

@@ -1,94 +1,46 @@
 """`pack()`: the one call every front end uses.
 
 container + object types + target shares -> a certified `Packing` (container frame, container
-units). Steps: load and check meshes, build approximations, placement (phase 1, place &
-grow; phase 2, fill cavities; extra cavity passes: `placement`, in attempts while a time
-budget lasts), certify on the real meshes and repair or remove what fails, metrics.
+units), in named stages: load (and scale) the meshes, approximate them, place (phase 1, place &
+grow; phase 2, fill cavities; extra cavity passes, in attempts while a time budget lasts:
+`placement`), certify on the real meshes and repair or remove what fails (`repair`), and
+assemble the result.
 """
 
 from __future__ import annotations
 
+import math
+import numbers
 import os
 import time
 from collections.abc import Callable, Sequence
-from dataclasses import asdict, dataclass, replace
+from dataclasses import dataclass, replace
 from pathlib import Path
 
 import numba
 import numpy as np
 
-from .certify import DEFAULT_TOL, Certifier
+from .certify import Certifier
 from .container import Container, build_container
 from .errors import InputError, PackingError
 from .fidelity import PRESETS, Fidelity, choose_fidelity
-from .margins import contact_margins
+from .margins import Margins, contact_margins
 from .meshes import MeshData, box_mesh, load_mesh, parse_box_spec
-from .metrics import compute_metrics
+from .metrics import compute_metrics, equivalent_radius
 from .objects import ObjectType, build_type
-from .packing import Packing, TypeRecord, matrix_to_quat, placement_matrices, quat_to_matrix
-from .phases import Stop, equivalent_radius
-from .placement import place
+from .options import FidelityOverrides, PackOptions
+from .packing_types import Packing, TypeRecord
+from .phases import Stop
+from .placement import Attempt, place
+from .repair import certify_and_repair
+from .report import AttemptSummary, PackInputs, RepairStats, RunReport
+from .rotations import matrix_to_quat, quat_to_matrix
 from .solver import PackState, Solver, SolverParams, TypeTable
 from .spheres import sphere_coverage
 from .threads import ThreadTuner
 
 Progress = Callable[[float, str], None]
 MeshSource = str | os.PathLike | MeshData
-
-
-@dataclass
-class PackParams:
-    """Method constants (the paper's defaults). Lengths are relative to object sizes."""
-
-    phase1_density: float = 0.5  # lattice spacing = (mean type volume / this)^(1/3)
-    phase1_iterations: int = 30  # solver iterations per growth step (paper: 25-30)
-    phase1_growth_steps: int = 30  # growth steps from scale 0 to 1 (the paper: 30)
-    phase2_spacing: float = 0.5  # phase 2 lattice spacing, fraction of phase 1's
-    phase2_iterations: int = 80  # per growth step (paper: 55-150)
-    phase2_retries: int = 2  # random smaller types tried after a failure
-    # overrides of the fidelity's choices (None: the fidelity decides)
-    spheres: int | None = None  # inner spheres per type
-    grid_cells: int | None = None  # object distance grid cells across its largest extent
-    surface_points: int | None = None  # surface points per type
-    container_cells: float | None = None  # container grid cells per smallest f(V)
-    # contact margins beyond the clearance, in cells of the object's (the container's) grid,
-    # for surfaces the grid reproduces closely or not (`core/margins.py`): each costs
-    # density, too little leaves certification overlaps it cannot push apart
-    safety: float = 0.025  # per object whose grid keeps its surface (smooth types)
-    safety_sharp: float = 0.05  # per object with edges the grid rounds off
-    wall_safety: float = 0.05  # extra wall distance, smooth container
-    wall_safety_sharp: float = 0.1
-    # cavity passes beyond the paper: threshold = factor * smallest f(V), lattice spacing
-    # scaled by the factor too
-    extra_passes: tuple[float, ...] = (0.8, 0.6, 0.5, 0.4)
-    extra_retries: int = 1
-    extra_rounds: int = 8  # with a time budget: rounds of extra passes while they add objects
-    # with a time budget: independent attempts while the time left is at least the shortest
-    # attempt so far; the densest is kept (core/placement.py)
-    max_attempts: int = 8
-    extra_patience: int = 60  # an extra pass ends after this many fruitless points in a row
-    # extra passes add no object that pushes TVD above this. Late holes are small, and the
-    # types the mix then lacks are often the big ones that no longer fit: a tighter cap
-    # ends those passes with time left (fruit-in-bunny seeds 1 and 2: 53.1 / 49.9% with
-    # 0.03, 54.7 / 53.4% with 0.04, 51.7 / 55.0% with 0.05: no steady gain beyond 0.04)
-    extra_max_tvd: float = 0.04
-    # growth steps from scale 0 to 1 in the extra passes: objects there start at the free
-    # radius of their hole (scale ~0.5), and coarser steps cost fewer solver calls per try
-    # (fruit-in-bunny: 22 fruit in 18 s instead of 25 in 59 s in the 0.6 pass)
-    extra_growth_steps: int = 12
-    extra_iterations: int = 80  # solver iterations per growth step in the extra passes
-    repair_rounds: int = 3  # certify -> push apart rounds before removing offenders
-    repair_margin: float = 0.01  # margin added per repair round, fraction of bounding radius
-    repair_iterations: int = 100
-    repair_seconds: float = 20.0  # push-apart time cap; what still fails then is removed
-    k_obj: float = 1.0
-    k_wall: float = 1.05
-    k_rot: float = 1.0
-    damping: float = 0.5
-    mode: int = 0
-    # time the contact tests on one thread against all of numba's and keep the faster
-    # (`core/threads.py`); False: always all of them
-    tune_threads: bool = True
 
 
 def _load(source: MeshSource, role: str) -> MeshData:
@@ -122,7 +74,7 @@ def pack(container: MeshSource, types: Sequence[MeshSource],
          fidelity: str = "auto", time_budget: float | None = None,
          progress: Progress | None = None, should_cancel: Callable[[], bool] | None = None,
          container_size: float | None = None, type_scale: float = 1.0,
-         names: Sequence[str] | None = None, params: PackParams | None = None,
+         names: Sequence[str] | None = None, options: PackOptions | None = None,
          use_cache: bool = True) -> Packing:
     """Pack object types into a container; returns a certified packing.
 
@@ -133,46 +85,142 @@ def pack(container: MeshSource, types: Sequence[MeshSource],
     files' coordinates. clearance: minimum gap between objects and to the wall (container
     units). time_budget (s) bounds placement (phases 1 and 2, after loading, approximation
     and numba's compilation); time an attempt leaves goes to new attempts, and the densest
-    is kept; certification runs after it. progress(fraction,
-    message) and should_cancel() are polled; cancel or the budget returns the best certified
-    packing so far. Raises JampackedError subclasses on bad input.
+    is kept; certification runs after it. progress(fraction, message) and should_cancel()
+    are polled; cancel or the budget returns the best certified packing so far. options:
+    the method's options (`core/options.py`). Raises
+    JampackedError subclasses on bad input.
     """
     t_start = time.perf_counter()
-    params = params or PackParams()
-    report = progress or (lambda f, m: None)
-    if clearance < 0 or not np.isfinite(clearance):
-        raise InputError(f"clearance must be >= 0 (container units), got {clearance}.")
-    if type_scale <= 0 or not np.isfinite(type_scale):
-        raise InputError(f"type scale must be > 0, got {type_scale}.")
-    if fidelity not in ("auto", *PRESETS):
-        raise InputError(f"fidelity must be auto, low, medium or high, got {fidelity!r}.")
+    inputs = PackInputs(clearance=clearance, time_budget=time_budget,
+                        container_size=container_size, type_scale=type_scale,
+                        fidelity=fidelity, options=options or PackOptions())
+    seed = _check_arguments(inputs, seed, len(types), names)
     q = _normalise_shares(shares, len(types))
-    if names is not None and len(names) != len(types):
-        raise InputError(f"{len(names)} names given for {len(types)} object types.")
+    report = progress or (lambda f, m: None)
 
-    # --- load
     report(0.0, "loading meshes")
+    scene = _load_scene(container, types, container_size)
+    t_load = time.perf_counter()
+
+    approx = _approximate(scene, q, inputs, names, use_cache)
+    report(0.02, f"approximating {len(types)} object types ({approx.fidelity.name} fidelity)")
+    approx.build_types(scene, q, inputs, names, use_cache)
+    t_approx = time.perf_counter()
+
+    stop = Stop(None, should_cancel)
+    run = _place(scene, approx, q, seed, inputs, stop, report, t_approx)
+    t_place = time.perf_counter()
+
+    report(0.9, "certifying on the real meshes")
+    cert, repair = _certify(run.best.solver, approx, inputs.clearance, inputs.options, stop)
+    t_cert = time.perf_counter()
+
+    timings = {"load": t_load - t_start, "approximate": t_approx - t_load,
+               "compile": run.t_compile - t_approx, **run.best.timings}
+    if len(run.attempts) > 1:  # the phase times are the kept attempt's
+        timings["other_attempts"] = (t_place - run.t_compile
+                                     - sum(run.best.timings.values()))
+    timings.update({"certify": t_cert - t_place, "total": t_cert - t_start})
+    packing = _assemble(container, scene, approx, run, q, seed, inputs, stop, cert, repair,
+                        timings)
+    report(1.0, f"done: {packing.n} objects, density {packing.metrics['density']:.1%}")
+    return packing
+
+
+def _check_arguments(inputs: PackInputs, seed: object, n_types: int,
+                     names: Sequence[str] | None) -> int:
+    """Refuse bad arguments before any work; returns the seed as an int."""
+    if isinstance(seed, bool) or not isinstance(seed, numbers.Integral) or seed < 0:
+        raise InputError(f"seed must be a whole number >= 0, got {seed!r}.")
+    clearance, budget = inputs.clearance, inputs.time_budget
+    if not _is_real(clearance) or clearance < 0 or not math.isfinite(clearance):
+        raise InputError(f"clearance must be >= 0 (container units), got {clearance!r}.")
+    if not _is_real(inputs.type_scale) or not math.isfinite(inputs.type_scale) \
+            or inputs.type_scale <= 0:
+        raise InputError(f"type scale must be > 0, got {inputs.type_scale!r}.")
+    if budget is not None and (not _is_real(budget) or not budget >= 0
+                               or math.isnan(budget)):
+        raise InputError(f"time_budget must be a number of seconds >= 0 or None, got "
+                         f"{budget!r}.")
+    if inputs.fidelity not in ("auto", *PRESETS):
+        raise InputError(f"fidelity must be auto, low, medium or high, got "
+                         f"{inputs.fidelity!r}.")
+    size = inputs.container_size
+    if size is not None and (not _is_real(size) or not math.isfinite(size) or size <= 0):
+        raise InputError(f"container size must be > 0, got {size!r}.")
+    if names is not None:
+        if len(names) != n_types:
+            raise InputError(f"{len(names)} names given for {n_types} object types.")
+        bad = [n for n in names if not isinstance(n, str)]
+        if bad:
+            raise InputError(f"names must be strings, one per object type; got {bad[0]!r}.")
+    return int(seed)
+
+
+def _is_real(x: object) -> bool:
+    return isinstance(x, numbers.Real) and not isinstance(x, bool)
+
+
+@dataclass
+class _Scene:
+    """The meshes as loaded, and the container in the container frame."""
+
+    container: MeshData
+    frame_from_file: np.ndarray  # (4, 4) container frame from the container file
+    vertices: np.ndarray  # (V, 3) container vertices, container frame
+    volume: float  # container volume, container units^3
+    types: list[MeshData]
+
+
+def _load_scene(container: MeshSource, types: Sequence[MeshSource],
+                container_size: float | None) -> _Scene:
+    """Load the meshes; scale the container to `container_size` when given."""
     cmesh = _load(container, "container")
     frame_from_file = np.eye(4)
     if container_size is not None:
-        if container_size <= 0 or not np.isfinite(container_size):
-            raise InputError(f"container size must be > 0, got {container_size}.")
         frame_from_file[:3, :3] *= container_size / float(cmesh.extents.max())
     s_c = frame_from_file[0, 0]
-    c_vertices = cmesh.vertices * s_c
-    c_volume = cmesh.volume * s_c ** 3
     meshes = [_load(t, "object") for t in types]
-    t_load = time.perf_counter()
+    return _Scene(cmesh, frame_from_file, cmesh.vertices * s_c, cmesh.volume * s_c ** 3,
+                  meshes)
 
-    # --- approximate
-    volumes = np.array([m.volume for m in meshes]) * type_scale ** 3
-    expected = 0.5 * c_volume / float(np.sum(q * volumes))
+
+@dataclass
+class _Approximation:
+    """The container grid, the fidelity chosen and the object types' approximations."""
+
+    container: Container
+    fidelity: Fidelity
+    f_min: float  # the smallest type's equivalent radius, container units
+    volumes: np.ndarray  # (T,) type volumes, container units^3
+    types: list[ObjectType]
+
+    def build_types(self, scene: _Scene, q: np.ndarray, inputs: PackInputs,
+                    names: Sequence[str] | None, use_cache: bool) -> None:
+        """Approximate every object type; refuse a type no interior point can hold."""
+        for i, m in enumerate(scene.types):
+            name = names[i] if names is not None else (
+                Path(m.path).stem if m.path else f"type{i}")
+            self.types.append(build_type(
+                name, m.vertices, m.faces, path=m.path, sha256=m.sha256, share=float(q[i]),
+                type_scale=inputs.type_scale, fidelity=self.fidelity, use_cache=use_cache,
+                reach=inputs.clearance))
+        _check_types_fit(self.types, self.container, inputs.clearance)
+
+
+def _approximate(scene: _Scene, q: np.ndarray, inputs: PackInputs,
+                 names: Sequence[str] | None, use_cache: bool) -> _Approximation:
+    """The container grid and the fidelity: the container's depth decides the automatic
+    fidelity, which decides the container grid, so the grid is built at medium's (or the
+    preset's) resolution and again only if that changes."""
+    clearance, type_scale = inputs.clearance, inputs.type_scale
+    volumes = np.array([m.volume for m in scene.types]) * type_scale ** 3
+    expected = 0.5 * scene.volume / float(np.sum(q * volumes))
     f_min = float(equivalent_radius(volumes.min()))
-    # the container's depth decides the automatic fidelity, which decides the container
-    # grid: build at medium's (or the preset's) resolution, again only if that changes
-    fid = PRESETS["medium"] if fidelity == "auto" else PRESETS[fidelity]
-    cont: Container = build_container(c_vertices, cmesh.faces, c_volume,
-                                      f_min / fid.container_cells)
+    fid = PRESETS["medium"] if inputs.fidelity == "auto" else PRESETS[inputs.fidelity]
+    cmesh = scene.container
+    cont = build_container(scene.vertices, cmesh.faces, scene.volume,
+                           f_min / fid.container_cells)
     depth = float(cont.grid.values.max())
     if depth <= f_min * 0.5 + clearance:
         raise PackingError(
@@ -180,24 +228,21 @@ def pack(container: MeshSource, types: Sequence[MeshSource],
             f"from its wall, the smallest object's equivalent radius is {f_min:.4g}"
             f"{f' plus clearance {clearance:g}' if clearance else ''}. Scale the container "
             "up (--container-size) or the objects down (--type-scale).")
-    if fidelity == "auto":
-        local = [(m.vertices - m.vertices.mean(axis=0)) * type_scale for m in meshes]
+    if inputs.fidelity == "auto":
+        local = [(m.vertices - m.vertices.mean(axis=0)) * type_scale for m in scene.types]
         r_max = max(float(np.sqrt((v ** 2).sum(axis=1)).max()) for v in local)
         fid = choose_fidelity(local, expected, clearance, depth / f_min, depth / r_max)
-    fid = _with_overrides(fid, params)
+    fid = _with_overrides(fid, inputs.options.fidelity)
     if cont.grid.spacing != f_min / fid.container_cells:
-        cont = build_container(c_vertices, cmesh.faces, c_volume, f_min / fid.container_cells)
-    report(0.02, f"approximating {len(types)} object types ({fid.name} fidelity)")
-    objtypes: list[ObjectType] = []
-    for i, m in enumerate(meshes):
-        name = names[i] if names is not None else (
-            Path(m.path).stem if m.path else f"type{i}")
-        objtypes.append(build_type(name, m.vertices, m.faces, path=m.path, sha256=m.sha256,
-                                   share=float(q[i]), type_scale=type_scale, fidelity=fid,
-                                   use_cache=use_cache, reach=clearance))
-    # a type whose largest inscribed sphere (plus the clearance) is deeper than the container
-    # fits nowhere: the grid's depth is within a cell of the true depth, the spheres' radii
-    # never exceed the true inscribed radius
+        cont = build_container(scene.vertices, cmesh.faces, scene.volume,
+                               f_min / fid.container_cells)
+    return _Approximation(cont, fid, f_min, volumes, [])
+
+
+def _check_types_fit(objtypes: list[ObjectType], cont: Container, clearance: float) -> None:
+    """A type whose largest inscribed sphere (plus the clearance) is deeper than the
+    container fits nowhere: the grid's depth is within a cell of the true depth, the
+    spheres' radii never exceed the true inscribed radius."""
     depth = float(cont.grid.values.max())
     no_room = [t.name for t in objtypes if t.share > 0
                and float(t.sphere_radii.max()) + clearance > depth + cont.grid.spacing]
@@ -208,95 +253,112 @@ def pack(container: MeshSource, types: Sequence[MeshSource],
             f"than the type's largest inscribed sphere{' plus the clearance' if clearance else ''}"
             ". Scale the container up (--container-size) or the objects down (--type-scale)"
             f"{', lower the clearance' if clearance else ''}, or remove the type.")
-    t_approx = time.perf_counter()
 
-    # --- placement
+
+@dataclass
+class _Placed:
+    """The placement stage's outcome: the densest attempt and what it took."""
+
+    best: Attempt
+    attempts: list[AttemptSummary]
+    margins: Margins
+    tuner: ThreadTuner | None
+    phase1_spacing: float
+    t_compile: float  # when the kernels were ready (perf_counter)
+
+
+def _place(scene: _Scene, approx: _Approximation, q: np.ndarray, seed: int,
+           inputs: PackInputs, stop: Stop, report: Progress, t_approx: float) -> _Placed:
+    """Margins, solver and kernels ready, then the attempts of the placement; the time
+    budget starts once the kernels are compiled."""
+    opts, clearance = inputs.options, inputs.clearance
+    cont, objtypes = approx.container, approx.types
     table = TypeTable(objtypes)
-    margins = contact_margins(objtypes, cont.grid, cont.vertices, cont.faces, params.safety,
-                              params.safety_sharp, params.wall_safety,
-                              params.wall_safety_sharp, clearance)
+    mo = opts.margins
+    margins = contact_margins(objtypes, cont.grid, cont.vertices, cont.faces, mo.safety,
+                              mo.safety_sharp, mo.wall_safety, mo.wall_safety_sharp, clearance)
+    ph = opts.physics
     solver_params = SolverParams(
-        clearance=clearance, tol=1e-6 * f_min, k_obj=params.k_obj, k_wall=params.k_wall,
-        k_rot=params.k_rot, damping=params.damping, mode=params.mode,
-        wall_margin=margins.wall)
-    margin = margins.objects
+        clearance=clearance, tol=1e-6 * approx.f_min, k_obj=ph.k_obj, k_wall=ph.k_wall,
+        k_rot=ph.k_rot, damping=ph.damping, wall_margin=margins.wall)
     Solver(cont, table, PackState(), solver_params).warm_up()
-    tuner = ThreadTuner(numba.get_num_threads()) if params.tune_threads else None
+    tuner = ThreadTuner(numba.get_num_threads()) if opts.tune_threads else None
     t_compile = time.perf_counter()
-    # the budget bounds placement (loading, approximation and compiling come before it)
-    deadline = None if time_budget is None else time.perf_counter() + float(time_budget)
-    stop = Stop(deadline, should_cancel)
-    s1 = (float(np.sum(q * volumes)) / params.phase1_density) ** (1 / 3)
+    if inputs.time_budget is not None:
+        stop.deadline = time.perf_counter() + float(inputs.time_budget)
+    s1 = (float(np.sum(q * approx.volumes)) / opts.phases.phase1_density) ** (1 / 3)
     best, attempts = place(lambda: Solver(cont, table, PackState(), solver_params, tuner),
-                           q, s1, f_min, seed, stop, margin, params, c_volume, report)
-    solver, state = best.solver, best.solver.s
-    t_place = time.perf_counter()
+                           q, s1, approx.f_min, seed, stop, margins.objects, opts,
+                           scene.volume, report)
+    return _Placed(best, attempts, margins, tuner, s1, t_compile)
 
-    # --- certify (never skipped, also after cancel)
-    report(0.9, "certifying on the real meshes")
+
+def _certify(solver: Solver, approx: _Approximation, clearance: float, options: PackOptions,
+             stop: Stop) -> tuple[dict, RepairStats]:
+    """Certify on the real meshes and repair (never skipped, also after cancel); objects
+    not grown to full size are dropped first."""
+    state = solver.s
     state.alive[: state.n] &= (state.scale[: state.n] >= 1.0).astype(np.uint8)
-    certifier = Certifier(cont, [t.vertices for t in objtypes], [t.faces for t in objtypes],
-                          table.volume, np.array([t.max_edge for t in objtypes]))
-    cert, repair = _certify_and_repair(
-        solver, certifier, clearance, params,
+    objtypes = approx.types
+    certifier = Certifier(approx.container, [t.vertices for t in objtypes],
+                          [t.faces for t in objtypes], solver.t.volume,
+                          np.array([t.max_edge for t in objtypes]))
+    return certify_and_repair(
+        solver, certifier, clearance, options.repair,
         lambda: bool(stop.should_cancel is not None and stop.should_cancel()))
-    t_cert = time.perf_counter()
 
+
+def _assemble(container: MeshSource, scene: _Scene, approx: _Approximation, run: _Placed,
+              q: np.ndarray, seed: int, inputs: PackInputs, stop: Stop, cert: dict,
+              repair: RepairStats, timings: dict) -> Packing:
+    """The Packing of the certified objects, with its metrics and run report."""
+    state = run.best.solver.s
+    objtypes = approx.types
     idx = state.alive_indices()
+    clearance = inputs.clearance
     if len(idx) == 0 and not stop.reason:
         gap = f", the clearance {clearance:g}" if clearance else ""
+        depth = float(approx.container.grid.values.max())
         raise PackingError(
             f"no object could be placed: the container's deepest interior point is "
             f"{depth:.4g} units from its wall, the smallest type's equivalent radius is "
-            f"{f_min:.4g}{gap}, and no object fitted anywhere. Scale the container up "
+            f"{approx.f_min:.4g}{gap}, and no object fitted anywhere. Scale the container up "
             "(--container-size) or the objects down (--type-scale)"
             f"{' or lower the clearance' if clearance else ''}.")
     typ = state.typ[idx].copy()
     pos = state.pos[idx].copy()
-    quat = state.quat[idx].copy()
-    quat = matrix_to_quat(quat_to_matrix(quat))  # canonical sign (w >= 0), unit length
-    metrics = compute_metrics(typ, pos, table.volume, q, c_volume)
-    metrics.update(best.after)
-    # phase times are the kept attempt's; the attempts not kept have a line of their own
-    timings = {
-        "load": t_load - t_start, "approximate": t_approx - t_load,
-        "compile": t_compile - t_approx, **best.timings}
-    if len(attempts) > 1:
-        timings["other_attempts"] = t_place - t_compile - sum(best.timings.values())
-    timings.update({"certify": t_cert - t_place, "total": t_cert - t_start})
-    all_params = asdict(params)
-    all_params.update({
-        "clearance": clearance, "fidelity": fid.name, "fidelity_requested": fidelity,
-        "fidelity_detail": fid.as_dict(),
-        "time_budget": time_budget, "container_size": container_size,
-        "type_scale": type_scale, "container_grid_spacing": cont.grid.spacing,
-        "phase1_spacing": s1, "stopped": stop.reason or None,
-        "spheres_per_type": [int(len(t.sphere_radii)) for t in objtypes],
-        "surface_points_per_type": [int(len(t.surface_points)) for t in objtypes],
-        "sphere_coverage_per_type": [
+    quat = matrix_to_quat(quat_to_matrix(state.quat[idx]))  # canonical sign, unit length
+    metrics = compute_metrics(typ, pos, run.best.solver.t.volume, q, scene.volume)
+    metrics.update(run.best.after)
+    report = RunReport(
+        fidelity=approx.fidelity.name, fidelity_detail=approx.fidelity,
+        stopped=stop.reason or None,
+        container_grid_spacing=approx.container.grid.spacing,
+        phase1_spacing=run.phase1_spacing,
+        spheres_per_type=[int(len(t.sphere_radii)) for t in objtypes],
+        surface_points_per_type=[int(len(t.surface_points)) for t in objtypes],
+        sphere_coverage_per_type=[
             sphere_coverage(t.grid, t.sphere_centres, t.sphere_radii) for t in objtypes],
-        **best.stats, "attempts": attempts, "margins": margins.as_dict(),
-        "repair": repair, "threads": None if tuner is None else tuner.as_dict(),
-        "warnings": [w for m in [cmesh, *meshes] for w in m.warnings],
-    })
-    report(1.0, f"done: {len(idx)} objects, density {metrics['density']:.1%}")
+        phase1=run.best.phase1, phase2=run.best.phase2,
+        extra_passes=run.best.extra_passes, attempts=run.attempts,
+        margins=run.margins.report(), repair=repair,
+        threads=None if run.tuner is None else run.tuner.report(),
+        warnings=[w for m in [scene.container, *scene.types] for w in m.warnings])
     return Packing(
-        container_path=_source_name(container, cmesh), container_sha256=cmesh.sha256,
-        frame_from_file=frame_from_file, container_volume=c_volume,
+        container_path=_source_name(container, scene.container),
+        container_sha256=scene.container.sha256, frame_from_file=scene.frame_from_file,
+        container_volume=scene.volume,
         types=[TypeRecord(name=t.name, path=t.path, sha256=t.sha256, share=t.share,
                           local_from_file=t.local_from_file, volume=t.volume)
                for t in objtypes],
         type_index=typ, rotations=quat, translations=pos, scales=np.ones(len(idx)),
-        params=all_params, seed=int(seed), metrics=metrics, timings=timings,
-        certificate=cert,
-    )
+        inputs=inputs, report=report, seed=seed, metrics=metrics, timings=timings,
+        certificate=cert)
 
 
-def _with_overrides(fid: Fidelity, params: PackParams) -> Fidelity:
-    """The fidelity with PackParams' explicit overrides applied (benchmarks sweep these)."""
-    over = {k: getattr(params, k) for k in ("spheres", "grid_cells", "surface_points",
-                                              "container_cells")
-            if getattr(params, k) is not None}
+def _with_overrides(fid: Fidelity, overrides: FidelityOverrides) -> Fidelity:
+    """The fidelity with the options' explicit overrides applied (benchmarks sweep these)."""
+    over = overrides.given()
     if not over:
         return fid
     return replace(fid, reasons=(*fid.reasons, "overridden: " + ", ".join(
@@ -309,74 +371,3 @@ def _source_name(source: MeshSource, mesh: MeshData) -> str:
     if isinstance(source, MeshData):
         return "memory:container"  # a spec, not a path: saved verbatim, never looked up
     return os.fspath(source)
-
-
-def _certify_and_repair(solver: Solver, certifier: Certifier, clearance: float,
-                        params: PackParams, cancelled: Callable[[], bool]
-                        ) -> tuple[dict, dict]:
-    """Certify; push failing objects apart one at a time (a bigger margin for that object,
-    then the solver, rolled back if it cannot settle) and re-check what moved; remove what
-    still fails after `repair_rounds`, after `repair_seconds` of pushing, or on cancel.
-    Returns (final certificate dict, repair statistics).
-    """
-    s = solver.s
-    stats = {"rounds": 0, "moved": 0, "removed": 0, "first": None, "timed_out": False}
-    deadline = time.perf_counter() + params.repair_seconds
-    subset = None
-    moved_ever: set[int] = set()
-    for rnd in range(params.repair_rounds + 1):
-        idx = s.alive_indices()
-        mats = placement_matrices(s.quat[idx], s.pos[idx], s.scale[idx])
-        rep = certifier.certify(s.typ[idx], mats, clearance, DEFAULT_TOL,
-                                subset=None if subset is None else np.flatnonzero(
-                                    np.isin(idx, subset)))
-        if stats["first"] is None:
-            stats["first"] = rep.as_dict()
-        bad = idx[sorted(rep.bad_objects())]
-        if len(bad) == 0:
-            break
-        if rnd == params.repair_rounds or stats["timed_out"]:
-            stats["removed"] += _remove_offenders(solver, idx, rep)
-            break
-        stats["rounds"] += 1
-        before_pos = s.pos[: s.n].copy()
-        before_q = s.quat[: s.n].copy()
-        for k in bad:
-            if time.perf_counter() > deadline or cancelled():
-                stats["timed_out"] = True
-                break
-            old = s.margin[k]
-            s.margin[k] = 2.0 * old + params.repair_margin * solver.t.radius[s.typ[k]]
-            if not solver.resolve(np.array([k], np.int64), params.repair_iterations,
-                                  rollback=True):
-                s.margin[k] = old
-        moved = np.flatnonzero(np.any(s.pos[: s.n] != before_pos, axis=1)
-                               | np.any(s.quat[: s.n] != before_q, axis=1))
-        moved_ever.update(int(m) for m in moved)
-        subset = np.union1d(moved, bad)
-    stats["moved"] = len(moved_ever)
-    while True:  # removal only removes violations; loop in case a check was trusted wrongly
-        idx = s.alive_indices()
-        mats = placement_matrices(s.quat[idx], s.pos[idx], s.scale[idx])
-        final = certifier.certify(s.typ[idx], mats, clearance, DEFAULT_TOL)
-        if final.certified:
-            return final.as_dict(), stats
-        stats["removed"] += _remove_offenders(solver, idx, final)
-
-
-def _remove_offenders(solver: Solver, idx: np.ndarray, rep) -> int:
-    """Remove the smaller object of each failing pair and each object through the wall."""
-    s = solver.s
-    removed = 0
-    for i, j in rep.bad_pairs:
-        a, b = idx[i], idx[j]
-        if s.alive[a] and s.alive[b]:
-            va = solver.t.volume[s.typ[a]]
-            vb = solver.t.volume[s.typ[b]]
-            s.alive[b if vb <= va else a] = 0
-            removed += 1
-    for i in rep.bad_wall:
-        if s.alive[idx[i]]:
-            s.alive[idx[i]] = 0
-            removed += 1
-    return removed

@@ -17,13 +17,12 @@ from __future__ import annotations
 
 from dataclasses import dataclass, field
 
-import manifold3d as m3
 import numpy as np
 from scipy.spatial import cKDTree
 
 from .container import Container
 from .kernels import sample_grid_many
-from .solids import to_solid
+from .solids import outside_of, to_solid
 
 DEFAULT_TOL = 1e-4
 
@@ -70,13 +69,8 @@ class Certifier:
                  type_faces: list[np.ndarray], type_volumes: np.ndarray,
                  type_max_edge: np.ndarray):
         self.container = container
-        lo, hi = container.bounds
-        pad = 0.1 * float((hi - lo).max()) + 1.0
-        box = m3.Manifold.cube((hi - lo + 2 * pad).tolist(), True).translate(
-            ((lo + hi) / 2).tolist())
-        # the region outside the container: intersections with it are volume outside, and
-        # min_gap to it is the wall gap
-        self.outside = box - to_solid(container.vertices, container.faces, double=False)
+        # intersections with it are volume outside, and min_gap to it is the wall gap
+        self.outside = outside_of(container.vertices, container.faces, double=False)
         self.types = [to_solid(v, f, double=False)
                       for v, f in zip(type_vertices, type_faces, strict=True)]
         self.vertices = type_vertices

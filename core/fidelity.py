@@ -28,11 +28,6 @@ class Fidelity:
     container_cells: float
     reasons: tuple[str, ...] = ()
 
-    def as_dict(self) -> dict:
-        return {"name": self.name, "spheres": self.spheres, "grid_cells": self.grid_cells,
-                "surface_points": self.surface_points,
-                "container_cells": self.container_cells, "reasons": list(self.reasons)}
-
 
 PRESETS = {
     "low": Fidelity("low", 24, 28, 96, 3.0),
@@ -47,9 +42,8 @@ CELLS_ACROSS_THICKNESS = 8
 #: a container whose deepest point is within this many smallest radii of its wall is tight
 TIGHT_DEPTH = 2.0
 #: surface points per type with a clearance: between points the surface comes closer to a
-#: neighbour than the points say, and an exact gap check has no tolerance (lemon and orange
-#: x300: 0.17-0.22 mm at the 99th percentile with 384 points, 0.03-0.05 mm with 1024;
-#: `core/margins.py` covers the rest)
+#: neighbour than the points say, and an exact gap check has no tolerance (more points
+#: shrink that gap several times over, docs/notes-core.md; `core/margins.py` covers the rest)
 CLEARANCE_POINTS = 1024
 
 
@@ -81,8 +75,8 @@ def choose_fidelity(type_vertices: list[np.ndarray], expected_objects: float,
     - a tight container (the smallest object only just fits its deepest point, or the
       largest cannot turn freely anywhere, like fruit in a torus's tube): high's container
       grid, since nearly every contact is a wall contact, with medium's spheres and object
-      grid. On the torus this ended higher for each of seeds 1-3 than high's resolution
-      throughout (median 46.8% against 45.3%, 4 s less; the README's Benchmarks section).
+      grid (on the torus it beat high's resolution throughout, in less time:
+      docs/notes-core.md).
     """
     tight = depth_over_radius < TIGHT_DEPTH or depth_over_largest < 1.0
     base = PRESETS["medium"]

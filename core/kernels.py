@@ -532,11 +532,14 @@ def contacts_parallel(pa, pb, n_pairs, wa, n_wall, typ, pos, quat, scale, margin
 
 
 @njit(cache=True)
-def resolve(focus, typ, pos, quat, scale, alive, margin, vel, clearance, tol, radius,
-            sph_off, sph_c, sph_r, pc_off, pcl, pcl_off, box, pts, g_off, g_vals,
-            g_shape, g_origin, g_h, c_vals, c_origin, c_h, c_pyr, c_poff, c_pshape, max_iter,
-            k_obj, k_wall, k_rot, damping, rollback, mode, wall_extra, par_min, Fc, Tqc):
+def resolve(focus, state, table, cont, scratch, params, max_iter, rollback, par_min):
     """Penalty-force overlap resolution starting from the objects in `focus`.
+
+    state: (typ, pos, quat, scale, alive, margin, vel) of every inserted object; table: the
+    flat type table (radius, sph_off, sph_c, sph_r, pc_off, pcl, pcl_off, box, pts, g_off,
+    g_vals, g_shape, g_origin, g_h); cont: the container grid (c_vals, c_origin, c_h, c_pyr,
+    c_poff, c_pshape); scratch: (Fc, Tqc); params: (clearance, tol, k_obj, k_wall, k_rot,
+    damping, wall_extra). See the module doc for the arrays.
 
     Only objects in contact move: each gets the sum of its contact forces, normalised,
     scaled by its deepest penetration times the stiffness (k_obj for object contacts, k_wall
@@ -545,8 +548,6 @@ def resolve(focus, typ, pos, quat, scale, alive, margin, vel, clearance, tol, ra
     overlaps except near `focus`, so only moved objects need re-checking.
 
     wall_extra is added to the wall distance each object must keep (grid error allowance).
-    mode 0 moves by the normalised force times stiffness times the deepest penetration (the
-    paper); mode 1 by the penetration-weighted mean push vector times stiffness.
 
     An iteration with at least `par_min` contact tests (pairs plus walls) splits them into
     Fc.shape[0] chunks that run on numba's threads (`contacts_parallel`) and sums the
@@ -559,6 +560,12 @@ def resolve(focus, typ, pos, quat, scale, alive, margin, vel, clearance, tol, ra
     its state at the call (the last overlap-free state). Returns (resolved, iterations used,
     contact tests run: the work the caller's thread tuner times, `core/threads.py`).
     """
+    typ, pos, quat, scale, alive, margin, vel = state
+    (radius, sph_off, sph_c, sph_r, pc_off, pcl, pcl_off, box, pts, g_off, g_vals, g_shape,
+     g_origin, g_h) = table
+    c_vals, c_origin, c_h, c_pyr, c_poff, c_pshape = cont
+    Fc, Tqc = scratch
+    clearance, tol, k_obj, k_wall, k_rot, damping, wall_extra = params
     n = typ.shape[0]
     moved = np.zeros(n, np.uint8)
     moved_list = np.empty(n, np.int64)
@@ -675,14 +682,9 @@ def resolve(focus, typ, pos, quat, scale, alive, margin, vel, clearance, tol, ra
                 bvel[a] = vel[a]
             fn = np.sqrt(F[a, 0] ** 2 + F[a, 1] ** 2 + F[a, 2] ** 2)
             step = max(k_obj * pen_obj[a], k_wall * pen_wall[a])
-            if mode == 0:  # the paper: normalised force times stiffness * deepest penetration
-                if fn > 1e-300:
-                    for d in range(3):
-                        vel[a, d] = damping * vel[a, d] + step * F[a, d] / fn
-            else:  # penetration-weighted mean of the contacts' push vectors
-                k = k_wall if pen_wall[a] > pen_obj[a] else k_obj
+            if fn > 1e-300:  # the paper: normalised force times stiffness * deepest penetration
                 for d in range(3):
-                    vel[a, d] = damping * vel[a, d] + k * F[a, d] / F[a, 3]
+                    vel[a, d] = damping * vel[a, d] + step * F[a, d] / fn
             for d in range(3):
                 pos[a, d] += vel[a, d]
             tn = np.sqrt(Tq[a, 0] ** 2 + Tq[a, 1] ** 2 + Tq[a, 2] ** 2)
@@ -712,11 +714,13 @@ def resolve(focus, typ, pos, quat, scale, alive, margin, vel, clearance, tol, ra
 
 
 @njit(cache=True)
-def max_penetrations(typ, pos, quat, scale, alive, margin, clearance, tol, radius, sph_off,
-                     sph_c, sph_r, pc_off, pcl, pcl_off, box, pts, g_off, g_vals,
-                     g_shape, g_origin, g_h, c_vals, c_origin, c_h, c_pyr, c_poff, c_pshape,
-                     wall_extra):
-    """Deepest object-object and object-wall penetration of every alive object, (N,2)."""
+def max_penetrations(state, table, cont, clearance, tol, wall_extra):
+    """Deepest object-object and object-wall penetration of every alive object, (N,2).
+    state, table and cont as `resolve` takes them (vel unused)."""
+    typ, pos, quat, scale, alive, margin, _ = state
+    (radius, sph_off, sph_c, sph_r, pc_off, pcl, pcl_off, box, pts, g_off, g_vals, g_shape,
+     g_origin, g_h) = table
+    c_vals, c_origin, c_h, c_pyr, c_poff, c_pshape = cont
     n = typ.shape[0]
     F = np.zeros((n, 4))
     Tq = np.zeros((n, 3))

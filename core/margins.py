@@ -7,22 +7,17 @@ off by up to half a cell, and there the approximations miss overlaps that certif
 then finds on the real meshes. A margin covers that error, and every margin costs density,
 so types whose grid reproduces their surface closely keep the smaller margin.
 
-Measured (medium fidelity): the 1st percentile of a type's grid error on its surface is
-0.05-0.15 cell for the five YCB fruit and 0.19-0.39 cell for the convex and non-convex
-polyhedra. Fruit-in-bunny seeds 1 / 2 / 3 packed 55.1 / 53.7 / 52.6% with margins of 0.05
-cell (0.1 from the wall) and 55.5 / 56.2 / 54.6% with half of them (0-1 fruit removed by
-certification); the non-convex polyhedra in a box fell from 31.5% to 25.8% with half
-margins (10 overlapping pairs, 8 objects removed). Only one of those ten types has a small
-grid error (its faces lie along the grid's axes), and halving its margin alone still left
-6 objects removed: so the smaller margins are for scenes whose every type is smooth.
+Smooth types' grids err far less than sharp ones', and halved margins gained density on
+smooth scenes but left overlaps on sharp ones, even where only one sharp type kept the
+larger margin: so the smaller margins are for scenes whose every type is smooth
+(measurements: docs/notes-core.md).
 
 With a clearance the exact check is of gaps, with no tolerance, and a second error shows:
 the solver measures a gap from the other object to a type's surface points, and between
-those points the surface comes closer. Lemons and oranges (x300) with a 0.5 mm clearance
-packed with gaps down to 0.16-0.24 mm and 20-25 pairs too close, and certification removed
-6-16 objects; with every vertex as a surface point no pair was too close. So with a
-clearance each type's margin also covers half that sampling gap (`sampling_gap`; a pair is
-tested from both sides, and the better side misses at most the mean of the two).
+those points the surface comes closer (with every vertex as a surface point no pair was
+too close; docs/notes-core.md). So with a clearance each type's margin also covers half
+that sampling gap (`sampling_gap`; a pair is tested from both sides, and the better side
+misses at most the mean of the two).
 """
 
 from __future__ import annotations
@@ -35,6 +30,7 @@ from scipy.spatial import cKDTree
 from .distance import DistanceGrid
 from .kernels import sample_grid_many
 from .meshes import sample_surface
+from .report import MarginReport
 
 #: grid error (cells) at the 1st percentile of the surface up to which a surface is smooth
 SMOOTH_ERROR = 0.17
@@ -96,11 +92,12 @@ class Margins:
     wall_error: float
     sampling_gaps: list[float] | None = None
 
-    def as_dict(self) -> dict:
-        return {"object_cells": self.object_cells, "wall_cells": self.wall_cells,
-                "object_grid_errors_cells": self.object_errors,
-                "container_grid_error_cells": self.wall_error,
-                "sampling_gaps": self.sampling_gaps}
+    def report(self) -> MarginReport:
+        """What the packing records (without the margins themselves)."""
+        return MarginReport(object_cells=list(self.object_cells), wall_cells=self.wall_cells,
+                            object_grid_errors_cells=list(self.object_errors),
+                            container_grid_error_cells=self.wall_error,
+                            sampling_gaps=self.sampling_gaps)
 
 
 def contact_margins(types: list, container_grid: DistanceGrid, container_vertices: np.ndarray,
@@ -111,11 +108,10 @@ def contact_margins(types: list, container_grid: DistanceGrid, container_vertice
     error is at most SMOOTH_ERROR, else `sharp` cells (a sharp type's contacts are with the
     others too); `wall_smooth` or `wall_sharp` cells of the container grid by its own
     error. With a clearance > 0 always the sharp ones: certification then checks exact gaps,
-    which have no tolerance, where overlaps below 1e-4 of an object's volume pass (lemons
-    and oranges in an 80 mm box, the stability map: with 2 and 5 mm clearances
-    certification removed 8 and 14 objects with the smooth margins, 4 and 5 with these;
-    with 0.5 mm, 17 and 16). With a clearance each type's margin also holds half its
-    `sampling_gap` at that clearance (container units, recorded as sampling_gaps).
+    which have no tolerance, where overlaps below 1e-4 of an object's volume pass
+    (certification removed fewer objects with these: docs/notes-core.md). With a clearance
+    each type's margin also holds half its `sampling_gap` at that clearance (container
+    units, recorded as sampling_gaps).
     """
     errors = [surface_error(t.grid, t.vertices, t.faces, solid=True) for t in types]
     all_smooth = clearance <= 0 and all(e <= SMOOTH_ERROR for e in errors)

@@ -87,6 +87,20 @@ def _normalised_shares(target_shares: np.ndarray) -> np.ndarray:
     return q / q.sum()
 
 
+def equivalent_radius(volume: np.ndarray | float) -> np.ndarray | float:
+    """f(V) = (3V / 4pi)^(1/3): the radius of the sphere of volume V (container units)."""
+    return np.cbrt(3.0 * np.asarray(volume) / (4.0 * np.pi))
+
+
+def tvd_of_counts(counts: np.ndarray, shares: np.ndarray) -> float:
+    """Total variation distance of type counts (T,) from target shares (T,) summing to 1;
+    with no objects p = 0."""
+    n = counts.sum()
+    if n <= 0:
+        return 0.5 * float(np.abs(shares).sum())
+    return 0.5 * float(np.abs(counts / n - shares).sum())
+
+
 def tvd(type_index: np.ndarray, target_shares: np.ndarray) -> float:
     """Total variation distance between achieved and target type shares.
 
@@ -101,8 +115,8 @@ def tvd(type_index: np.ndarray, target_shares: np.ndarray) -> float:
         TVD in [0, 1] (0 = exact mix).
     """
     q = _normalised_shares(target_shares)
-    p = type_shares(type_index, q.size)
-    return float(0.5 * np.abs(p - q).sum())
+    counts = np.bincount(_type_index(type_index, q.size), minlength=q.size)
+    return tvd_of_counts(counts.astype(np.float64), q)
 
 
 def nni(

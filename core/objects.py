@@ -49,7 +49,11 @@ class ObjectType:
 
     @property
     def equivalent_radius(self) -> float:
-        """f(V) = (3V/4pi)^(1/3): radius of the sphere of equal volume."""
+        """f(V) = (3V/4pi)^(1/3): radius of the sphere of equal volume.
+
+        Computed with a power, not `metrics.equivalent_radius`'s cube root: the two differ
+        in the last bit, and the contact margins' probe with a clearance takes this value,
+        so a clearance packing would change with the other."""
         return float((3.0 * self.volume / (4.0 * np.pi)) ** (1.0 / 3.0))
 
 
@@ -157,8 +161,7 @@ def build_type(name: str, vertices_file: np.ndarray, faces: np.ndarray, *, path:
     fidelity: a preset name or a `Fidelity` (spheres, grid cells, surface points).
     reach: how far from the surface (container units; the clearance) the distance grid
     must still hold true distances. Beyond the grid's box distances are extrapolated and
-    read too large (an orange x300 at 5 mm: 0.28 mm at the 99th percentile with the
-    default 2-cell pad), so the grid extends this much further.
+    read too large (docs/notes-core.md), so the grid extends this much further.
     """
     if isinstance(fidelity, str):
         if fidelity not in PRESETS:

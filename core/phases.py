@@ -9,12 +9,14 @@ from __future__ import annotations
 
 import time
 from collections.abc import Callable
-from dataclasses import dataclass, field
 
 import numpy as np
 
 from .container import interior_points
 from .kernels import sample_grid_many
+from .metrics import density, equivalent_radius, tvd_of_counts
+from .report import PhaseStats
+from .rotations import random_quaternions
 from .solver import Solver
 
 START_SCALE = 0.05
@@ -26,15 +28,7 @@ def _density(solver: Solver) -> float:
     s = solver.s
     n = s.n
     full = (s.alive[:n] == 1) & (s.scale[:n] >= 1.0)
-    return float(solver.t.volume[s.typ[:n][full]].sum() / solver.c.volume)
-
-
-def _tvd(counts: np.ndarray, shares: np.ndarray) -> float:
-    """Total variation distance of type counts (T,) from target shares (T,)."""
-    n = counts.sum()
-    if n <= 0:
-        return 0.5 * float(np.abs(shares).sum())
-    return 0.5 * float(np.abs(counts / n - shares).sum())
+    return density(solver.t.volume[s.typ[:n][full]], solver.c.volume)
 
 
 def best_tvd(shares: np.ndarray, n: int) -> float:
@@ -45,7 +39,7 @@ def best_tvd(shares: np.ndarray, n: int) -> float:
     short = int(n - counts.sum())
     if short > 0:
         counts[np.argsort(-(want - counts), kind="stable")[:short]] += 1
-    return _tvd(counts, shares)
+    return tvd_of_counts(counts, shares)
 
 
 def mix_cap(counts: np.ndarray, shares: np.ndarray, max_tvd: float) -> float:
@@ -54,36 +48,8 @@ def mix_cap(counts: np.ndarray, shares: np.ndarray, max_tvd: float) -> float:
     the TVD by about 1/n, anything within one object of the best mix the next count allows.
     """
     n_next = int(counts.sum()) + 1
-    return max(max_tvd, _tvd(counts, shares) - 1e-12,
+    return max(max_tvd, tvd_of_counts(counts, shares) - 1e-12,
                best_tvd(shares, n_next) + 1.0 / n_next)
-
-
-def random_quaternions(rng: np.random.Generator, n: int) -> np.ndarray:
-    """(n,4) uniformly distributed unit quaternions w,x,y,z (Shoemake)."""
-    u1, u2, u3 = rng.random((3, n))
-    a = np.sqrt(1 - u1)
-    b = np.sqrt(u1)
-    q = np.stack([a * np.sin(2 * np.pi * u2), a * np.cos(2 * np.pi * u2),
-                  b * np.sin(2 * np.pi * u3), b * np.cos(2 * np.pi * u3)], axis=1)
-    q[q[:, 0] < 0] *= -1
-    return q
-
-
-def equivalent_radius(volume: np.ndarray | float) -> np.ndarray | float:
-    """f(V) = (3V / 4pi)^(1/3)."""
-    return np.cbrt(3.0 * np.asarray(volume) / (4.0 * np.pi))
-
-
-@dataclass
-class PhaseStats:
-    """What a phase did: tries, successes, removals, wall time (s)."""
-
-    inserted: int = 0
-    grown: int = 0
-    failed: int = 0
-    seconds: float = 0.0
-    stopped: str = ""  # "", "deadline" or "cancelled"
-    extra: dict = field(default_factory=dict)
 
 
 class Stop:
@@ -263,7 +229,8 @@ def phase2(solver: Solver, shares: np.ndarray, spacing: float, rng: np.random.Ge
             # extra passes: only types that keep the mix within max_tvd (or improve it),
             # the one the mix lacks most first, larger first on ties
             cap = mix_cap(counts, shares, max_tvd)
-            fits = [t for t in fits if _tvd(counts + np.eye(len(shares))[t], shares) <= cap]
+            fits = [t for t in fits
+                    if tvd_of_counts(counts + np.eye(len(shares))[t], shares) <= cap]
             n_now = counts.sum() + 1.0
             need = sorted(fits, key=lambda t: (counts[t] - shares[t] * n_now, -f[t]))
             tries = need[: 1 + retries]

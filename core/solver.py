@@ -16,7 +16,10 @@ import numpy as np
 from . import kernels
 from .container import Container
 from .objects import ObjectType, point_clusters
+from .options import PhysicsOptions
 from .threads import ThreadTuner
+
+_PHYSICS = PhysicsOptions()
 
 
 class TypeTable:
@@ -50,18 +53,25 @@ class TypeTable:
         self.g_origin = np.array([t.grid.origin for t in types], np.float64)
         self.g_h = np.array([t.grid.spacing for t in types], np.float64)
 
+    def arrays(self) -> tuple:
+        """The table as the kernels take it: (radius, sph_off, sph_c, sph_r, pc_off, pcl,
+        pcl_off, box, pts, g_off, g_vals, g_shape, g_origin, g_h)."""
+        return (self.radius, self.sph_off, self.sph_c, self.sph_r, self.pc_off, self.pcl,
+                self.pcl_off, self.box, self.pts, self.g_off, self.g_vals, self.g_shape,
+                self.g_origin, self.g_h)
+
 
 @dataclass
 class SolverParams:
-    """Solver constants. Lengths in container units."""
+    """Solver constants. Lengths in container units. The stiffness and damping defaults
+    are the method's (`options.PhysicsOptions`)."""
 
     clearance: float = 0.0
     tol: float = 1e-6  # penetration ignored below this
-    k_obj: float = 0.6  # step per iteration / deepest object-object penetration
-    k_wall: float = 1.05  # step per iteration / deepest wall penetration
-    k_rot: float = 0.3  # rotation per iteration, as arc length at the bounding radius
-    damping: float = 0.5  # velocity kept from one iteration to the next
-    mode: int = 0  # 0: normalised force (paper), 1: weighted mean push vector
+    k_obj: float = _PHYSICS.k_obj  # step per iteration / deepest object-object penetration
+    k_wall: float = _PHYSICS.k_wall  # step per iteration / deepest wall penetration
+    k_rot: float = _PHYSICS.k_rot  # rotation per iteration, as arc length at bounding radius
+    damping: float = _PHYSICS.damping  # velocity kept from one iteration to the next
     wall_margin: float = 0.0  # extra distance kept from the wall (container grid error)
     # contact tests in one solver iteration from which they run on numba's threads
     # (NUMBA_NUM_THREADS); below it the thread start-up costs more than it saves
@@ -133,8 +143,7 @@ class Solver:
 
     def resolve(self, focus: np.ndarray, max_iter: int, rollback: bool = True) -> bool:
         """Resolve overlaps around `focus` (object indices); False if still overlapping."""
-        typ, pos, quat, scale, alive, margin, vel = self.s.view()
-        t, c, p = self.t, self.c.grid, self.p
+        p = self.p
         # numba's thread count is per calling thread: set it for this call only
         before = numba.get_num_threads()
         threads = before if self.tuner is None else self.tuner.threads
@@ -143,12 +152,10 @@ class Solver:
         start = time.perf_counter()
         try:
             ok, its, tests = kernels.resolve(
-                np.asarray(focus, np.int64), typ, pos, quat, scale, alive, margin, vel,
-                p.clearance, p.tol, t.radius, t.sph_off, t.sph_c, t.sph_r, t.pc_off, t.pcl,
-                t.pcl_off, t.box, t.pts, t.g_off, t.g_vals, t.g_shape, t.g_origin, t.g_h,
-                c.values, c.origin, c.spacing, *self.c.pyramid,
-                int(max_iter), p.k_obj, p.k_wall, p.k_rot, p.damping, rollback, p.mode,
-                p.wall_margin, p.parallel_min, *self._scratch())
+                np.asarray(focus, np.int64), self.s.view(), self.t.arrays(),
+                self.container_arrays(), self._scratch(),
+                (p.clearance, p.tol, p.k_obj, p.k_wall, p.k_rot, p.damping, p.wall_margin),
+                int(max_iter), rollback, p.parallel_min)
         finally:
             if threads != before:
                 numba.set_num_threads(before)
@@ -169,21 +176,23 @@ class Solver:
 
     def warm_up(self) -> None:
         """Compile (or load from numba's cache) the kernels the phases call, on empty input,
-        so that a time budget starts with them ready: compiling takes 15-20 s on a fresh
-        install."""
+        so that a time budget starts with them ready (compiling takes seconds on a fresh
+        install)."""
         self.resolve(np.zeros(0, np.int64), 1, rollback=True)
         self.free_distances(np.zeros((1, 3)))
-        self.penetrations()
+
+    def container_arrays(self) -> tuple:
+        """The container's grid and its min pyramid, as the kernels take them:
+        (values, origin, spacing, pyramid, pyramid offsets, pyramid shapes)."""
+        c = self.c.grid
+        return (c.values, c.origin, c.spacing, *self.c.pyramid)
 
     def penetrations(self) -> np.ndarray:
         """(n,2) deepest object and wall penetration of each inserted object (0 if removed)."""
-        typ, pos, quat, scale, alive, margin, _ = self.s.view()
-        t, c, p = self.t, self.c.grid, self.p
-        return kernels.max_penetrations(
-            typ, pos, quat, scale, alive, margin, p.clearance, p.tol, t.radius, t.sph_off,
-            t.sph_c, t.sph_r, t.pc_off, t.pcl, t.pcl_off, t.box, t.pts, t.g_off,
-            t.g_vals, t.g_shape, t.g_origin, t.g_h, c.values, c.origin, c.spacing,
-            *self.c.pyramid, p.wall_margin)
+        p = self.p
+        return kernels.max_penetrations(self.s.view(), self.t.arrays(),
+                                        self.container_arrays(),
+                                        p.clearance, p.tol, p.wall_margin)
 
     def free_distances(self, points: np.ndarray) -> np.ndarray:
         """Distance from each point (M,3) to the nearest object or the wall (M,)."""

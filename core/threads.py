@@ -15,6 +15,8 @@ from __future__ import annotations
 
 from dataclasses import dataclass, field
 
+from .report import ThreadReport
+
 
 @dataclass
 class ThreadTuner:
@@ -87,7 +89,8 @@ class ThreadTuner:
         self._held = 0.0
         self._tail = [0.0, 0.0]
 
-    def as_dict(self) -> dict:
+    def report(self) -> ThreadReport:
         """What the packing records: the counts used, for how long, and how often it moved."""
-        return {"most": self.most, "switches": self.switches, "probes": self.probes,
-                "seconds_by_threads": {str(n): round(s, 3) for n, s in self.seconds.items()}}
+        return ThreadReport(most=self.most, switches=self.switches, probes=self.probes,
+                            seconds_by_threads={str(n): round(s, 3)
+                                                for n, s in self.seconds.items()})

@@ -23,7 +23,8 @@ import numpy as np
 
 from jampacked.core.errors import Cancelled, InputError, MeshError
 from jampacked.core.meshes import MeshData
-from jampacked.core.packing import Packing, is_spec, load_packing
+from jampacked.core.packing import Packing, is_spec
+from jampacked.core.packing_json import load_packing
 
 from .connect import connect_scene, default_diameter
 from .io import WRITE_FORMATS, write_mesh

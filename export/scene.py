@@ -62,17 +62,17 @@ def transform_points(m: np.ndarray, v: np.ndarray) -> np.ndarray:
 
 
 def packing_clearance(packing: Packing, source: str | None) -> float:
-    """The packing's clearance (``params.clearance``, container units; 0 when absent).
+    """The packing's clearance (``inputs.clearance``, container units).
 
     source: the packing file, for the message. Raises InputError when the field holds
     anything but a finite number >= 0.
     """
-    value = packing.params.get("clearance", 0.0)
+    value = packing.inputs.clearance
     if (isinstance(value, numbers.Real) and not isinstance(value, bool)
             and math.isfinite(value) and value >= 0):
         return float(value)
     where = f"the packing file {source}" if source else "the packing"
-    raise InputError(f"{where} has params.clearance = {value!r}: it must be a number >= 0 "
+    raise InputError(f"{where} has inputs.clearance = {value!r}: it must be a number >= 0 "
                      "(container units; 0 for a packing without clearance). Fix that field, "
                      "or re-run the packing.")
 

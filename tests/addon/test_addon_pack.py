@@ -89,12 +89,12 @@ def test_pack_operator_builds_the_packing(bpy, addon, scene):
 def test_mix_tolerance_reaches_the_engine(bpy, addon, scene):
     """The panel's Mix Tolerance starts at the engine's default and is what the late cavity
     passes get (the packing records it)."""
-    from jampacked.core.api import PackParams
+    from jampacked.core.options import CavityPassOptions
 
-    assert scene.settings.mix_tolerance == pytest.approx(PackParams().extra_max_tvd)
+    assert scene.settings.mix_tolerance == pytest.approx(CavityPassOptions().max_tvd)
     scene.settings.mix_tolerance = 0.0
     assert bpy.ops.jampacked.pack() == {'FINISHED'}
-    assert _packing(addon, scene.settings.result).params["extra_max_tvd"] == 0.0
+    assert _packing(addon, scene.settings.result).inputs.options.cavity.max_tvd == 0.0
 
 
 def test_modal_path_and_second_pack_blocked(bpy, addon, scene):
@@ -170,7 +170,7 @@ def test_cancel_button_and_finish_now(bpy, addon, scene):
     coll = scene.settings.result
     packing = _packing(addon, coll)
     assert packing.certificate["certified"] is True
-    assert packing.params["stopped"] == "cancelled"
+    assert packing.report.stopped == "cancelled"
     assert len(coll.objects) == packing.n
 
 

@@ -12,10 +12,13 @@ import tomllib
 import zipfile
 from pathlib import Path
 
+import numpy as np
 import pytest
 from addon_helpers import ADDON, load_standalone
 
 from jampacked.core.errors import InputError, MeshError
+from jampacked.core.packing import Packing, TypeRecord
+from jampacked.core.report import PackInputs, RunReport
 
 worker = load_standalone("worker")
 summary = load_standalone("summary")
@@ -107,13 +110,17 @@ def test_one_job_at_a_time():
 
 
 def test_collection_properties_and_panel_lines():
-    props = summary.collection_properties(
-        {"count": 3, "count_per_type": [2, 1], "density": 0.41, "tvd": 0.02,
-         "nni_per_type": [1.2, None], "nni_mean": 1.2},
-        {"certified": True, "worst_overlap": 1e-5, "worst_outside": 0.0,
-         "min_pair_gap": None},
-        {"fidelity": "low", "stopped": None, "clearance": 0.0}, {"total": 2.5},
-        ["apple", "lemon"], [0.5, 0.5], 7)
+    types = [TypeRecord(name, None, None, 0.5, np.eye(4), 1.0) for name in ("apple", "lemon")]
+    packing = Packing(
+        "box:10x10x10", None, np.eye(4), 1000.0, types, np.array([0, 0, 1]),
+        np.tile([1.0, 0, 0, 0], (3, 1)), np.zeros((3, 3)), np.ones(3),
+        report=RunReport(fidelity="low", stopped=None), seed=7,
+        metrics={"count": 3, "count_per_type": [2, 1], "density": 0.41, "tvd": 0.02,
+                 "nni_per_type": [1.2, None], "nni_mean": 1.2},
+        timings={"total": 2.5},
+        certificate={"certified": True, "worst_overlap": 1e-5, "worst_outside": 0.0,
+                     "min_pair_gap": None, "clearance": 0.0})
+    props = summary.collection_properties(packing)
     assert props["nni_per_type"] == [1.2, -1.0]
     assert "min_pair_gap" not in props and props["certified"] is True
     assert all(isinstance(v, (bool, int, float, str, list)) for v in props.values())
@@ -239,7 +246,7 @@ def test_scaled_packing_is_the_same_print_larger():
         type_index=np.zeros(2, np.int64),
         rotations=np.array([[1.0, 0, 0, 0], [0.0, 1.0, 0, 0]]),
         translations=rng.normal(size=(2, 3)), scales=np.ones(2),
-        params={"clearance": 0.002})
+        inputs=PackInputs(clearance=0.002))
     verts = rng.normal(size=(4, 3))
     tri = engine.Triangles("t", verts, np.array([[0, 1, 2]]), np.zeros(1, np.int64), 1)
     box = engine.Triangles("Box", verts * 3, np.array([[0, 1, 2]]), np.zeros(1, np.int64), 1)
@@ -255,10 +262,10 @@ def test_scaled_packing_is_the_same_print_larger():
     np.testing.assert_allclose(cbox.vertices, 3000.0 * verts)
     assert out.container_volume == pytest.approx(8e9) and out.types[0].volume == \
         pytest.approx(5e8)
-    assert out.params["clearance"] == pytest.approx(2.0)
+    assert out.inputs.clearance == pytest.approx(2.0)
     assert (copts.shell, copts.drain, copts.connector, copts.resolution, copts.opening.size) \
         == pytest.approx((2.0, 3.0, 1.0, 0.1, 10.0))
-    assert packing.translations is not out.translations and packing.params["clearance"] == \
+    assert packing.translations is not out.translations and packing.inputs.clearance == \
         0.002  # the input is unchanged
 
 

@@ -13,7 +13,8 @@ import trimesh
 from testdata import REPO
 
 from jampacked.core.meshes import load_mesh
-from jampacked.core.packing import Packing, TypeRecord, save_packing
+from jampacked.core.packing import Packing, TypeRecord
+from jampacked.core.packing_json import save_packing
 
 
 def _load():
@@ -54,7 +55,7 @@ def test_profile_of_a_known_packing(tmp_path):
     p = Packing(container_path="box:40x40x40", container_sha256=None,
                 frame_from_file=np.eye(4), container_volume=40.0 ** 3, types=[rec],
                 type_index=np.zeros(8, np.int64), rotations=np.tile([1.0, 0, 0, 0], (8, 1)),
-                translations=pos, scales=np.ones(8), params={},
+                translations=pos, scales=np.ones(8),
                 metrics={"density": 8000 / 64000})
     path = tmp_path / "cubes.json"
     save_packing(p, path)

@@ -23,7 +23,7 @@ from jampacked.cli.preview import write_preview
 from jampacked.cli.scene import parse_type_arg, resolve_scene, resolve_shares
 from jampacked.core.errors import InputError
 from jampacked.core.metrics import compute_metrics
-from jampacked.core.packing import load_packing
+from jampacked.core.packing_json import load_packing
 
 P1 = mesh_path("polyhedra/convex5/polytope1.obj")
 P3 = mesh_path("polyhedra/convex5/polytope3.obj")
@@ -62,7 +62,7 @@ def test_pack_writes_certified_packing(packed):
     assert p.container_path == "box:30x30x30"
     assert [t.name for t in p.types] == ["polytope1", "polytope3"]
     assert [t.share for t in p.types] == pytest.approx([0.4, 0.6])
-    assert p.params["fidelity"] == "low" and p.seed == 1
+    assert p.report.fidelity == "low" and p.seed == 1
 
 
 def test_metrics_recomputed_from_json_match(packed):
@@ -119,7 +119,7 @@ def test_info_prints_summary_and_checks_sources(packed, capsys):
 def test_info_lists_the_attempts_and_the_time_of_those_not_kept(packed, capsys):
     d, out, *_ = packed
     doc = json.loads(out.read_text())
-    doc["params"]["attempts"] = [
+    doc["report"]["attempts"] = [
         {"density": 0.412, "count": 30, "seconds": 2.5, "phase1": 1.0, "phase2": 0.5,
          "extra": 1.0, "stopped": None},
         {"density": 0.398, "count": 29, "seconds": 1.5, "phase1": 0.5, "phase2": 0.5,
@@ -165,7 +165,7 @@ def test_ctrl_c_saves_best_certified_packing(tmp_path, monkeypatch, capsys):
     assert rc == 130
     assert "interrupted" in capsys.readouterr().err
     p = load_packing(out)
-    assert p.params["stopped"] == "cancelled" and p.certificate["certified"] is True
+    assert p.report.stopped == "cancelled" and p.certificate["certified"] is True
     assert signal.getsignal(signal.SIGINT) is before  # restored
 
 
@@ -231,7 +231,7 @@ def test_mix_tolerance_reaches_the_late_passes(tmp_path):
     rc, _, se = run(["pack", "box:30x30x30", "--type", str(P1), "--type", str(P3),
                      *SMALL, "--mix-tolerance", "0.01", "-q", "-o", str(out)])
     assert rc == 0, se
-    assert load_packing(out).params["extra_max_tvd"] == 0.01
+    assert load_packing(out).inputs.options.cavity.max_tvd == 0.01
 
 
 def test_info_on_a_non_packing(not_a_mesh, capsys):

@@ -10,10 +10,17 @@ import pytest
 import trimesh
 from testdata import mesh_path
 
-from jampacked.core.api import PackParams, pack
+from jampacked.core.api import pack
 from jampacked.core.errors import InputError, MeshError, PackingError
 from jampacked.core.metrics import compute_metrics
-from jampacked.core.packing import load_packing, save_packing
+from jampacked.core.options import (
+    AttemptOptions,
+    CavityPassOptions,
+    MarginOptions,
+    PackOptions,
+    RepairOptions,
+)
+from jampacked.core.packing_json import load_packing, save_packing
 from jampacked.core.phases import best_tvd
 
 POLY = [str(mesh_path(f"polyhedra/convex5/polytope{i}.obj")) for i in (1, 3)]
@@ -107,14 +114,14 @@ def test_cancel_returns_certified_packing():
         return calls["n"] > 40
 
     p = pack(BOX, POLY, seed=1, fidelity="low", should_cancel=cancel)
-    assert p.params["stopped"] == "cancelled"
+    assert p.report.stopped == "cancelled"
     assert p.certificate["certified"]
     assert np.allclose(p.scales, 1.0)
 
 
 def test_time_budget_stops_early():
     p = pack(BOX, POLY, seed=1, fidelity="low", time_budget=0.0)
-    assert p.params["stopped"] == "deadline"
+    assert p.report.stopped == "deadline"
     assert p.certificate["certified"]
     assert p.n == 0
 
@@ -163,14 +170,13 @@ def test_thin_wall_container_refused():
 def test_repair_time_cap_removes_what_still_fails():
     """With no safety margins certification finds violations; with no time to push them
     apart, the offenders are removed (no long repair) and the result is still certified."""
-    from jampacked.core.api import PackParams
-
-    params = PackParams(repair_seconds=0.0, safety=0.0, safety_sharp=0.0, wall_safety=0.0,
-                        wall_safety_sharp=0.0, extra_passes=())
-    p = pack(BOX, POLY, seed=1, fidelity="low", params=params)
-    rep = p.params["repair"]
-    assert not rep["first"]["certified"]  # the scene really needs repair
-    assert rep["timed_out"] and rep["moved"] == 0 and rep["removed"] >= 1
+    options = PackOptions(repair=RepairOptions(seconds=0.0),
+                          margins=MarginOptions(0.0, 0.0, 0.0, 0.0),
+                          cavity=CavityPassOptions(factors=()))
+    p = pack(BOX, POLY, seed=1, fidelity="low", options=options)
+    rep = p.report.repair
+    assert not rep.first["certified"]  # the scene really needs repair
+    assert rep.timed_out and rep.moved == 0 and rep.removed >= 1
     assert p.certificate["certified"]
 
 
@@ -179,7 +185,8 @@ def test_in_memory_container_round_trips_without_a_missing_file(tmp_path):
     packing file keeps verbatim and verify_sources does not look for on disk."""
     from jampacked.core.api import _source_name
     from jampacked.core.meshes import box_mesh
-    from jampacked.core.packing import Packing, verify_sources
+    from jampacked.core.packing import Packing
+    from jampacked.core.packing_json import verify_sources
 
     mesh = box_mesh((10.0, 10.0, 10.0))
     name = _source_name(mesh, mesh)
@@ -217,18 +224,19 @@ def test_extra_passes_repeat_while_they_add_objects_and_time_is_left():
     """With a time budget the extra cavity passes run again on new lattices as long as a
     round adds objects; without one they run once (so an unbudgeted pack ends)."""
     p = pack(BOX, POLY, seed=2, fidelity="low", time_budget=20.0,
-             params=PackParams(extra_patience=4))  # short passes: round 0 ends early
-    extra = p.params["extra_passes"]
-    rounds = sorted({e["round"] for e in extra})
+             options=PackOptions(cavity=CavityPassOptions(patience=4)))  # round 0 ends early
+    extra = p.report.extra_passes
+    rounds = sorted({e.round for e in extra})
     assert rounds == list(range(len(rounds))) and len(rounds) >= 2
     for r in rounds[:-1]:  # every round but the last added something
-        assert sum(e["grown"] for e in extra if e["round"] == r) > 0
-    last = [e for e in extra if e["round"] == rounds[-1]]
-    ended = (sum(e["grown"] for e in last) == 0 or p.params["stopped"] == "deadline"
+        assert sum(e.grown for e in extra if e.round == r) > 0
+    last = [e for e in extra if e.round == rounds[-1]]
+    ended = (sum(e.grown for e in last) == 0 or p.report.stopped == "deadline"
              or len(rounds) == 8)
     assert ended
-    q = pack(BOX, POLY, seed=2, fidelity="low", params=PackParams(extra_rounds=8))
-    assert {e["round"] for e in q.params["extra_passes"]} == {0}
+    q = pack(BOX, POLY, seed=2, fidelity="low",
+             options=PackOptions(cavity=CavityPassOptions(rounds=8)))
+    assert {e.round for e in q.report.extra_passes} == {0}
 
 
 @pytest.mark.parametrize("tolerance", [0.0, 0.05])
@@ -238,7 +246,7 @@ def test_extra_passes_keep_the_mix_within_the_tolerance(tolerance):
     nothing closer (within one object of the best mix for that count)."""
     shares = np.array([0.7, 0.3])
     p = pack(BOX, POLY, shares, seed=4, fidelity="low",
-             params=PackParams(extra_max_tvd=tolerance))
+             options=PackOptions(cavity=CavityPassOptions(max_tvd=tolerance)))
     before, after = p.metrics["after_phase2"], p.metrics["after_extra"]
     assert after["count"] > before["count"]  # the passes added objects: the check bites
     bound = max([tolerance, before["tvd"]] + [best_tvd(shares, k) + 1.0 / k for k in
@@ -251,27 +259,42 @@ def test_time_left_after_an_attempt_goes_to_new_attempts_and_the_densest_is_kept
     followed by new attempts from scratch while the time left is at least the shortest
     attempt; the packing is the densest attempt's, and every attempt is recorded."""
     p = pack(BOX, POLY, seed=2, fidelity="low", time_budget=8.0,
-             params=PackParams(extra_patience=4))
-    attempts = p.params["attempts"]
+             options=PackOptions(cavity=CavityPassOptions(patience=4)))
+    attempts = p.report.attempts
     assert len(attempts) >= 2, attempts
     kept = p.metrics["after_extra"]["density"]
-    assert kept == max(a["density"] for a in attempts)
+    assert kept == max(a.density for a in attempts)
     for a in attempts:
-        assert a["seconds"] == pytest.approx(a["phase1"] + a["phase2"] + a["extra"])
+        assert a.seconds == pytest.approx(a.phase1 + a.phase2 + a.extra)
     # the phase times are the kept attempt's; the others have a line of their own
     assert p.timings["other_attempts"] > 0
     placing = sum(p.timings[k] for k in ("phase1", "phase2", "extra", "other_attempts"))
-    assert placing == pytest.approx(sum(a["seconds"] for a in attempts), abs=0.5)
+    assert placing == pytest.approx(sum(a.seconds for a in attempts), abs=0.5)
     assert placing < 8.0 + 5.0
     assert p.certificate["certified"]
     # a different random stream per attempt: not the same packing over and over
-    assert len({(a["count"], round(a["density"], 9)) for a in attempts}) > 1
+    assert len({(a.count, round(a.density, 9)) for a in attempts}) > 1
 
 
 def test_one_attempt_without_a_budget_or_when_attempts_are_capped():
-    p = pack(BOX, POLY, seed=2, fidelity="low", params=PackParams(extra_patience=4))
-    assert len(p.params["attempts"]) == 1 and "other_attempts" not in p.timings
+    p = pack(BOX, POLY, seed=2, fidelity="low",
+             options=PackOptions(cavity=CavityPassOptions(patience=4)))
+    assert len(p.report.attempts) == 1 and "other_attempts" not in p.timings
     q = pack(BOX, POLY, seed=2, fidelity="low", time_budget=8.0,
-             params=PackParams(extra_patience=4, max_attempts=1))
-    assert len(q.params["attempts"]) == 1 and "other_attempts" not in q.timings
+             options=PackOptions(cavity=CavityPassOptions(patience=4),
+                                 attempts=AttemptOptions(max_attempts=1)))
+    assert len(q.report.attempts) == 1 and "other_attempts" not in q.timings
     assert q.timings["phase1"] + q.timings["phase2"] + q.timings["extra"] < 8.0 + 5.0
+
+
+@pytest.mark.parametrize("kwargs, name", [
+    ({"seed": 1.5}, "seed"), ({"seed": "7"}, "seed"), ({"seed": None}, "seed"),
+    ({"seed": -1}, "seed"), ({"seed": True}, "seed"),
+    ({"time_budget": float("nan")}, "time_budget"), ({"time_budget": -1.0}, "time_budget"),
+    ({"time_budget": "5"}, "time_budget"),
+    ({"names": [None, "b"]}, "names"), ({"names": ["a", 3]}, "names"),
+    ({"clearance": "1"}, "clearance"), ({"type_scale": None}, "type scale"),
+])
+def test_bad_arguments_are_refused_by_name_before_any_work(kwargs, name):
+    with pytest.raises(InputError, match=name):
+        pack(BOX, ["/nonexistent/a.obj", "/nonexistent/b.obj"], **kwargs)

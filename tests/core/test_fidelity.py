@@ -7,8 +7,9 @@ import pytest
 import trimesh
 from testdata import mesh_path
 
-from jampacked.core.api import PackParams, pack
+from jampacked.core.api import pack
 from jampacked.core.fidelity import CLEARANCE_POINTS, PRESETS, choose_fidelity, thickness_ratio
+from jampacked.core.options import CavityPassOptions, FidelityOverrides, PackOptions
 
 
 def _box(x: float, y: float, z: float, turn: bool = False) -> np.ndarray:
@@ -72,9 +73,10 @@ def test_tight_container_gets_a_finer_container_grid():
 def test_pack_records_the_fidelity_and_applies_overrides():
     poly = [str(mesh_path(f"polyhedra/convex5/polytope{i}.obj")) for i in (1, 3)]
     p = pack("box:34x30x32", poly, seed=1, time_budget=2.0,
-             params=PackParams(spheres=12, container_cells=3.5, extra_passes=()))
-    d = p.params["fidelity_detail"]
-    assert d["name"] == "auto" and d["spheres"] == 12 and d["container_cells"] == 3.5
-    assert max(p.params["spheres_per_type"]) <= 12
-    assert any("overridden" in r for r in d["reasons"])
+             options=PackOptions(fidelity=FidelityOverrides(spheres=12, container_cells=3.5),
+                                 cavity=CavityPassOptions(factors=())))
+    d = p.report.fidelity_detail
+    assert d.name == "auto" and d.spheres == 12 and d.container_cells == 3.5
+    assert max(p.report.spheres_per_type) <= 12
+    assert any("overridden" in r for r in d.reasons)
     assert p.certificate["certified"]

@@ -65,7 +65,7 @@ def test_smooth_types_keep_the_small_margin_a_sharp_one_gives_all_the_large():
                        sphere.equivalent_radius, 0.5)
     assert m.sampling_gaps == pytest.approx([gap]) and gap > 0
     assert m.objects == pytest.approx([0.05 * sphere.grid.spacing + 0.5 * gap])
-    assert m.as_dict()["sampling_gaps"] == m.sampling_gaps
+    assert m.report().sampling_gaps == m.sampling_gaps
 
 
 def test_sampling_gap_shrinks_as_surface_points_get_denser():

@@ -155,7 +155,8 @@ def test_best_tvd_is_the_smallest_over_all_count_vectors():
     """best_tvd (the extra passes' floor on the mix cap) against brute force."""
     import itertools
 
-    from jampacked.core.phases import _tvd, best_tvd
+    from jampacked.core.metrics import tvd_of_counts as _tvd
+    from jampacked.core.phases import best_tvd
 
     for shares in ([0.2] * 5, [0.5, 0.3, 0.2], [0.99, 0.01]):
         q = np.array(shares)
@@ -169,7 +170,8 @@ def test_mix_cap_lets_small_scenes_take_the_best_next_object():
     """57 fruit of 5 types (11, 13, 11, 11, 11): any next object leaves TVD 0.0305, just
     over 0.03; a fixed cap stopped the extra passes there (the default scene stalled at 57
     fruit). With many objects the cap is max_tvd itself."""
-    from jampacked.core.phases import _tvd, mix_cap
+    from jampacked.core.metrics import tvd_of_counts as _tvd
+    from jampacked.core.phases import mix_cap
 
     q = np.full(5, 0.2)
     counts = np.array([11.0, 13, 11, 11, 11])

@@ -9,20 +9,12 @@ import re
 import numpy as np
 import pytest
 
-from jampacked.core import packing as pk
+from jampacked.core import packing_json as pk
 from jampacked.core.errors import InputError
-from jampacked.core.packing import (
-    Packing,
-    TypeRecord,
-    file_sha256,
-    load_packing,
-    matrix_to_quat,
-    placement_matrices,
-    quat_to_matrix,
-    save_packing,
-    to_jsonable,
-    verify_sources,
-)
+from jampacked.core.meshes import file_sha256
+from jampacked.core.packing import Packing, TypeRecord
+from jampacked.core.packing_json import load_packing, save_packing, to_jsonable, verify_sources
+from jampacked.core.rotations import matrix_to_quat, placement_matrices, quat_to_matrix
 
 
 def random_quats(rng: np.random.Generator, n: int) -> np.ndarray:
@@ -66,11 +58,12 @@ def scene(tmp_path):
         rotations=random_quats(rng, n),
         translations=rng.normal(size=(n, 3)) * 17.3,
         scales=np.ones(n),
-        params={"grid": np.int64(12), "stiffness": np.float32(0.5), "shares": np.array([0.6, 0.4]),
-                "name": "default", "flags": (True, np.bool_(False)), "bad": float("nan"),
-                "text": "[ 1, 2 ]\n[\n3 ]"},
         seed=42,
-        metrics={"density": np.float64(0.61234567890123456), "nni_per_type": [1.1, None]},
+        metrics={"density": np.float64(0.61234567890123456), "nni_per_type": [1.1, None],
+                 "grid": np.int64(12), "stiffness": np.float32(0.5),
+                 "shares": np.array([0.6, 0.4]), "name": "default",
+                 "flags": (True, np.bool_(False)), "bad": float("nan"),
+                 "text": "[ 1, 2 ]\n[\n3 ]"},
         timings={"phase1": 1.25},
         certificate={"worst_overlap": np.float64(3e-7), "pairs": np.array([[0, 1], [2, 3]])},
     )
@@ -163,8 +156,9 @@ def test_round_trip_preserves_everything(scene):
     save_packing(p, out)
     doc = json.loads(out.read_text())
 
-    assert doc["format"] == "jampacked.packing" and doc["version"] == 1
-    assert set(doc) >= {"format", "version", "container", "types", "placements", "params",
+    assert doc["format"] == "jampacked.packing" and doc["version"] == 2
+    assert set(doc) >= {"format", "version", "container", "types", "placements", "inputs",
+                        "report",
                         "seed", "metrics", "timings", "certificate"}
     assert set(doc["container"]) >= {"path", "sha256", "frame_from_file", "volume"}
     assert set(doc["types"][0]) >= {"name", "path", "sha256", "share", "local_from_file",
@@ -174,10 +168,10 @@ def test_round_trip_preserves_everything(scene):
     assert doc["container"]["path"] == "../meshes/container.stl"
     assert [t["path"] for t in doc["types"]] == ["../meshes/apple.obj", "../meshes/lemon.obj"]
     # numpy values became plain JSON
-    assert doc["params"]["grid"] == 12 and doc["params"]["shares"] == [0.6, 0.4]
-    assert doc["params"]["flags"] == [True, False] and doc["params"]["bad"] is None
+    assert doc["metrics"]["grid"] == 12 and doc["metrics"]["shares"] == [0.6, 0.4]
+    assert doc["metrics"]["flags"] == [True, False] and doc["metrics"]["bad"] is None
     assert doc["certificate"]["pairs"] == [[0, 1], [2, 3]]
-    assert doc["params"]["text"] == "[ 1, 2 ]\n[\n3 ]"
+    assert doc["metrics"]["text"] == "[ 1, 2 ]\n[\n3 ]"
     assert re.search(r'"rotation": \[-?\d', out.read_text())  # number lists on one line
     np.testing.assert_allclose(np.array([pl["matrix"] for pl in doc["placements"]]),
                                p.matrices(), rtol=0, atol=1e-12)
@@ -201,7 +195,8 @@ def test_round_trip_preserves_everything(scene):
     np.testing.assert_array_equal(q.scales, p.scales)
     np.testing.assert_allclose(q.matrices(), p.matrices(), rtol=0, atol=1e-12)
     assert q.seed == 42
-    assert q.params == to_jsonable(p.params)
+    assert q.inputs == p.inputs and q.report == p.report
+    assert q.metrics == to_jsonable(p.metrics)
     assert q.metrics["density"] == 0.61234567890123456
     assert q.timings == {"phase1": 1.25}
     assert q.certificate == {"worst_overlap": 3e-7, "pairs": [[0, 1], [2, 3]]}
@@ -232,10 +227,10 @@ def test_atomic_write_leaves_no_temp_files(scene, monkeypatch):
     before = out.read_bytes()
 
     # a value that cannot be written: nothing changes, nothing left behind
-    p.params["oops"] = object()
-    with pytest.raises(InputError, match="params.oops"):
+    p.metrics["oops"] = object()
+    with pytest.raises(InputError, match="metrics.oops"):
         save_packing(p, out)
-    del p.params["oops"]
+    del p.metrics["oops"]
     assert out.read_bytes() == before
 
     # a failure at the last step: the old file stays whole and the temp file is removed
@@ -303,13 +298,13 @@ def test_wrong_format(saved):
 
 def test_newer_version(saved):
     out, doc = saved
-    _bad(out, dict(doc, version=2), "newer jampacked")
+    _bad(out, dict(doc, version=3), "newer jampacked")
     _bad(out, dict(doc, version="1"), "version must be an integer")
 
 
 @pytest.mark.parametrize(
     "remove",
-    [("version",), ("container",), ("types",), ("placements",), ("seed",), ("params",),
+    [("version",), ("container",), ("types",), ("placements",), ("seed",), ("inputs",), ("report",),
      ("metrics",), ("timings",), ("certificate",), ("container", "frame_from_file"),
      ("container", "path"), ("types", 0, "volume"), ("types", 1, "local_from_file"),
      ("placements", 2, "rotation"), ("placements", 0, "type"), ("placements", 4, "matrix")],
@@ -383,3 +378,81 @@ def test_verify_sources(scene):
     q.container_path = "box:1x1x1"
     q.types[0].path = None
     assert verify_sources(q) == []
+
+
+# --------------------------------------------------------------------------- hostile files
+
+
+@pytest.mark.parametrize("where", [("container", "volume"), ("types", 0, "share"),
+                                   ("placements", 1, "rotation", 2),
+                                   ("placements", 0, "translation", 0)])
+def test_huge_integer_in_a_number_field_is_refused_by_name(saved, where):
+    out, doc = saved
+    obj = doc
+    for key in where[:-1]:
+        obj = obj[key]
+    obj[where[-1]] = 10 ** 400
+    _bad(out, doc, f"{where[0]}.*must be a finite number")
+
+
+def test_deeply_nested_json_is_refused(saved):
+    out, _ = saved
+    out.write_text('{"format": "jampacked.packing", "version": 2, "x": '
+                   + "[" * 200000 + "]" * 200000 + "}")
+    with pytest.raises(InputError, match="nested too deeply") as err:
+        load_packing(out)
+    assert str(out) in str(err.value)
+
+
+def test_odd_report_fields_are_ignored_and_odd_inputs_refused(saved):
+    out, doc = saved
+    doc["report"].update(repair="x", attempts=5, stopped=["no"], fidelity={"a": 1},
+                         spheres_per_type=[1, "two"], warnings="text")
+    _write(out, doc)
+    q = load_packing(out)
+    assert q.report.repair.rounds == 0 and q.report.attempts == []
+    assert q.report.stopped is None and q.report.warnings == []
+    for key, value in (("clearance", [1.0]), ("clearance", "0.5"), ("time_budget", {}),
+                       ("options", "fast"), ("clearance", 10 ** 400)):
+        bad = json.loads(json.dumps(doc))
+        bad["inputs"][key] = value
+        _bad(out, bad, f"inputs.{key}")
+
+
+def test_version_1_params_map_to_the_typed_fields(saved):
+    out, doc = saved
+    params = {"clearance": 0.5, "fidelity": "low", "fidelity_requested": "auto",
+              "extra_max_tvd": 0.01, "extra_passes": [0.8, 0.5], "mode": 0, "k_obj": 1.0,
+              "stopped": "deadline", "time_budget": 20.0, "unknown_key": [1, 2],
+              "repair": {"rounds": 2, "moved": 3, "removed": 1, "first": {"certified": False},
+                         "timed_out": False},
+              "attempts": [{"density": 0.4, "count": 30, "seconds": 2.5, "phase1": 1.0,
+                            "phase2": 0.5, "extra": 1.0, "stopped": None}],
+              "phase1": {"inserted": 9, "grown": 7, "failed": 2, "seconds": 1.0,
+                         "stopped": "", "extra": {}},
+              "fidelity_detail": {"name": "low", "spheres": 24, "grid_cells": 28,
+                                  "surface_points": 96, "container_cells": 3.0,
+                                  "reasons": ["preset"]},
+              "threads": {"most": 2, "switches": 0, "probes": 1,
+                          "seconds_by_threads": {"1": 0.5, "2": 1.0}}}
+    old = {k: v for k, v in doc.items() if k not in ("inputs", "report")}
+    _write(out, dict(old, version=1, params=params))
+    q = load_packing(out)
+    assert q.inputs.clearance == 0.5 and q.inputs.fidelity == "auto"
+    assert q.inputs.time_budget == 20.0
+    assert q.inputs.options.cavity.max_tvd == 0.01
+    assert q.inputs.options.cavity.factors == (0.8, 0.5)
+    assert q.report.fidelity == "low" and q.report.stopped == "deadline"
+    assert q.report.repair.moved == 3 and q.report.repair.first == {"certified": False}
+    assert q.report.attempts[0].count == 30 and q.report.phase1.grown == 7
+    assert q.report.fidelity_detail.spheres == 24
+    assert q.report.fidelity_detail.reasons == ("preset",)
+    assert q.report.threads.seconds_by_threads == {"1": 0.5, "2": 1.0}
+    # pack() wrote the extra passes' statistics over the option of the same name
+    params["extra_passes"] = [{"inserted": 5, "grown": 4, "failed": 1, "seconds": 0.2,
+                               "stopped": "patience", "extra": {}, "round": 0,
+                               "factor": 0.8}]
+    _write(out, dict(old, version=1, params=params))
+    q = load_packing(out)
+    assert q.inputs.options.cavity.factors == (0.8, 0.6, 0.5, 0.4)
+    assert q.report.extra_passes[0].grown == 4 and q.report.extra_passes[0].factor == 0.8

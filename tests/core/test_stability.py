@@ -204,12 +204,12 @@ def test_tiny_budget_with_thousands_expected_ends_certified_with_what_it_placed(
     a second here) is skipped."""
     box = "box:60x60x60"
     p = pack(box, [STRAWBERRY], type_scale=60.0, seed=1, fidelity="low", time_budget=1.0)
-    assert p.params["stopped"] == "deadline"
-    assert p.params["phase1"]["inserted"] > 5000
+    assert p.report.stopped == "deadline"
+    assert p.report.phase1.inserted > 5000
     _assert_sane(p, box, min_objects=20)
     assert p.n < 5000
-    assert p.params["phase2"]["stopped"] == "deadline"
-    assert p.params["phase2"]["seconds"] < 0.2, p.params["phase2"]
+    assert p.report.phase2.stopped == "deadline"
+    assert p.report.phase2.seconds < 0.2, p.report.phase2
     assert p.timings["total"] < 60.0, p.timings
 
 
@@ -219,9 +219,9 @@ def test_tens_of_thousands_of_lattice_objects_keep_the_budget():
     the wall start the settling now, and placement stops on time."""
     box = "box:60x60x10"
     p = pack(box, [STRAWBERRY], type_scale=20.0, seed=1, fidelity="low", time_budget=1.0)
-    assert p.params["phase1"]["inserted"] > 40000
-    assert p.params["stopped"] == "deadline"
-    assert p.params["phase1"]["seconds"] < 2.0, p.params["phase1"]
+    assert p.report.phase1.inserted > 40000
+    assert p.report.stopped == "deadline"
+    assert p.report.phase1.seconds < 2.0, p.report.phase1
     assert p.certificate["certified"] and np.all(np.isfinite(p.translations))
 
 

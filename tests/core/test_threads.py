@@ -3,6 +3,8 @@ tested in test_kernels.py."""
 
 from __future__ import annotations
 
+from dataclasses import asdict
+
 import pytest
 
 from jampacked.core.threads import ThreadTuner
@@ -32,7 +34,7 @@ def test_a_busy_machine_moves_to_one_thread_after_the_first_probe():
     assert tuner.threads == 1 and tuner.switches == 1
     # the start, the probes back to two threads: a small share of the time
     assert tuner.seconds[2] < 0.05 * 60.0
-    assert tuner.as_dict()["seconds_by_threads"]["1"] > 55.0
+    assert tuner.report().seconds_by_threads["1"] > 55.0
 
 
 def test_load_arriving_mid_run_is_noticed_within_a_probe():
@@ -65,6 +67,6 @@ def test_one_thread_is_never_probed():
     tuner = ThreadTuner(1)
     _run(tuner, lambda n, t: 1000.0, 10.0)
     assert tuner.threads == 1 and tuner.probes == 0
-    assert tuner.as_dict() == {"most": 1, "switches": 0, "probes": 0,
+    assert asdict(tuner.report()) == {"most": 1, "switches": 0, "probes": 0,
                                "seconds_by_threads": {"1": pytest.approx(10.0, abs=0.02)}}
 

@@ -19,7 +19,9 @@ from testdata import DATA, mesh_path
 from jampacked.core.distance import point_triangle_distance
 from jampacked.core.errors import Cancelled, InputError, MeshError
 from jampacked.core.meshes import load_mesh
-from jampacked.core.packing import Packing, TypeRecord, save_packing
+from jampacked.core.packing import Packing, TypeRecord
+from jampacked.core.packing_json import save_packing
+from jampacked.core.report import PackInputs
 from jampacked.core.solids import to_solid
 from jampacked.export.assemble import export_packing
 from jampacked.export.closest import Surface, closest_on_triangles
@@ -85,14 +87,14 @@ def _packing(tmp: Path, centres: np.ndarray, types: list[int], *, clearance: flo
     p = Packing(container_path=f"box:{box}x{box}x{box}", container_sha256=None,
                 frame_from_file=np.eye(4), container_volume=box ** 3, types=recs,
                 type_index=np.array(types), rotations=rot, translations=centres,
-                scales=np.ones(n), params={"clearance": clearance})
+                scales=np.ones(n), inputs=PackInputs(clearance=clearance))
     out = tmp / "packing.json"
     save_packing(p, out)
     return out
 
 
 def _solids(packing_json: Path) -> list[m3.Manifold]:
-    from jampacked.core.packing import load_packing
+    from jampacked.core.packing_json import load_packing
 
     p = load_packing(packing_json)
     mats = p.matrices()
@@ -329,7 +331,7 @@ def _hollow_cube(tmp: Path) -> Path:
     p = Packing(container_path="box:40x40x40", container_sha256=None,
                 frame_from_file=np.eye(4), container_volume=40.0 ** 3, types=[rec],
                 type_index=np.zeros(6, np.int64), rotations=rot, translations=pos,
-                scales=np.ones(6), params={"clearance": 0.0})
+                scales=np.ones(6), inputs=PackInputs(clearance=0.0))
     out = tmp / "hollow.json"
     save_packing(p, out)
     return out
@@ -504,7 +506,7 @@ def _made(n: int = 4, **fields) -> Packing:
                 frame_from_file=np.eye(4), container_volume=80.0 ** 3, types=recs,
                 type_index=np.arange(n) % 2, rotations=np.tile([1.0, 0, 0, 0], (n, 1)),
                 translations=_grid(26.0)[:n], scales=np.ones(n),
-                params={"clearance": 1.0})
+                inputs=PackInputs(clearance=1.0))
     base.update(fields)
     return Packing(**base)
 
@@ -537,12 +539,12 @@ def test_objects_far_outside_the_container_are_refused_by_name(tmp_path, transla
 def test_a_bad_stored_clearance_names_the_file_and_field(tmp_path, value):
     save_packing(_made(), tmp_path / "p.json")
     doc = json.loads((tmp_path / "p.json").read_text())
-    doc["params"]["clearance"] = value
+    doc["inputs"]["clearance"] = value
     (tmp_path / "p.json").write_text(json.dumps(doc))
-    with pytest.raises(InputError, match=r"p\.json.*params\.clearance"):
+    with pytest.raises(InputError, match=r"p\.json.*inputs\.clearance"):
         export_packing(tmp_path / "p.json", tmp_path / "u.stl", ExportOptions(mode="union"))
-    with pytest.raises(InputError, match=r"the packing has params\.clearance"):
-        export_packing(_made(params={"clearance": value}), tmp_path / "u.stl",
+    with pytest.raises(InputError, match=r"the packing has inputs\.clearance"):
+        export_packing(_made(inputs=PackInputs(clearance=value)), tmp_path / "u.stl",
                        ExportOptions(mode="union"))
 
 

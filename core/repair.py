@@ -1,0 +1,89 @@
+"""Certify a placement on the real meshes and repair what fails (container frame and units).
+
+Failing objects are pushed apart one at a time (a bigger margin for that object, then the
+solver, rolled back if it cannot settle) and what moved is checked again; what still fails
+after the rounds, after the push-apart time cap, or on cancel is removed.
+"""
+
+from __future__ import annotations
+
+import time
+from collections.abc import Callable
+
+import numpy as np
+
+from .certify import DEFAULT_TOL, Certifier, CertifyReport
+from .options import RepairOptions
+from .report import RepairStats
+from .rotations import placement_matrices
+from .solver import Solver
+
+
+def certify_and_repair(solver: Solver, certifier: Certifier, clearance: float,
+                       options: RepairOptions, cancelled: Callable[[], bool]
+                       ) -> tuple[dict, RepairStats]:
+    """Certify the solver's alive objects; push failing objects apart for up to
+    `options.rounds` rounds and `options.seconds`; remove what still fails. Mutates the
+    solver's state. Returns (the final certificate as a dict, repair statistics)."""
+    s = solver.s
+    stats = RepairStats()
+    deadline = time.perf_counter() + options.seconds
+    subset = None
+    moved_ever: set[int] = set()
+    for rnd in range(options.rounds + 1):
+        idx = s.alive_indices()
+        mats = placement_matrices(s.quat[idx], s.pos[idx], s.scale[idx])
+        rep = certifier.certify(s.typ[idx], mats, clearance, DEFAULT_TOL,
+                                subset=None if subset is None else np.flatnonzero(
+                                    np.isin(idx, subset)))
+        if stats.first is None:
+            stats.first = rep.as_dict()
+        bad = idx[sorted(rep.bad_objects())]
+        if len(bad) == 0:
+            break
+        if rnd == options.rounds or stats.timed_out:
+            stats.removed += remove_offenders(solver, idx, rep)
+            break
+        stats.rounds += 1
+        before_pos = s.pos[: s.n].copy()
+        before_q = s.quat[: s.n].copy()
+        for k in bad:
+            if time.perf_counter() > deadline or cancelled():
+                stats.timed_out = True
+                break
+            old = s.margin[k]
+            s.margin[k] = 2.0 * old + options.margin * solver.t.radius[s.typ[k]]
+            if not solver.resolve(np.array([k], np.int64), options.iterations,
+                                  rollback=True):
+                s.margin[k] = old
+        moved = np.flatnonzero(np.any(s.pos[: s.n] != before_pos, axis=1)
+                               | np.any(s.quat[: s.n] != before_q, axis=1))
+        moved_ever.update(int(m) for m in moved)
+        subset = np.union1d(moved, bad)
+    stats.moved = len(moved_ever)
+    while True:  # removal only removes violations; loop in case a check was trusted wrongly
+        idx = s.alive_indices()
+        mats = placement_matrices(s.quat[idx], s.pos[idx], s.scale[idx])
+        final = certifier.certify(s.typ[idx], mats, clearance, DEFAULT_TOL)
+        if final.certified:
+            return final.as_dict(), stats
+        stats.removed += remove_offenders(solver, idx, final)
+
+
+def remove_offenders(solver: Solver, idx: np.ndarray, rep: CertifyReport) -> int:
+    """Remove the smaller object of each failing pair and each object through the wall;
+    idx maps the report's object indices to the solver's. Returns how many were removed."""
+    s = solver.s
+    removed = 0
+    for i, j in rep.bad_pairs:
+        a, b = idx[i], idx[j]
+        if s.alive[a] and s.alive[b]:
+            va = solver.t.volume[s.typ[a]]
+            vb = solver.t.volume[s.typ[b]]
+            s.alive[b if vb <= va else a] = 0
+            removed += 1
+    for i in rep.bad_wall:
+        if s.alive[idx[i]]:
+            s.alive[idx[i]] = 0
+            removed += 1
+    return removed
