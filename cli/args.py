@@ -22,49 +22,49 @@ def fill(text: str) -> str:
     return textwrap.fill(text, width=88)
 
 
+def _number(text: str, cast: Callable[[str], float], ok: Callable[[float], bool],
+            not_a_number: str, out_of_range: str) -> float:
+    """`cast(text)` if `ok` accepts it, else ``argparse.ArgumentTypeError`` with the message
+    for text that is not a number or for a number out of range ("..., got 'text'")."""
+    try:
+        value = cast(text)
+    except ValueError:
+        raise argparse.ArgumentTypeError(f"{not_a_number}, got {text!r}") from None
+    if not ok(value):
+        raise argparse.ArgumentTypeError(f"{out_of_range}, got {text!r}")
+    return value
+
+
 def positive_float(what: str) -> Callable[[str], float]:
     """An argument type for a finite number > 0; ``what`` (the option) heads its messages."""
     def parse(text: str) -> float:
-        try:
-            value = float(text)
-        except ValueError:
-            raise argparse.ArgumentTypeError(f"{what} must be a number, got {text!r}") from None
-        if not math.isfinite(value) or value <= 0:
-            raise argparse.ArgumentTypeError(f"{what} must be greater than 0, got {text!r}")
-        return value
+        return _number(text, float, lambda v: math.isfinite(v) and v > 0,
+                       f"{what} must be a number", f"{what} must be greater than 0")
 
     return parse
 
 
 def non_negative_float(text: str) -> float:
     """A finite number >= 0."""
-    try:
-        value = float(text)
-    except ValueError:
-        raise argparse.ArgumentTypeError(f"must be a number, got {text!r}") from None
-    if not math.isfinite(value) or value < 0:
-        raise argparse.ArgumentTypeError(f"must be 0 or more, got {text!r}")
-    return value
+    return _number(text, float, lambda v: math.isfinite(v) and v >= 0, "must be a number",
+                   "must be 0 or more")
 
 
 def fraction(text: str) -> float:
     """A number from 0 to 1."""
-    try:
-        value = float(text)
-    except ValueError:
-        raise argparse.ArgumentTypeError(f"must be a number from 0 to 1, got {text!r}") from None
-    if not math.isfinite(value) or not 0.0 <= value <= 1.0:
-        raise argparse.ArgumentTypeError(f"must be from 0 to 1, got {text!r}")
-    return value
+    return _number(text, float, lambda v: math.isfinite(v) and 0.0 <= v <= 1.0,
+                   "must be a number from 0 to 1", "must be from 0 to 1")
 
 
 def seed(text: str) -> int:
     """A whole number >= 0 (a random seed)."""
-    try:
-        value = int(text)
-    except ValueError:
-        raise argparse.ArgumentTypeError(f"must be a whole number, got {text!r}") from None
-    if value < 0:
-        raise argparse.ArgumentTypeError(f"must be 0 or more, got {text!r}")
-    return value
+    return int(_number(text, int, lambda v: v >= 0, "must be a whole number",
+                       "must be 0 or more"))
+
+
+def add_command(sub: argparse._SubParsersAction, name: str, *, help: str, description: str,
+                epilog: str) -> argparse.ArgumentParser:
+    """A subcommand's parser with the shared layout: wrapped description, raw epilog."""
+    return sub.add_parser(name, help=help, description=fill(description), epilog=epilog,
+                          formatter_class=FORMATTER)
 

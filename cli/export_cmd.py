@@ -12,7 +12,7 @@ import json
 
 from rich.markup import escape
 
-from jampacked.cli.args import FORMATTER, UsageError, fill, positive_float
+from jampacked.cli.args import UsageError, add_command, positive_float
 from jampacked.cli.exits import EXIT_ERROR, EXIT_INTERRUPTED, print_error
 from jampacked.cli.interrupt import CancelOnInterrupt
 from jampacked.cli.reports import consoles, print_export, print_validation, progress_bar
@@ -93,16 +93,14 @@ def parse_window(text: str) -> Opening:
 
 def add_export_parser(sub: argparse._SubParsersAction) -> None:
     """Add the ``export`` subcommand to ``sub``."""
-    p = sub.add_parser(
-        "export",
+    p = add_command(
+        sub, "export",
         help="turn a packing into watertight mesh files that print (3MF, STL, OBJ, PLY)",
-        description=fill(
+        description=(
             "Build the packed objects from a packing file, join them (union, connect) or "
             "keep them apart (parts), optionally inside a shell of the container, and write "
             "validated, watertight mesh files."),
-        epilog=EXPORT_EPILOG,
-        formatter_class=FORMATTER,
-    )
+        epilog=EXPORT_EPILOG)
     p.add_argument("packing", metavar="PACKING.json", help="a packing written by 'jampacked pack'")
     p.add_argument("-o", "--output", action="append", required=True, metavar="FILE",
                    help="output file (.3mf, .stl, .obj, .ply); repeat for several formats")

@@ -6,7 +6,7 @@ import argparse
 
 from rich.markup import escape
 
-from jampacked.cli.args import FORMATTER, fill
+from jampacked.cli.args import add_command
 from jampacked.cli.exits import EXIT_ERROR
 from jampacked.cli.reports import consoles, print_summary, warn
 from jampacked.core.packing import is_spec, load_packing, verify_sources
@@ -22,17 +22,14 @@ has changed since the packing was made.
 
 def add_info_parser(sub: argparse._SubParsersAction) -> None:
     """Add the ``info`` subcommand to ``sub``."""
-    p = sub.add_parser(
-        "info",
+    p = add_command(
+        sub, "info",
         help="summarise a saved packing and check its mesh files",
-        description=fill(
+        description=(
             "Print the summary of a saved packing (objects per type, density, type-share "
             "error, clumping, certification, timings) and check that the mesh files it "
-            "names are present and unchanged (sha256)."
-        ),
-        epilog=INFO_EPILOG,
-        formatter_class=FORMATTER,
-    )
+            "names are present and unchanged (sha256)."),
+        epilog=INFO_EPILOG)
     p.add_argument("packing", metavar="PACKING.json", help="a packing written by 'jampacked pack'")
     p.set_defaults(run=cmd_info)
 

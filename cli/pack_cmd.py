@@ -11,7 +11,7 @@ import contextlib
 
 from rich.markup import escape
 
-from jampacked.cli.args import FORMATTER, fill, fraction, non_negative_float, positive_float, seed
+from jampacked.cli.args import add_command, fraction, non_negative_float, positive_float, seed
 from jampacked.cli.exits import EXIT_INTERRUPTED
 from jampacked.cli.interrupt import CancelOnInterrupt
 from jampacked.cli.reports import consoles, print_summary, progress_bar, warn
@@ -50,18 +50,15 @@ press Ctrl-C twice to abort without saving. Exit status: 0 done, 1 the engine re
 
 def add_pack_parser(sub: argparse._SubParsersAction) -> None:
     """Add the ``pack`` subcommand to ``sub``."""
-    p = sub.add_parser(
-        "pack",
+    p = add_command(
+        sub, "pack",
         help="pack objects into a container and save the packing (JSON)",
-        description=fill(
+        description=(
             "Fill a container mesh as densely as possible with copies of the given object "
             "types, keeping their target shares and spreading each type evenly. Every "
             "packing is certified on the real meshes (no overlap, nothing through the wall, "
-            "the clearance kept) before it is saved."
-        ),
-        epilog=PACK_EPILOG,
-        formatter_class=FORMATTER,
-    )
+            "the clearance kept) before it is saved."),
+        epilog=PACK_EPILOG)
     p.add_argument(
         "container", metavar="CONTAINER",
         help="container mesh file (STL, OBJ, PLY, OFF, GLB, ...); 'box:AxBxC' for a box "

@@ -5,7 +5,7 @@ from __future__ import annotations
 import argparse
 import json
 
-from jampacked.cli.args import FORMATTER, fill
+from jampacked.cli.args import add_command
 from jampacked.cli.exits import EXIT_ERROR, EXIT_USAGE, print_error
 from jampacked.cli.reports import consoles, print_validation
 from jampacked.core.errors import JampackedError
@@ -30,18 +30,15 @@ Exit status: 0 every file passes, 1 some file fails, 2 a file is missing or unre
 
 def add_validate_parser(sub: argparse._SubParsersAction) -> None:
     """Add the ``validate`` subcommand to ``sub``."""
-    p = sub.add_parser(
-        "validate",
+    p = add_command(
+        sub, "validate",
         help="check that mesh files are watertight and printable",
-        description=fill(
+        description=(
             "Read each mesh file as written and check, per body, that it is a closed, "
             "2-manifold, consistently and outward wound solid without degenerate or "
             "duplicate faces or self-intersections; print a table per file and a PASS/FAIL "
-            "line."
-        ),
-        epilog=VALIDATE_EPILOG,
-        formatter_class=FORMATTER,
-    )
+            "line."),
+        epilog=VALIDATE_EPILOG)
     p.add_argument("files", metavar="FILE", nargs="+",
                    help="mesh files (STL, OBJ, PLY, 3MF, OFF, GLB, ...)")
     p.add_argument("--json", action="store_true",
