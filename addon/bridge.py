@@ -157,8 +157,6 @@ def read_input(obj: bpy.types.Object, what: str,
     viewports or in an excluded collection: its modifiers would be silently left out), when
     it is a curve or text with no depth, or when it has no faces at all.
     """
-    if obj.mode == 'EDIT':  # what the viewport shows, not the mesh as it was on entering
-        obj.update_from_editmode()
     stored_is_shown = (obj.type == 'MESH' and not obj.modifiers
                        and obj.data.shape_keys is None)
     if not stored_is_shown and not _geometry_evaluated(obj, depsgraph.view_layer):
