@@ -23,7 +23,7 @@ import numpy as np
 from mathutils import Matrix
 
 from . import summary, units
-from .engine import PackOutcome, Triangles
+from .engine import PackOutcome, Triangles, check_extent
 
 
 def _input_error(message: str) -> Exception:
@@ -155,7 +155,8 @@ def read_input(obj: bpy.types.Object, what: str,
 
     Raises InputError naming the object when Blender does not evaluate it (disabled in
     viewports or in an excluded collection: its modifiers would be silently left out), when
-    it is a curve or text with no depth, or when it has no faces at all.
+    it is a curve or text with no depth, when it has no faces at all, or when its size is
+    absurd (:func:`.engine.check_extent`).
     """
     stored_is_shown = (obj.type == 'MESH' and not obj.modifiers
                        and obj.data.shape_keys is None)
@@ -177,6 +178,7 @@ def read_input(obj: bpy.types.Object, what: str,
             f"{what} '{obj.name}' has no faces ({len(tris.vertices)} vertices, only loose "
             "vertices or edges, or nothing at all): pick a closed mesh, or fill it (Edit "
             "Mode: select all, Face > Fill or Convex Hull).")
+    check_extent(tris, what)
     return tris
 
 

@@ -194,6 +194,7 @@ def _nan(bpy, name, rng):
 
 
 NOT_A_SOLID = r"'{name}'.*(separate bodies|not a watertight|not closed|zero volume)"
+HUGE = r"'{name}' is [-+.e\d]+ x .* units across: Pack takes objects between 1e-06 and"
 NO_SURFACE = r"'{name}' is not a mesh object \(its type is \w+\), it has no surface"
 
 TYPE_KINDS = [
@@ -232,6 +233,8 @@ TYPE_KINDS = [
                          [(0, 2, 1), (0, 1, 3), (0, 3, 2)]), NOT_A_SOLID),
     Kind("nan vertex", _nan, r"'{name}' has non-finite vertex coordinates"),
     Kind("flattened", _transformed((1.0, 0.0, 1.0)), NOT_A_SOLID),
+    Kind("huge", _transformed((1e12, 1e12, 1e12)), HUGE, "read"),
+    Kind("tiny", _transformed((1e-8, 2e-8, 1e-8)), HUGE, "read"),
     Kind("disabled in viewports", _hidden("disabled"),
          r"'{name}' is disabled in viewports or in an excluded", "read"),
     Kind("excluded collection", _hidden("excluded"),
@@ -272,6 +275,7 @@ CONTAINER_KINDS = [
     Kind("open box", lambda bpy, name, rng: cube_object(bpy, name, faces=CUBE_FACES[:-1],
                                                         scale=(3.0, 3.0, 3.0)),
          NOT_A_SOLID),
+    Kind("huge box", _box((3e12, 3e12, 3e12)), HUGE, "read"),
     Kind("camera", _no_data('CAMERA'), NO_SURFACE, "pick"),
     Kind("no vertices", _arrays([], []), r"'{name}' has no faces \(0 vertices", "read"),
     Kind("deleted", _deleted, r"'{name}' is in no scene \(it was deleted\)", "pick"),
