@@ -64,30 +64,32 @@ def mesh_triangles(mesh: bpy.types.Mesh, name: str,
 
 
 def object_triangles(obj: bpy.types.Object, depsgraph: bpy.types.Depsgraph, *,
-                     apply_modifiers: bool = True, world: bool = True) -> Triangles:
+                     apply_modifiers: bool = True, world: bool = True,
+                     outward: bool = False) -> Triangles:
     """An object's surface as triangles: evaluated (modifiers applied) and in world space by
     default.
 
     The object must have geometry (:data:`GEOMETRY_TYPES`; curves, text, surfaces and
     metaballs give the mesh Blender shows). In world space a transform that mirrors (an odd
-    number of negative scale factors) reverses the triangles' winding, so the triangles are
-    re-wound to face outward as they do in Blender's viewport.
+    number of negative scale factors) reverses the triangles' winding; with ``outward`` the
+    triangles are re-wound to face outward, as Blender shows them (Pack's inputs); without
+    it they keep the mesh's winding (Validate reports such an object as inside out).
     """
     if not apply_modifiers and obj.type == 'MESH':
         m = matrix_np(obj.matrix_world) if world else None
-        return _outward(mesh_triangles(obj.data, obj.name, m), m)
+        return _rewound(mesh_triangles(obj.data, obj.name, m), m, outward)
     ob_eval = obj.evaluated_get(depsgraph)
     mesh = ob_eval.to_mesh()
     try:
         m = matrix_np(ob_eval.matrix_world) if world else None
-        return _outward(mesh_triangles(mesh, obj.name, m), m)
+        return _rewound(mesh_triangles(mesh, obj.name, m), m, outward)
     finally:
         ob_eval.to_mesh_clear()
 
 
-def _outward(tris: Triangles, transform: np.ndarray | None) -> Triangles:
-    """Reverse the winding when ``transform`` mirrors (negative determinant)."""
-    if transform is not None and np.linalg.det(transform[:3, :3]) < 0:
+def _rewound(tris: Triangles, transform: np.ndarray | None, outward: bool) -> Triangles:
+    """Reverse the winding when asked and ``transform`` mirrors (negative determinant)."""
+    if outward and transform is not None and np.linalg.det(transform[:3, :3]) < 0:
         tris.faces = np.ascontiguousarray(tris.faces[:, ::-1])
     return tris
 
@@ -172,7 +174,7 @@ def read_input(obj: bpy.types.Object, what: str,
             f"{what} '{obj.name}' is a flat {GEOMETRY_TYPES[obj.type]} with no volume: give "
             "it depth (Object Data Properties > Geometry > Extrude or Bevel Depth), or "
             "convert it to a closed mesh.")
-    tris = object_triangles(obj, depsgraph)
+    tris = object_triangles(obj, depsgraph, outward=True)
     if not len(tris.faces):
         raise _input_error(
             f"{what} '{obj.name}' has no faces ({len(tris.vertices)} vertices, only loose "
@@ -254,7 +256,7 @@ def check_unchanged(context: bpy.types.Context, request: PackRequest) -> None:
         if obj is None or obj.type not in GEOMETRY_TYPES or not obj.users_scene:
             raise _input_error(f"'{name}' was deleted or renamed while packing: nothing was "
                                "added; pack again.")
-        if object_triangles(obj, depsgraph).signature() != signature:
+        if object_triangles(obj, depsgraph, outward=True).signature() != signature:
             raise _input_error(f"'{name}' was moved or edited while packing: nothing was "
                                "added; pack again.")
 
@@ -428,7 +430,7 @@ def gather_export(context: bpy.types.Context, options: Any) -> ExportRequest:
         raise _input_error(f"the container '{cname}' of '{coll.name}' is gone: restore it "
                            "(undo) or pack again.")
     _require_mesh(container, "container")
-    ctris = object_triangles(container, context.evaluated_depsgraph_get())
+    ctris = object_triangles(container, context.evaluated_depsgraph_get(), outward=True)
     if ctris.signature() != coll.get(summary.PREFIX + "container_sha256"):
         raise _input_error(f"the container '{cname}' was moved or edited after packing "
                            f"'{coll.name}': pack again, or undo the change.")

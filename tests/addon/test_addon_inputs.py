@@ -472,15 +472,16 @@ def test_every_container_kind(bpy, addon, kind):
 
 def test_a_mirrored_object_is_read_outward(bpy, addon):
     """A negative scale mirrors the mesh and reverses its winding in world space: the
-    triangles handed to the engine face outward (the engine had to repair them inverted)."""
+    triangles Pack hands to the engine face outward (the engine had to repair them
+    inverted), as do the result's meshes."""
     ico = _ico(bpy, "Ico")
     depsgraph = bpy.context.evaluated_depsgraph_get()
-    plain = addon.bridge.object_triangles(ico, depsgraph)
+    plain = addon.bridge.object_triangles(ico, depsgraph, outward=True)
     for scale in ((-1.0, 1.0, 1.0), (-1.0, -1.0, -1.0), (1.0, -2.0, 0.5)):
         ico.scale = scale
         bpy.context.view_layer.update()
         depsgraph = bpy.context.evaluated_depsgraph_get()
-        tris = addon.bridge.object_triangles(ico, depsgraph)
+        tris = addon.bridge.object_triangles(ico, depsgraph, outward=True)
         assert _signed_volume(tris.vertices, tris.faces) > 0, scale
         mesh = tris.mesh_data("object")
         assert not mesh.warnings, mesh.warnings
