@@ -261,6 +261,16 @@ def check_unchanged(context: bpy.types.Context, request: PackRequest) -> None:
                                "added; pack again.")
 
 
+def inputs_in_results(scene: bpy.types.Scene, request: PackRequest) -> list[str]:
+    """Names of the request's input objects that belong to an earlier result of its
+    container: replacing that result would delete them (keep it instead)."""
+    from .results import previous_results
+
+    names = {request.container_name, *request.type_names}
+    return sorted({o.name for c in previous_results(scene, request.container_name)
+                   for o in c.objects if o.name in names})
+
+
 def _type_material(name: str, colour: tuple[float, float, float, float]
                    ) -> bpy.types.Material:
     mat = bpy.data.materials.new(f"Jampacked {name}")

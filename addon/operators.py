@@ -254,7 +254,9 @@ class PackRunner(JobRunner):
     def apply(self, context: bpy.types.Context, result: engine.PackOutcome) -> set[str]:
         bridge.check_unchanged(context, self._request)
         coll = bridge.build_result(context, self._request, result)
-        if not context.scene.jampacked.keep_previous:
+        # an earlier result holding an input (a placed object picked as a type) is kept
+        if not (context.scene.jampacked.keep_previous
+                or bridge.inputs_in_results(context.scene, self._request)):
             results.replace_previous(context.scene, coll)
         p = result.packing
         m, cert = p.metrics, p.certificate

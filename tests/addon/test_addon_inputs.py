@@ -591,3 +591,24 @@ def test_curves_can_be_picked_and_added(bpy, addon):
     with bpy.context.temp_override(selected_objects=[curve, camera]):
         assert bpy.ops.jampacked.type_add() == {'FINISHED'}
     assert [item.object for item in s.types] == [curve]
+
+
+def test_a_placed_object_picked_as_a_type_survives_the_next_pack(bpy, addon):
+    """A placed object of a result, picked as a type, is an input: the next Pack keeps the
+    result that holds it (replacing it deleted the user's type object)."""
+    box = cube_object(bpy, "Box", scale=(3.0, 3.0, 3.0))
+    s = _settings(bpy, box, [_ico(bpy, "Ico")])
+    assert bpy.ops.jampacked.pack() == {'FINISHED'}
+    first = s.result
+    placed = sorted(first.objects, key=lambda o: o.name)[0]
+    name = placed.name
+    s.types[0].object = placed
+    s.seed = 4
+    assert bpy.ops.jampacked.pack() == {'FINISHED'}
+    assert bpy.data.objects.get(name) is not None and s.types[0].object.name == name
+    assert first.name in bpy.context.scene.collection.children and s.result != first
+    # without such an input, the earlier results are replaced as before
+    s.types[0].object = bpy.data.objects["Ico"]
+    assert bpy.ops.jampacked.pack() == {'FINISHED'}
+    assert [c.name for c in bpy.context.scene.collection.children
+            if "jampacked_packing" in c.keys()] == ["Jampacked Box"] == [s.result.name]
