@@ -23,7 +23,7 @@ import numpy as np
 from mathutils import Matrix
 
 from . import summary, units
-from .engine import PackOutcome, Triangles
+from .engine import PackOutcome, Triangles, check_extent
 
 
 def _input_error(message: str) -> Exception:
@@ -64,30 +64,124 @@ def mesh_triangles(mesh: bpy.types.Mesh, name: str,
 
 
 def object_triangles(obj: bpy.types.Object, depsgraph: bpy.types.Depsgraph, *,
-                     apply_modifiers: bool = True, world: bool = True) -> Triangles:
-    """An object's mesh as triangles: evaluated (modifiers applied) and in world space by
-    default. The object must be a mesh object."""
-    if not apply_modifiers:
+                     apply_modifiers: bool = True, world: bool = True,
+                     outward: bool = False) -> Triangles:
+    """An object's surface as triangles: evaluated (modifiers applied) and in world space by
+    default.
+
+    The object must have geometry (:data:`GEOMETRY_TYPES`; curves, text, surfaces and
+    metaballs give the mesh Blender shows). In world space a transform that mirrors (an odd
+    number of negative scale factors) reverses the triangles' winding; with ``outward`` the
+    triangles are re-wound to face outward, as Blender shows them (Pack's inputs); without
+    it they keep the mesh's winding (Validate reports such an object as inside out).
+    """
+    if not apply_modifiers and obj.type == 'MESH':
         m = matrix_np(obj.matrix_world) if world else None
-        return mesh_triangles(obj.data, obj.name, m)
+        return _rewound(mesh_triangles(obj.data, obj.name, m), m, outward)
     ob_eval = obj.evaluated_get(depsgraph)
     mesh = ob_eval.to_mesh()
     try:
         m = matrix_np(ob_eval.matrix_world) if world else None
-        return mesh_triangles(mesh, obj.name, m)
+        return _rewound(mesh_triangles(mesh, obj.name, m), m, outward)
     finally:
         ob_eval.to_mesh_clear()
 
 
+def _rewound(tris: Triangles, transform: np.ndarray | None, outward: bool) -> Triangles:
+    """Reverse the winding when asked and ``transform`` mirrors (negative determinant)."""
+    if outward and transform is not None and np.linalg.det(transform[:3, :3]) < 0:
+        tris.faces = np.ascontiguousarray(tris.faces[:, ::-1])
+    return tris
+
+
+#: object types whose evaluated geometry is a surface Blender can turn into a mesh, with the
+#: words messages use for them
+GEOMETRY_TYPES = {'MESH': "mesh", 'CURVE': "curve", 'SURFACE': "surface", 'META': "metaball",
+                  'FONT': "text"}
+
+
 def _require_mesh(obj: bpy.types.Object | None, what: str) -> bpy.types.Object:
+    """The object if Pack can read a surface from it, else InputError naming it."""
     if obj is None:
         raise _input_error(f"pick a {what}: a closed mesh object (Jampacked panel in the 3D "
                            "viewport's sidebar).")
-    if obj.type != 'MESH':
+    if obj.type not in GEOMETRY_TYPES:
+        if obj.instance_type == 'COLLECTION' and obj.instance_collection is not None:
+            raise _input_error(
+                f"{what} '{obj.name}' is an instance of the collection "
+                f"'{obj.instance_collection.name}', not a mesh: pick a mesh object in that "
+                "collection, or make the instance real first (Object > Apply > Make "
+                "Instances Real) and join the parts into one mesh.")
         raise _input_error(f"{what} '{obj.name}' is not a mesh object (its type is "
-                           f"{obj.type.title()}): pick a mesh object, or convert it first "
-                           "(Object > Convert > Mesh).")
+                           f"{obj.type.title()}), it has no surface: pick a mesh object (or "
+                           "a curve, text, surface or metaball with volume).")
+    if not obj.users_scene:
+        raise _input_error(f"{what} '{obj.name}' is in no scene (it was deleted): pick an "
+                           "object of the scene, or bring it back with undo.")
     return obj
+
+
+def _flat_curve(obj: bpy.types.Object) -> bool:
+    """A curve or text object with no depth: no extrusion, bevel or modifier to give it one."""
+    if obj.type not in {'CURVE', 'FONT'} or obj.modifiers:
+        return False
+    data = obj.data
+    return (data.extrude == 0 and data.bevel_depth == 0
+            and not (data.bevel_mode == 'OBJECT' and data.bevel_object is not None))
+
+
+def _geometry_evaluated(obj: bpy.types.Object, view_layer: bpy.types.ViewLayer) -> bool:
+    """Whether Blender evaluates the object's geometry (modifiers, curves to mesh) in the view
+    layer: it is not disabled in viewports and lies in a collection that is neither
+    excluded nor disabled in viewports. Hidden objects (H, the eye icon) are evaluated.
+
+    ``evaluated_get`` cannot tell: an object the add-on's settings point to is in the
+    depsgraph even when its geometry is not evaluated (it then gives the bare mesh).
+    """
+    if obj.hide_viewport:
+        return False
+
+    def walk(layer: bpy.types.LayerCollection) -> bool:
+        if layer.exclude or layer.collection.hide_viewport:
+            return False
+        if obj.name in layer.collection.objects:
+            return layer.collection.objects[obj.name] == obj
+        return any(walk(child) for child in layer.children)
+
+    return walk(view_layer.layer_collection)
+
+
+def read_input(obj: bpy.types.Object, what: str,
+               depsgraph: bpy.types.Depsgraph) -> Triangles:
+    """World-space triangles of a Pack input (container or type), modifiers applied.
+
+    Raises InputError naming the object when Blender does not evaluate it (disabled in
+    viewports or in an excluded collection: its modifiers would be silently left out), when
+    it is a curve or text with no depth, when it has no faces at all, or when its size is
+    absurd (:func:`.engine.check_extent`).
+    """
+    stored_is_shown = (obj.type == 'MESH' and not obj.modifiers
+                       and obj.data.shape_keys is None)
+    if not stored_is_shown and not _geometry_evaluated(obj, depsgraph.view_layer):
+        read = ("its modifiers" if obj.type == 'MESH'
+                else f"its {GEOMETRY_TYPES[obj.type]} as a surface")
+        raise _input_error(
+            f"{what} '{obj.name}' is disabled in viewports or in an excluded or disabled "
+            f"collection, so Blender does not evaluate {read}: enable it (to keep it out of "
+            "sight hide it with H instead, which Pack can read), or apply its modifiers.")
+    if _flat_curve(obj):
+        raise _input_error(
+            f"{what} '{obj.name}' is a flat {GEOMETRY_TYPES[obj.type]} with no volume: give "
+            "it depth (Object Data Properties > Geometry > Extrude or Bevel Depth), or "
+            "convert it to a closed mesh.")
+    tris = object_triangles(obj, depsgraph, outward=True)
+    if not len(tris.faces):
+        raise _input_error(
+            f"{what} '{obj.name}' has no faces ({len(tris.vertices)} vertices, only loose "
+            "vertices or edges, or nothing at all): pick a closed mesh, or fill it (Edit "
+            "Mode: select all, Face > Fill or Convex Hull).")
+    check_extent(tris, what)
+    return tris
 
 
 # ------------------------------------------------------------------------------ pack
@@ -140,8 +234,9 @@ def gather_pack(context: bpy.types.Context) -> PackRequest:
         raise _input_error("every object type has share 0: give at least one a share above "
                            "0.")
     depsgraph = context.evaluated_depsgraph_get()
-    ctris = object_triangles(container, depsgraph)
-    ttris = [object_triangles(o, depsgraph) for o in objects]
+    ctris = read_input(container, "container", depsgraph)
+    ttris = [read_input(o, f"object type {i + 1}", depsgraph)
+             for i, o in enumerate(objects)]
     return PackRequest(
         container_name=container.name, type_names=[o.name for o in objects],
         container=ctris, types=ttris, shares=shares, seed=int(s.seed),
@@ -158,12 +253,22 @@ def check_unchanged(context: bpy.types.Context, request: PackRequest) -> None:
     names = [request.container_name, *request.type_names]
     for name, signature in zip(names, request.signatures, strict=True):
         obj = bpy.data.objects.get(name)
-        if obj is None or obj.type != 'MESH':
+        if obj is None or obj.type not in GEOMETRY_TYPES or not obj.users_scene:
             raise _input_error(f"'{name}' was deleted or renamed while packing: nothing was "
                                "added; pack again.")
-        if object_triangles(obj, depsgraph).signature() != signature:
+        if object_triangles(obj, depsgraph, outward=True).signature() != signature:
             raise _input_error(f"'{name}' was moved or edited while packing: nothing was "
                                "added; pack again.")
+
+
+def inputs_in_results(scene: bpy.types.Scene, request: PackRequest) -> list[str]:
+    """Names of the request's input objects that belong to an earlier result of its
+    container: replacing that result would delete them (keep it instead)."""
+    from .results import previous_results
+
+    names = {request.container_name, *request.type_names}
+    return sorted({o.name for c in previous_results(scene, request.container_name)
+                   for o in c.objects if o.name in names})
 
 
 def _type_material(name: str, colour: tuple[float, float, float, float]
@@ -335,7 +440,7 @@ def gather_export(context: bpy.types.Context, options: Any) -> ExportRequest:
         raise _input_error(f"the container '{cname}' of '{coll.name}' is gone: restore it "
                            "(undo) or pack again.")
     _require_mesh(container, "container")
-    ctris = object_triangles(container, context.evaluated_depsgraph_get())
+    ctris = object_triangles(container, context.evaluated_depsgraph_get(), outward=True)
     if ctris.signature() != coll.get(summary.PREFIX + "container_sha256"):
         raise _input_error(f"the container '{cname}' was moved or edited after packing "
                            f"'{coll.name}': pack again, or undo the change.")

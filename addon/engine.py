@@ -80,6 +80,33 @@ class Triangles:
         return mesh_from_arrays(self.vertices, self.faces, name=self.name, role=role)
 
 
+#: the sizes (largest extent, Blender units) Pack takes: beyond them areas and volumes stop
+#: being finite or the engine's tolerances stop being negligible, and no print or scene is
+#: that large or small (1e9 BU is a million kilometres in metres)
+MIN_EXTENT = 1e-6
+MAX_EXTENT = 1e9
+
+
+def check_extent(tris: Triangles, what: str) -> None:
+    """Refuse a Pack input whose size (largest extent of its world-space vertices) lies
+    outside MIN_EXTENT..MAX_EXTENT Blender units, naming it (InputError). Non-finite
+    coordinates are left to the mesh checks, which name them."""
+    from jampacked.core.errors import InputError
+
+    if not len(tris.vertices) or not np.all(np.isfinite(tris.vertices)):
+        return
+    with np.errstate(over="ignore"):
+        extents = np.ptp(tris.vertices, axis=0)
+    size = float(extents.max())
+    if MIN_EXTENT <= size <= MAX_EXTENT:
+        return
+    dims = " x ".join(f"{x:.3g}" for x in extents)
+    raise InputError(
+        f"{what} '{tris.name}' is {dims} units across: Pack takes objects between "
+        f"{MIN_EXTENT:g} and {MAX_EXTENT:g} units. Check its Scale and its parents' (sidebar "
+        "> Item) and the scene's units, or scale its mesh in Edit Mode.")
+
+
 @dataclass
 class PackOutcome:
     """What a pack job returns to the main thread."""

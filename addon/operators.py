@@ -254,7 +254,9 @@ class PackRunner(JobRunner):
     def apply(self, context: bpy.types.Context, result: engine.PackOutcome) -> set[str]:
         bridge.check_unchanged(context, self._request)
         coll = bridge.build_result(context, self._request, result)
-        if not context.scene.jampacked.keep_previous:
+        # an earlier result holding an input (a placed object picked as a type) is kept
+        if not (context.scene.jampacked.keep_previous
+                or bridge.inputs_in_results(context.scene, self._request)):
             results.replace_previous(context.scene, coll)
         p = result.packing
         m, cert = p.metrics, p.certificate
@@ -346,7 +348,8 @@ class JAMPACKED_OT_cancel(bpy.types.Operator):
 
 
 class JAMPACKED_OT_type_add(bpy.types.Operator):
-    """Add the selected mesh objects as object types (or an empty row)"""
+    """Add the selected mesh objects (or curves, text, surfaces, metaballs) as object types
+    (or an empty row)"""
 
     bl_idname = "jampacked.type_add"
     bl_label = "Add Object Type"
@@ -357,7 +360,8 @@ class JAMPACKED_OT_type_add(bpy.types.Operator):
         listed = {item.object for item in s.types if item.object is not None}
         added = 0
         for obj in context.selected_objects:
-            if obj.type == 'MESH' and obj not in listed and obj != s.container:
+            if (obj.type in bridge.GEOMETRY_TYPES and obj not in listed
+                    and obj != s.container):
                 s.types.add().object = obj
                 added += 1
         if not added:

@@ -25,10 +25,13 @@ from bpy.props import (
     StringProperty,
 )
 
+from .bridge import GEOMETRY_TYPES
+
 
 def is_mesh_object(_self: bpy.types.PropertyGroup, obj: bpy.types.Object) -> bool:
-    """Pointer poll: only mesh objects can be picked as container or object type."""
-    return obj.type == 'MESH'
+    """Pointer poll: only objects with a surface (meshes, curves, text, surfaces, metaballs:
+    Pack reads their evaluated mesh) can be picked as container or object type."""
+    return obj.type in GEOMETRY_TYPES
 
 
 class JAMPACKED_PG_type(bpy.types.PropertyGroup):
