@@ -71,6 +71,8 @@ def _normalise_shares(shares: Sequence[float] | None, n: int) -> np.ndarray:
     if not np.all(np.isfinite(q)) or np.any(q < 0) or q.sum() <= 0:
         raise InputError(f"shares must be non-negative numbers with a positive sum, got "
                          f"{q.tolist()}.")
+    if not np.isfinite(q.sum()):  # shares near the float maximum: their sum overflows
+        q = q / q.max()
     return q / q.sum()
 
 

@@ -349,3 +349,9 @@ def test_a_type_far_larger_than_the_container_is_named_with_its_file():
     assert "is 30 units deep" in text, text
     assert "polytope1.obj" in text and "equivalent radius 573.6" in text
     assert "--type-scale" in text and "factor of at least 9.56" in text
+
+
+def test_shares_whose_sum_overflows_are_normalised():
+    p = pack(BOX, POLY, [1e308, 1e308], seed=3, fidelity="low", time_budget=1.0)
+    assert p.n > 0
+    assert [t.share for t in p.types] == [0.5, 0.5]
