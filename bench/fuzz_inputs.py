@@ -38,6 +38,7 @@ import io
 import json
 import math
 import os
+import pathlib
 import random
 import select
 import shutil
@@ -176,7 +177,7 @@ def plan_case(seed: int, i: int, huge_every: int) -> dict:
 _PACK_GENS_API = [
     "valid", "container_mesh", "container_bad", "type_bad", "type_repairable", "box_spec",
     "clearance", "shares", "seed", "time_budget", "container_size", "type_scale", "fidelity",
-    "names", "no_types", "container_repairable", "type_huge_vs_container",
+    "names", "no_types", "container_repairable", "type_huge_vs_container", "api_values",
 ]
 _PACK_GENS_CLI = [
     "valid", "clearance", "type_share", "container_size", "type_scale", "time_budget", "seed",
@@ -1570,6 +1571,34 @@ class Worker:
             types = [tp]
             desc += " (sphere 60 in box 30)"
             exp = "reject"
+        elif gen == "api_values":
+            # what Python callers pass besides plain lists of str: paths, numpy scalars and
+            # arrays, in-memory meshes, tuples, and the common slips (a bare string for the
+            # list of types, None for a file)
+            np = self.np
+            k = int(rng.integers(10))
+            exp = "either" if k >= 6 else "accept"
+            if k == 0:
+                types = [pathlib.Path(tpath)]
+            elif k == 1:
+                kw["seed"] = np.int64(5)
+            elif k == 2:
+                kw["container_size"] = np.float32(40.0)
+            elif k == 3:
+                shares = np.array([1.0])
+            elif k == 4:
+                container = self.meshes.box_mesh((30.0, 30.0, 30.0))
+            elif k == 5:
+                types = (tpath,)
+            elif k == 6:
+                types = tpath
+            elif k == 7:
+                types = [tpath, None]
+            elif k == 8:
+                container = None
+            else:
+                kw["type_scale"] = np.float64(0.9)
+            desc += f" variant {k}"
         inputs = [p for p in [container, *types] if isinstance(p, str) and os.path.isfile(p)]
 
         def call():

@@ -47,6 +47,12 @@ MeshSource = str | os.PathLike | MeshData
 def _load(source: MeshSource, role: str) -> MeshData:
     if isinstance(source, MeshData):
         return source
+    if not isinstance(source, str | os.PathLike):
+        what = ("the container" if role == "container"
+                else "each object type")
+        raise InputError(f"{what} must be a mesh file path or MeshData"
+                         f"{' (or a box spec, box:WxDxH)' if role == 'container' else ''}; "
+                         f"got {source!r}.")
     text = os.fspath(source)
     if role == "container":
         box = parse_box_spec(text)
@@ -101,7 +107,7 @@ def pack(container: MeshSource, types: Sequence[MeshSource],
     inputs = PackInputs(clearance=clearance, time_budget=time_budget,
                         container_size=container_size, type_scale=type_scale,
                         fidelity=fidelity, options=options or PackOptions())
-    seed = _check_arguments(inputs, seed, len(types), names)
+    seed = _check_arguments(inputs, seed, types, names)
     q = _normalise_shares(shares, len(types))
     report = progress or (lambda f, m: None)
 
@@ -134,9 +140,14 @@ def pack(container: MeshSource, types: Sequence[MeshSource],
     return packing
 
 
-def _check_arguments(inputs: PackInputs, seed: object, n_types: int,
+def _check_arguments(inputs: PackInputs, seed: object, types: object,
                      names: Sequence[str] | None) -> int:
     """Refuse bad arguments before any work; returns the seed as an int."""
+    if isinstance(types, str | os.PathLike | MeshData) or not isinstance(
+            types, Sequence | np.ndarray):
+        raise InputError(f"types must be a list of object meshes (files or MeshData), one "
+                         f"per object type; got {types!r}: e.g. pack(container, [{types!r}]).")
+    n_types = len(types)
     if isinstance(seed, bool) or not isinstance(seed, numbers.Integral) or seed < 0:
         raise InputError(f"seed must be a whole number >= 0, got {seed!r}.")
     clearance, budget = inputs.clearance, inputs.time_budget

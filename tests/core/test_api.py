@@ -355,3 +355,22 @@ def test_shares_whose_sum_overflows_are_normalised():
     p = pack(BOX, POLY, [1e308, 1e308], seed=3, fidelity="low", time_budget=1.0)
     assert p.n > 0
     assert [t.share for t in p.types] == [0.5, 0.5]
+
+
+@pytest.mark.parametrize("container, types, match", [
+    (BOX, POLY[0], "types must be a list"),  # a bare path: its characters were read as files
+    (BOX, iter(POLY), "types must be a list"),
+    (BOX, [POLY[0], None], "each object type must be a mesh file path"),
+    (None, POLY, "the container must be a mesh file path"),
+])
+def test_containers_and_types_of_the_wrong_kind_are_refused_by_name(container, types, match):
+    with pytest.raises(InputError, match=match):
+        pack(container, types)
+
+
+def test_paths_tuples_and_numpy_values_are_accepted():
+    from pathlib import Path
+
+    p = pack(BOX, (Path(POLY[0]),), np.array([1.0]), seed=np.int64(3), fidelity="low",
+             time_budget=1.0, container_size=np.float32(34.0), type_scale=np.float64(1.0))
+    assert p.n > 0 and p.seed == 3
