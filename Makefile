@@ -7,7 +7,7 @@ VENV := .venv
 BIN := $(VENV)/bin
 STAMP := $(VENV)/.installed
 
-.PHONY: demo test lint bench clean addon
+.PHONY: demo test lint bench clean addon fuzz
 
 $(STAMP): pyproject.toml
 	$(PY) -m venv $(VENV)
@@ -29,6 +29,16 @@ test: $(STAMP)
 
 bench: $(STAMP)
 	$(BIN)/python bench/run.py
+
+# Input fuzzing (bench/fuzz_inputs.py): N generated cases from SEED through the API and the
+# CLI; fails when a case ends in a traceback, a hang, an invalid result or lost data.
+# Report: out/fuzz-seed$(SEED).json. make fuzz SEED=3
+SEED ?= 0
+N ?= 1000
+fuzz: $(STAMP)
+	mkdir -p out
+	nice -n 10 $(BIN)/python bench/fuzz_inputs.py --n $(N) --seed $(SEED) \
+		--out out/fuzz-seed$(SEED).json --fail-on cdef
 
 # Blender extension zip with the engine's wheels for linux-x64, windows-x64 and macos-arm64
 # (downloads about 250 MB into addon/wheels/ once) -> dist/jampacked-<version>.zip

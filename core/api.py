@@ -22,6 +22,7 @@ import numpy as np
 
 from .certify import Certifier
 from .container import Container, build_container
+from .cost import TypeSize, check_cost, check_sizes, estimate_cost
 from .errors import InputError, PackingError
 from .fidelity import PRESETS, Fidelity, choose_fidelity
 from .margins import Margins, contact_margins
@@ -46,6 +47,12 @@ MeshSource = str | os.PathLike | MeshData
 def _load(source: MeshSource, role: str) -> MeshData:
     if isinstance(source, MeshData):
         return source
+    if not isinstance(source, str | os.PathLike):
+        what = ("the container" if role == "container"
+                else "each object type")
+        raise InputError(f"{what} must be a mesh file path or MeshData"
+                         f"{' (or a box spec, box:WxDxH)' if role == 'container' else ''}; "
+                         f"got {source!r}.")
     text = os.fspath(source)
     if role == "container":
         box = parse_box_spec(text)
@@ -60,12 +67,18 @@ def _normalise_shares(shares: Sequence[float] | None, n: int) -> np.ndarray:
                          "(CLI: --type FILE[=SHARE]).")
     if shares is None:
         return np.full(n, 1.0 / n)
-    q = np.asarray(shares, np.float64)
+    try:
+        q = np.asarray(shares, np.float64)
+    except (TypeError, ValueError):
+        raise InputError(f"shares must be numbers, one per object type; got {shares!r}."
+                         ) from None
     if q.shape != (n,):
         raise InputError(f"{len(q)} shares given for {n} object types: give one share per type.")
     if not np.all(np.isfinite(q)) or np.any(q < 0) or q.sum() <= 0:
         raise InputError(f"shares must be non-negative numbers with a positive sum, got "
                          f"{q.tolist()}.")
+    if not np.isfinite(q.sum()):  # shares near the float maximum: their sum overflows
+        q = q / q.max()
     return q / q.sum()
 
 
@@ -94,7 +107,7 @@ def pack(container: MeshSource, types: Sequence[MeshSource],
     inputs = PackInputs(clearance=clearance, time_budget=time_budget,
                         container_size=container_size, type_scale=type_scale,
                         fidelity=fidelity, options=options or PackOptions())
-    seed = _check_arguments(inputs, seed, len(types), names)
+    seed = _check_arguments(inputs, seed, types, names)
     q = _normalise_shares(shares, len(types))
     report = progress or (lambda f, m: None)
 
@@ -127,9 +140,14 @@ def pack(container: MeshSource, types: Sequence[MeshSource],
     return packing
 
 
-def _check_arguments(inputs: PackInputs, seed: object, n_types: int,
+def _check_arguments(inputs: PackInputs, seed: object, types: object,
                      names: Sequence[str] | None) -> int:
     """Refuse bad arguments before any work; returns the seed as an int."""
+    if isinstance(types, str | os.PathLike | MeshData) or not isinstance(
+            types, Sequence | np.ndarray):
+        raise InputError(f"types must be a list of object meshes (files or MeshData), one "
+                         f"per object type; got {types!r}: e.g. pack(container, [{types!r}]).")
+    n_types = len(types)
     if isinstance(seed, bool) or not isinstance(seed, numbers.Integral) or seed < 0:
         raise InputError(f"seed must be a whole number >= 0, got {seed!r}.")
     clearance, budget = inputs.clearance, inputs.time_budget
@@ -166,6 +184,7 @@ class _Scene:
     """The meshes as loaded, and the container in the container frame."""
 
     container: MeshData
+    label: str  # the container for messages: its file or box spec
     frame_from_file: np.ndarray  # (4, 4) container frame from the container file
     vertices: np.ndarray  # (V, 3) container vertices, container frame
     volume: float  # container volume, container units^3
@@ -181,8 +200,43 @@ def _load_scene(container: MeshSource, types: Sequence[MeshSource],
         frame_from_file[:3, :3] *= container_size / float(cmesh.extents.max())
     s_c = frame_from_file[0, 0]
     meshes = [_load(t, "object") for t in types]
-    return _Scene(cmesh, frame_from_file, cmesh.vertices * s_c, cmesh.volume * s_c ** 3,
-                  meshes)
+    label = cmesh.path or ("(given as a mesh)" if isinstance(container, MeshData)
+                           else os.fspath(container))
+    with np.errstate(over="ignore", under="ignore"):  # check_sizes refuses what overflowed
+        return _Scene(cmesh, label, frame_from_file, cmesh.vertices * s_c,
+                      cmesh.volume * s_c ** 3, meshes)
+
+
+def _type_sizes(scene: _Scene, type_scale: float, names: Sequence[str] | None
+                ) -> list[TypeSize]:
+    """The object types' names, files, extents and volumes after the type scale."""
+    with np.errstate(over="ignore", under="ignore"):
+        return [TypeSize(name=names[i] if names is not None else (
+                             Path(m.path).stem if m.path else f"type{i}"),
+                         path=m.path, extents=m.extents * type_scale,
+                         volume=float(m.volume) * type_scale ** 3 if type_scale < 1e100
+                         else math.inf)
+                for i, m in enumerate(scene.types)]
+
+
+def _check_request(scene: _Scene, q: np.ndarray, inputs: PackInputs,
+                   names: Sequence[str] | None) -> list[TypeSize]:
+    """Refuse sizes out of range and requests beyond the machine before any grid or
+    lattice is allocated; returns the types' sizes."""
+    sizes = _type_sizes(scene, inputs.type_scale, names)
+    c_ext = np.ptp(scene.vertices, axis=0)
+    check_sizes(scene.label, c_ext, scene.volume, sizes, inputs.type_scale,
+                inputs.container_size)
+    volumes = np.array([t.volume for t in sizes])
+    cells = inputs.options.fidelity.container_cells or (
+        PRESETS["high"] if inputs.fidelity == "auto" else PRESETS[inputs.fidelity]
+    ).container_cells
+    ph, cav = inputs.options.phases, inputs.options.cavity
+    cost = estimate_cost(c_ext, scene.volume, volumes, q, cells, ph.phase1_density,
+                         ph.phase2_spacing, cav.factors)
+    live = [t for t, share in zip(sizes, q, strict=True) if share > 0]
+    check_cost(cost, scene.label, c_ext, min(live, key=lambda t: t.volume))
+    return sizes
 
 
 @dataclass
@@ -214,7 +268,8 @@ def _approximate(scene: _Scene, q: np.ndarray, inputs: PackInputs,
     fidelity, which decides the container grid, so the grid is built at medium's (or the
     preset's) resolution and again only if that changes."""
     clearance, type_scale = inputs.clearance, inputs.type_scale
-    volumes = np.array([m.volume for m in scene.types]) * type_scale ** 3
+    sizes = _check_request(scene, q, inputs, names)
+    volumes = np.array([t.volume for t in sizes])
     expected = 0.5 * scene.volume / float(np.sum(q * volumes))
     f_min = float(equivalent_radius(volumes.min()))
     fid = PRESETS["medium"] if inputs.fidelity == "auto" else PRESETS[inputs.fidelity]
@@ -223,11 +278,9 @@ def _approximate(scene: _Scene, q: np.ndarray, inputs: PackInputs,
                            f_min / fid.container_cells)
     depth = float(cont.grid.values.max())
     if depth <= f_min * 0.5 + clearance:
-        raise PackingError(
-            f"no object fits: the container's deepest interior point is {depth:.4g} units "
-            f"from its wall, the smallest object's equivalent radius is {f_min:.4g}"
-            f"{f' plus clearance {clearance:g}' if clearance else ''}. Scale the container "
-            "up (--container-size) or the objects down (--type-scale).")
+        depth = _measured_depth(scene, cont)
+        if depth <= f_min * 0.5 + clearance:
+            _refuse_no_room(scene, sizes, depth, clearance)
     if inputs.fidelity == "auto":
         local = [(m.vertices - m.vertices.mean(axis=0)) * type_scale for m in scene.types]
         r_max = max(float(np.sqrt((v ** 2).sum(axis=1)).max()) for v in local)
@@ -239,12 +292,53 @@ def _approximate(scene: _Scene, q: np.ndarray, inputs: PackInputs,
     return _Approximation(cont, fid, f_min, volumes, [])
 
 
+#: a container grid with fewer cells than this across the container's largest extent
+#: measures its depth again on a grid this fine before refusing every type
+DEPTH_CELLS = 64
+
+
+def _measured_depth(scene: _Scene, cont: Container) -> float:
+    """The container's deepest interior distance, measured on a grid of at least DEPTH_CELLS
+    cells across (the approximation's grid follows the objects' size and is coarser than
+    the container when they are far larger: its nodes may all lie outside)."""
+    extent = float(np.ptp(scene.vertices, axis=0).max())
+    if cont.grid.spacing * DEPTH_CELLS <= extent:
+        return float(cont.grid.values.max())
+    fine = build_container(scene.vertices, scene.container.faces, scene.volume,
+                           extent / DEPTH_CELLS)
+    return max(float(fine.grid.values.max()), 0.0)
+
+
+def _refuse_no_room(scene: _Scene, sizes: list[TypeSize], depth: float,
+                    clearance: float) -> None:
+    """Refuse a scene where even the smallest type cannot sit at the container's deepest
+    point, naming the types (and files) that do not fit."""
+    c_ext = np.ptp(scene.vertices, axis=0)
+    dims = " x ".join(f"{x:.4g}" for x in c_ext)
+    need = [(t, 0.5 * t.equivalent_radius + clearance) for t in sizes]
+    big = sorted([(t, n) for t, n in need if n >= depth], key=lambda x: x[1])
+    listed = "; ".join(
+        f"{t.label}: equivalent radius {t.equivalent_radius:.4g}, "
+        f"{' x '.join(f'{x:.4g}' for x in t.extents)} units across" for t, _ in big[:5])
+    more = f"; and {len(big) - 5} more" if len(big) > 5 else ""
+    room = depth - clearance
+    factor = (f"by a factor of at least {0.5 * big[0][0].equivalent_radius / room:.3g}"
+              if room > 0 else "after lowering the clearance")
+    raise PackingError(
+        f"no object fits: the container {scene.label} ({dims} units) is {depth:.4g} units "
+        f"deep at its deepest interior point, and an object needs more than half its "
+        f"equivalent radius{' plus the clearance ' + format(clearance, 'g') if clearance else ''}"
+        f" there. Too large: {listed}{more}. Scale the objects down (--type-scale / "
+        f"type_scale, {factor}) or the container up (--container-size / container_size)"
+        f"{', or lower the clearance' if clearance else ''}.")
+
+
 def _check_types_fit(objtypes: list[ObjectType], cont: Container, clearance: float) -> None:
     """A type whose largest inscribed sphere (plus the clearance) is deeper than the
     container fits nowhere: the grid's depth is within a cell of the true depth, the
     spheres' radii never exceed the true inscribed radius."""
     depth = float(cont.grid.values.max())
-    no_room = [t.name for t in objtypes if t.share > 0
+    no_room = [f"{t.name} ({t.path})" if t.path else t.name for t in objtypes if t.share > 0
                and float(t.sphere_radii.max()) + clearance > depth + cont.grid.spacing]
     if no_room:
         raise PackingError(

@@ -15,6 +15,8 @@ from .kernels import sample_grid_many
 
 #: grid cells across the container's largest extent are capped to keep memory and time sane
 MAX_CELLS_PER_AXIS = 220
+#: lattice points `interior_points` tests at a time
+SLAB_POINTS = 1 << 20
 
 
 @dataclass(frozen=True)
@@ -57,8 +59,18 @@ def interior_points(container: Container, spacing: float, min_depth: float,
     axes = [np.arange(lo[a] + off[a], hi[a], spacing) for a in range(3)]
     if any(len(a) == 0 for a in axes):
         return np.zeros((0, 3))
-    g = np.meshgrid(*axes, indexing="ij")
-    pts = np.stack([x.ravel() for x in g], axis=1)
-    depth = sample_grid_many(container.grid.values, container.grid.origin,
-                             container.grid.spacing, pts)
-    return pts[depth >= min_depth]
+    # slab by slab along x, in the order of the whole lattice: the bounding box's lattice
+    # is never held at once, only the points inside (a thin or hollow container's box
+    # holds many times more)
+    yz = np.stack([x.ravel() for x in np.meshgrid(axes[1], axes[2], indexing="ij")], axis=1)
+    per_slab = max(1, SLAB_POINTS // len(yz))
+    kept = []
+    for start in range(0, len(axes[0]), per_slab):
+        xs = axes[0][start:start + per_slab]
+        pts = np.empty((len(xs) * len(yz), 3))
+        pts[:, 0] = np.repeat(xs, len(yz))
+        pts[:, 1:] = np.tile(yz, (len(xs), 1))
+        depth = sample_grid_many(container.grid.values, container.grid.origin,
+                                 container.grid.spacing, pts)
+        kept.append(pts[depth >= min_depth])
+    return np.concatenate(kept)

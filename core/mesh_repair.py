@@ -40,6 +40,8 @@ __all__ = [
 
 # Vertices closer than this fraction of the bounding-box diagonal are the same vertex.
 MERGE_TOLERANCE = 1e-9
+#: coordinates beyond this are refused: a volume (a length cubed) overflows past 1e102
+MAX_COORDINATE = 1e100
 # A face whose height is below MERGE_TOLERANCE * diagonal is degenerate (zero area).
 # A connected piece whose area is below this fraction of the total area is a sliver.
 SLIVER_AREA_FRACTION = 1e-6
@@ -277,6 +279,13 @@ def _refuse_unreadable(vertices: np.ndarray, faces: np.ndarray, cap: str,
         raise MeshError(
             f"{cap} has {plural(bad, 'vertex', 'vertices')} with NaN or infinite coordinates: "
             f"{_FIX_REEXPORT}."
+        )
+    largest = float(np.abs(vertices).max())
+    if largest > MAX_COORDINATE:
+        raise MeshError(
+            f"{cap} has coordinates as large as {largest:.3g}: beyond {MAX_COORDINATE:g} "
+            "the squares of distances and the volume overflow. The file is most likely in "
+            "the wrong units: scale it down in the program that wrote it."
         )
     if faces.min() < 0 or faces.max() >= len(vertices):
         raise MeshError(

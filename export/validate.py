@@ -52,7 +52,12 @@ import numpy as np
 
 from jampacked.core.errors import InputError, plural
 from jampacked.core.mesh_files import read_mesh_arrays
-from jampacked.core.mesh_repair import MERGE_TOLERANCE, ZERO_VOLUME_FRACTION, manifold_status
+from jampacked.core.mesh_repair import (
+    MAX_COORDINATE,
+    MERGE_TOLERANCE,
+    ZERO_VOLUME_FRACTION,
+    manifold_status,
+)
 from jampacked.core.mesh_topology import EdgeTopology, edge_topology
 
 from . import meshcheck
@@ -328,6 +333,11 @@ def validate_arrays(
         return empty_report(path_str, n_vertices, n_faces,
                             f"{plural(bad, 'vertex', 'vertices')} with NaN or infinite "
                             "coordinates", seconds)
+    largest = float(np.abs(vertices[used]).max())
+    if largest > MAX_COORDINATE:  # lengths cubed overflow: volumes and areas would be NaN
+        return empty_report(path_str, n_vertices, n_faces,
+                            f"coordinates as large as {largest:.3g} (beyond "
+                            f"{MAX_COORDINATE:g} volumes overflow; wrong units?)", seconds)
     m = _merge(vertices, used, local)
     seconds["merge"] = time.perf_counter() - t0
 

@@ -298,3 +298,79 @@ def test_one_attempt_without_a_budget_or_when_attempts_are_capped():
 def test_bad_arguments_are_refused_by_name_before_any_work(kwargs, name):
     with pytest.raises(InputError, match=name):
         pack(BOX, ["/nonexistent/a.obj", "/nonexistent/b.obj"], **kwargs)
+
+
+# --- sizes and cost: refused from the sizes alone, before any grid or lattice exists -------
+
+@pytest.mark.parametrize("kwargs, match", [
+    ({"type_scale": 1e-3, "container": "box:200x200x200"}, r"Scale the objects up"),
+    ({"container_size": 1e4}, r"holds about 6\.[0-9]e\+08 objects"),
+])
+def test_requests_beyond_the_machine_are_refused_with_the_numbers(kwargs, match):
+    container = kwargs.pop("container", BOX)
+    with pytest.raises(PackingError, match=match) as err:
+        pack(container, POLY[:1], fidelity="low", **kwargs)
+    text = str(err.value)
+    assert "polytope1.obj" in text and "--container-size" in text and "lattice" in text
+
+
+def test_a_request_needing_more_memory_than_the_machine_has_is_refused(monkeypatch):
+    from jampacked.core import cost
+
+    monkeypatch.setattr(cost, "machine_memory", lambda: 64 << 20)  # a 64 MiB machine
+    with pytest.raises(PackingError, match=r"of 64 MiB\).*--type-scale"):
+        pack("box:300x300x300", POLY[:1], fidelity="low")
+
+
+@pytest.mark.parametrize("container, kwargs, match", [
+    ("box:1e308x1e308x1e308", {}, r"container box:1e308x1e308x1e308 is 1e\+308 .*volume inf"),
+    (BOX, {"container_size": 1e-300}, r"container box:34x30x32 .*--container-size"),
+    (BOX, {"container_size": 1e300}, r"container box:34x30x32 .*volume inf"),
+    (BOX, {"type_scale": 1e200}, r"type polytope1 \(.*polytope1\.obj\) .*type scale 1e\+200"),
+    (BOX, {"type_scale": 1e-200}, r"type polytope1 .*volume 0\).*--type-scale"),
+    (BOX, {"type_scale": 1e-120}, r"type polytope1 .*--type-scale"),
+])
+def test_sizes_that_overflow_or_vanish_are_refused_by_name(container, kwargs, match):
+    with pytest.raises(InputError, match=match):
+        pack(container, POLY[:1], fidelity="low", **kwargs)
+
+
+def test_shares_that_are_not_numbers_are_refused():
+    with pytest.raises(InputError, match="shares must be numbers"):
+        pack(BOX, POLY, ["a", 1])
+
+
+def test_a_type_far_larger_than_the_container_is_named_with_its_file():
+    # the container grid follows the objects' size: coarser than this 60 mm box, its nodes
+    # all fell outside and the box measured 0 deep
+    with pytest.raises(PackingError, match="no object fits") as err:
+        pack("box:60x60x60", POLY[:1], fidelity="low", type_scale=100.0)
+    text = str(err.value)
+    assert "is 30 units deep" in text, text
+    assert "polytope1.obj" in text and "equivalent radius 573.6" in text
+    assert "--type-scale" in text and "factor of at least 9.56" in text
+
+
+def test_shares_whose_sum_overflows_are_normalised():
+    p = pack(BOX, POLY, [1e308, 1e308], seed=3, fidelity="low", time_budget=1.0)
+    assert p.n > 0
+    assert [t.share for t in p.types] == [0.5, 0.5]
+
+
+@pytest.mark.parametrize("container, types, match", [
+    (BOX, POLY[0], "types must be a list"),  # a bare path: its characters were read as files
+    (BOX, iter(POLY), "types must be a list"),
+    (BOX, [POLY[0], None], "each object type must be a mesh file path"),
+    (None, POLY, "the container must be a mesh file path"),
+])
+def test_containers_and_types_of_the_wrong_kind_are_refused_by_name(container, types, match):
+    with pytest.raises(InputError, match=match):
+        pack(container, types)
+
+
+def test_paths_tuples_and_numpy_values_are_accepted():
+    from pathlib import Path
+
+    p = pack(BOX, (Path(POLY[0]),), np.array([1.0]), seed=np.int64(3), fidelity="low",
+             time_budget=1.0, container_size=np.float32(34.0), type_scale=np.float64(1.0))
+    assert p.n > 0 and p.seed == 3
