@@ -5,7 +5,10 @@ time budget, an attempt often ends before it: its rounds of cavity passes stop a
 objects. The time left then goes to new attempts from scratch (each its own random
 stream), as long as it is at least the shortest attempt so far, and the densest attempt is
 kept: attempts end at densities that differ by points between random streams
-(docs/notes-core.md).
+(docs/notes-core.md). A budget is a ceiling, not a duration: once an attempt that ran to its
+end repeats the best attempt's object count and density, the scene is taken as full at that
+count (small scenes, where every stream reaches the same count) and no further attempt
+starts.
 """
 
 from __future__ import annotations
@@ -21,6 +24,16 @@ from .options import PackOptions
 from .phases import Stop, phase1, phase2
 from .report import AttemptSummary, ExtraPassStats, PhaseStats
 from .solver import PackState, Solver
+
+#: attempts that ran to their end and repeated the best attempt's count and density (to
+#: SAME_DENSITY) after which no further attempt starts. Between random streams, densities of
+#: scenes with more than a few dozen objects differ by points (docs/notes-core.md), so an
+#: exact repeat means the count is what the container holds at this fidelity.
+REPEATS_TO_STOP = 1
+SAME_DENSITY = 1e-9
+#: why the attempts ended early (the last attempt's summary says it): not a stop reason of
+#: the run (`RunReport.stopped`), which stays None as the placement ran to its end
+REPEATED = "repeated the best attempt"
 
 
 @dataclass
@@ -111,11 +124,14 @@ def place(new_solver: Callable[[], Solver], q: np.ndarray, s1: float, f_min: flo
           report: Callable[[float, str], None]) -> tuple[Attempt, list[AttemptSummary]]:
     """Attempts of `place_once`, each on a fresh solver from `new_solver()`; returns the
     densest and a summary of every attempt. Without a deadline there is one attempt. The
-    first uses the random stream of `seed` itself, attempt a > 0 that of (seed, a).
+    first uses the random stream of `seed` itself, attempt a > 0 that of (seed, a). The
+    attempts end early, the last one's summary saying REPEATED, once REPEATS_TO_STOP
+    attempts in a row ran to their end with the best attempt's count and density.
     """
     best: Attempt | None = None
     done: list[AttemptSummary] = []
     shortest = np.inf
+    repeats = 0
     high = 0.0  # the progress bar never runs backwards across attempts
 
     def monotone(fraction: float, message: str) -> None:
@@ -129,9 +145,23 @@ def place(new_solver: Callable[[], Solver], q: np.ndarray, s1: float, f_min: flo
         att = place_once(new_solver(), q, s1, f_min, rng, stop, margin, options, c_volume,
                          stop.deadline is not None, monotone)
         shortest = min(shortest, time.perf_counter() - t0)
-        done.append(att.summary(stop.reason or None))
+        summary = att.summary(stop.reason or None)
+        done.append(summary)
+        if best is not None and not stop.reason and _repeats(att, best):
+            repeats += 1
+        else:
+            repeats = 0
         if best is None or att.density > best.density:
             best = att
+        if repeats >= REPEATS_TO_STOP and stop.deadline is not None:
+            summary.stopped = REPEATED
+            return best, done
         if (stop.deadline is None or stop() or len(done) >= options.attempts.max_attempts
                 or stop.deadline - time.perf_counter() < shortest):
             return best, done
+
+
+def _repeats(att: Attempt, best: Attempt) -> bool:
+    """`att` ended with the same object count and density as `best`."""
+    return (att.after["after_extra"]["count"] == best.after["after_extra"]["count"]
+            and abs(att.density - best.density) <= SAME_DENSITY)

@@ -22,6 +22,7 @@ from jampacked.core.options import (
 )
 from jampacked.core.packing_json import load_packing, save_packing
 from jampacked.core.phases import best_tvd
+from jampacked.core.placement import REPEATED, REPEATS_TO_STOP
 
 POLY = [str(mesh_path(f"polyhedra/convex5/polytope{i}.obj")) for i in (1, 3)]
 BOX = "box:34x30x32"
@@ -274,6 +275,22 @@ def test_time_left_after_an_attempt_goes_to_new_attempts_and_the_densest_is_kept
     assert p.certificate["certified"]
     # a different random stream per attempt: not the same packing over and over
     assert len({(a.count, round(a.density, 9)) for a in attempts}) > 1
+
+
+def test_a_full_small_scene_stops_its_attempts_before_the_budget():
+    """A budget is a ceiling: Spot at 120 mm holding oranges and lemons at 25 mm (type
+    scale 340) is full at the same count in every attempt; once an attempt repeats the
+    best's count and density, no further attempt starts (here 4 attempts ran the whole 20 s
+    budget before). The run is not reported as stopped by the deadline."""
+    fruit = [str(mesh_path(f"fruit/ycb_lowpoly/{n}.obj")) for n in ("017_orange", "014_lemon")]
+    p = pack(str(mesh_path("containers/spot.obj")), fruit, [0.6, 0.4], container_size=120.0,
+             type_scale=340.0, time_budget=20.0)
+    attempts = p.report.attempts
+    assert p.report.stopped is None
+    assert len(attempts) == 1 + REPEATS_TO_STOP, attempts
+    assert attempts[-1].stopped == REPEATED
+    assert all(a.count == attempts[0].count for a in attempts)
+    assert p.certificate["certified"]
 
 
 def test_one_attempt_without_a_budget_or_when_attempts_are_capped():
