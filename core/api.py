@@ -27,6 +27,7 @@ from .fidelity import PRESETS, Fidelity, choose_fidelity
 from .margins import Margins, contact_margins
 from .meshes import MeshData, box_mesh, load_mesh, parse_box_spec
 from .metrics import compute_metrics, equivalent_radius
+from .numba_cache import COMPILE_MESSAGE, cache_is_cold
 from .objects import ObjectType, build_type
 from .options import FidelityOverrides, PackOptions
 from .packing_types import Packing, TypeRecord
@@ -281,6 +282,8 @@ def _place(scene: _Scene, approx: _Approximation, q: np.ndarray, seed: int,
     solver_params = SolverParams(
         clearance=clearance, tol=1e-6 * approx.f_min, k_obj=ph.k_obj, k_wall=ph.k_wall,
         k_rot=ph.k_rot, damping=ph.damping, wall_margin=margins.wall)
+    if cache_is_cold():  # say why the wait before the budget: numba compiles (seconds)
+        report(0.03, COMPILE_MESSAGE)
     Solver(cont, table, PackState(), solver_params).warm_up()
     tuner = ThreadTuner(numba.get_num_threads()) if opts.tune_threads else None
     t_compile = time.perf_counter()

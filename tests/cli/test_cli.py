@@ -301,3 +301,48 @@ def test_python_dash_m(tmp_path):
     r = subprocess.run([sys.executable, "-m", "jampacked.cli.main", "--help"], env=env,
                        capture_output=True, text=True, timeout=120)
     assert r.returncode == 0 and "jampacked" in r.stdout
+
+
+# --------------------------------------------------------------------------- first run
+
+
+def test_a_cold_engine_cache_is_told_apart_from_a_warm_one(tmp_path):
+    """numba's cache of the placement kernels: cold in an empty NUMBA_CACHE_DIR (a first
+    run compiles), warm here where the kernels have run (a fixture packed). Reads index
+    files only: nothing compiles."""
+    code = "from jampacked.core.numba_cache import cache_is_cold; print(cache_is_cold())"
+    env = {**os.environ, "NUMBA_CACHE_DIR": str(tmp_path / "empty")}
+    cold = subprocess.run([sys.executable, "-c", code], env=env, capture_output=True,
+                          text=True, timeout=120)
+    assert cold.stdout.strip() == "True", cold.stderr
+    warm = subprocess.run([sys.executable, "-c", code], capture_output=True, text=True,
+                          timeout=120, env={k: v for k, v in os.environ.items()
+                                            if k != "NUMBA_CACHE_DIR"})
+    assert warm.stdout.strip() == "False", warm.stderr
+
+
+def test_pack_says_it_compiles_before_the_budget_and_notes_a_slow_compile(tmp_path,
+                                                                          monkeypatch):
+    """With a cold cache pack() reports the compile step before phase 1 (the budget starts
+    after it); a compile that took long gets a note on stderr saying where it is cached."""
+    from jampacked.core import api, numba_cache
+    from jampacked.core.numba_cache import COMPILE_MESSAGE
+
+    messages = []
+    monkeypatch.setattr(api, "cache_is_cold", lambda: True)
+    api.pack("box:30x30x30", [str(P1)], fidelity="low", seed=1,
+             progress=lambda f, m: messages.append(m))
+    assert COMPILE_MESSAGE in messages
+    assert messages.index(COMPILE_MESSAGE) < min(
+        i for i, m in enumerate(messages) if m.startswith("phase 1"))
+    monkeypatch.setattr(api, "cache_is_cold", lambda: False)
+    messages.clear()
+    api.pack("box:30x30x30", [str(P1)], fidelity="low", seed=1,
+             progress=lambda f, m: messages.append(m))
+    assert COMPILE_MESSAGE not in messages
+
+    monkeypatch.setattr(numba_cache, "SLOW_WARM_UP", 0.0)  # any compile time counts as slow
+    rc, _, se = run(["pack", "box:30x30x30", "--type", str(P1), *SMALL,
+                     "-o", str(tmp_path / "p.json")])
+    assert rc == 0, se
+    assert "compiling the engine took" in se and "first run only" in se
