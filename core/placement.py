@@ -119,30 +119,60 @@ def place_once(solver: Solver, q: np.ndarray, s1: float, f_min: float,
         timings={"phase1": t1 - t0, "phase2": t2 - t1, "extra": t3 - t2})
 
 
+class Snapshots:
+    """Passes the objects of a placement state on as `fn(positions, radii, types)`: (N, 3)
+    centres, (N,) bounding radii at their current scale and (N,) type indices of the alive
+    objects (copies; container frame, container units), at most once per `period` seconds
+    (a live view needs a few a second; copying costs little next to a solver call)."""
+
+    def __init__(self, fn: Callable[[np.ndarray, np.ndarray, np.ndarray], None],
+                 radius: np.ndarray, period: float = 0.25):
+        self.fn = fn
+        self.radius = radius  # (T,) bounding radius of each type at full size
+        self.period = period
+        self._last = -np.inf
+
+    def __call__(self, state: PackState) -> None:
+        now = time.perf_counter()
+        if now - self._last < self.period:
+            return
+        self._last = now
+        idx = np.flatnonzero(state.alive[: state.n])
+        typ = state.typ[idx].copy()
+        self.fn(state.pos[idx].copy(), self.radius[typ] * state.scale[idx], typ)
+
+
 def place(new_solver: Callable[[], Solver], q: np.ndarray, s1: float, f_min: float,
           seed: int, stop: Stop, margin: np.ndarray, options: PackOptions, c_volume: float,
-          report: Callable[[float, str], None]) -> tuple[Attempt, list[AttemptSummary]]:
+          report: Callable[[float, str], None],
+          watch: Callable[[PackState], None] | None = None
+          ) -> tuple[Attempt, list[AttemptSummary]]:
     """Attempts of `place_once`, each on a fresh solver from `new_solver()`; returns the
     densest and a summary of every attempt. Without a deadline there is one attempt. The
     first uses the random stream of `seed` itself, attempt a > 0 that of (seed, a). The
     attempts end early, the last one's summary saying REPEATED, once REPEATS_TO_STOP
     attempts in a row ran to their end with the best attempt's count and density.
+    watch(state), when given, sees the running attempt's state at every progress report.
     """
     best: Attempt | None = None
     done: list[AttemptSummary] = []
     shortest = np.inf
     repeats = 0
     high = 0.0  # the progress bar never runs backwards across attempts
+    current: Solver | None = None  # the running attempt's
 
     def monotone(fraction: float, message: str) -> None:
         nonlocal high
         high = max(high, fraction)
         report(high, message if not done else f"attempt {len(done) + 1}: {message}")
+        if watch is not None and current is not None:
+            watch(current.s)
 
     while True:
         rng = np.random.default_rng(seed if not done else [seed, len(done)])
         t0 = time.perf_counter()
-        att = place_once(new_solver(), q, s1, f_min, rng, stop, margin, options, c_volume,
+        current = new_solver()
+        att = place_once(current, q, s1, f_min, rng, stop, margin, options, c_volume,
                          stop.deadline is not None, monotone)
         shortest = min(shortest, time.perf_counter() - t0)
         summary = att.summary(stop.reason or None)

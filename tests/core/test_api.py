@@ -3,6 +3,7 @@
 from __future__ import annotations
 
 import itertools
+import time
 
 import manifold3d as m3
 import numpy as np
@@ -315,3 +316,31 @@ def test_one_attempt_without_a_budget_or_when_attempts_are_capped():
 def test_bad_arguments_are_refused_by_name_before_any_work(kwargs, name):
     with pytest.raises(InputError, match=name):
         pack(BOX, ["/nonexistent/a.obj", "/nonexistent/b.obj"], **kwargs)
+
+
+def test_snapshots_show_the_placement_as_it_grows_and_change_nothing():
+    """pack(snapshot=...) sees the alive objects (centres inside the box, radii up to the
+    types' bounding radii, valid types) a few times a second; the packing is the same as
+    without it."""
+    seen = []
+    p = pack(BOX, POLY, [0.5, 0.5], seed=3, fidelity="low",
+             snapshot=lambda pos, r, t: seen.append((time.perf_counter(), pos, r, t)))
+    q = pack(BOX, POLY, [0.5, 0.5], seed=3, fidelity="low")
+    np.testing.assert_array_equal(p.translations, q.translations)
+    assert len(seen) >= 2
+    assert max(len(t) for _, _, _, t in seen) >= p.n // 2
+    bound = np.array([_bounding_radius(rec) for rec in p.types])
+    for _, pos, r, t in seen:
+        assert pos.shape == (len(t), 3) and r.shape == (len(t),)
+        assert np.all(np.abs(pos) <= np.array([17.0, 15.0, 16.0]))
+        assert np.all((r > 0) & (r <= bound[t] + 1e-6))
+        assert set(t.tolist()) <= {0, 1}
+    gaps = np.diff([s[0] for s in seen])  # throttled
+    assert gaps.min() >= 0.25 - 1e-3
+
+
+def _bounding_radius(rec) -> float:
+    """A type's bounding radius about its local origin, from its file."""
+    v = trimesh.load(rec.path, force="mesh").vertices
+    local = v @ np.asarray(rec.local_from_file)[:3, :3].T + np.asarray(rec.local_from_file)[:3, 3]
+    return float(np.linalg.norm(local, axis=1).max())
