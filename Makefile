@@ -20,7 +20,7 @@ demo: $(STAMP)
 	mkdir -p out
 	$(BIN)/jampacked pack default --time-budget 60 -o out/packing.json --preview out/preview.png
 	$(BIN)/jampacked export out/packing.json --mode connect --shell 2 --up +y \
-		--open-plane +y@0.55 --drain 3 -o out/spot.3mf -o out/spot.stl --render out/spot.png
+		--window +y@45 --drain 3 -o out/spot.3mf -o out/spot.stl --render out/spot.png
 	$(BIN)/jampacked validate out/spot.3mf out/spot.stl
 
 test: $(STAMP)

@@ -140,13 +140,16 @@ def packing_from_json(text: str) -> Packing:
 def pack_triangles(container: Triangles, types: Sequence[Triangles], shares: Sequence[float],
                    *, seed: int, clearance: float, fidelity: str, time_budget: float | None,
                    mix_tolerance: float | None = None,
-                   progress: Progress, should_cancel: ShouldCancel) -> PackOutcome:
+                   progress: Progress, should_cancel: ShouldCancel,
+                   snapshot: Callable[..., None] | None = None) -> PackOutcome:
     """Check the meshes and pack; runs in the worker thread.
 
     Returns the certified packing (container frame = world space) and its JSON text, in
     which the container is named ``blender:<object name>`` and the types have no path.
     mix_tolerance caps the type mix error the late cavity passes may reach (None: the
-    engine's default). Raises JampackedError subclasses (MeshError naming the object,
+    engine's default). snapshot(positions, radii, types) sees the objects placed so far
+    (world space, Blender units; :func:`jampacked.core.api.pack`). Raises JampackedError
+    subclasses (MeshError naming the object,
     InputError, ...).
     """
     from jampacked.core.api import pack
@@ -158,6 +161,7 @@ def pack_triangles(container: Triangles, types: Sequence[Triangles], shares: Seq
     packing = pack(cmesh, tmeshes, list(shares), seed=seed, clearance=clearance,
                    fidelity=fidelity, time_budget=time_budget, progress=progress,
                    should_cancel=should_cancel, names=[t.name for t in types],
+                   snapshot=snapshot,
                    options=None if mix_tolerance is None
                    else PackOptions(cavity=CavityPassOptions(max_tvd=mix_tolerance)))
     packing.container_path = CONTAINER_SPEC + container.name

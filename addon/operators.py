@@ -18,7 +18,7 @@ import bpy
 import numpy as np
 from bpy.props import EnumProperty, FloatProperty, StringProperty
 
-from . import bridge, engine, repair, results, worker
+from . import bridge, engine, live_view, repair, results, worker
 from .props import axis_name
 
 #: seconds between progress updates
@@ -79,6 +79,15 @@ class JobRunner:
     def apply(self, context: bpy.types.Context, result: Any) -> set[str]:
         raise NotImplementedError
 
+    def on_start(self, context: bpy.types.Context) -> None:
+        """Main thread, once the job runs (the live view starts here)."""
+
+    def on_poll(self, context: bpy.types.Context, job: worker.Job) -> None:
+        """Main thread, at every poll while the job runs."""
+
+    def on_end(self, context: bpy.types.Context) -> None:
+        """Main thread, once, on every way out (done, cancelled, failed, an exception)."""
+
     # ---------------------------------------------------------------- steps
     def begin(self, context: bpy.types.Context) -> bool:
         """Check, read the inputs and start the job; False (after a report) if it cannot."""
@@ -103,6 +112,7 @@ class JobRunner:
         state.fraction = 0.0
         state.message = "starting"
         state.stopping = False
+        self.on_start(context)
         return True
 
     def step(self, context: bpy.types.Context) -> set[str]:
@@ -119,6 +129,7 @@ class JobRunner:
         state.message = snap.message
         state.stopping = snap.stopping
         if snap.state == worker.RUNNING:
+            self.on_poll(context, job)
             line = self._log.line(snap) if self._log is not None else None
             if line:
                 print(line, flush=True)
@@ -158,8 +169,11 @@ class JobRunner:
             wm.jampacked_job.stopping = False
             _tag_redraw(context)
         finally:
-            if self._job is not None:
-                self._job.release()
+            try:
+                self.on_end(context)
+            finally:
+                if self._job is not None:
+                    self._job.release()
 
     def run_blocking(self, context: bpy.types.Context) -> set[str]:
         """The modal steps in a loop, for scripts and background mode.
@@ -247,9 +261,19 @@ class PackRunner(JobRunner):
                 request.container, request.types, request.shares, seed=request.seed,
                 clearance=request.clearance, fidelity=request.fidelity,
                 time_budget=request.time_budget, mix_tolerance=request.mix_tolerance,
-                progress=progress, should_cancel=should_cancel)
+                progress=progress, should_cancel=should_cancel, snapshot=job.publish)
 
-        return worker.Job(self.job_title, run)
+        job = worker.Job(self.job_title, run)
+        return job
+
+    def on_start(self, context: bpy.types.Context) -> None:
+        live_view.VIEW.start()
+
+    def on_poll(self, context: bpy.types.Context, job: worker.Job) -> None:
+        live_view.VIEW.update(job.placed())  # the runner tags the viewports for redraw
+
+    def on_end(self, context: bpy.types.Context) -> None:
+        live_view.VIEW.stop()
 
     def apply(self, context: bpy.types.Context, result: engine.PackOutcome) -> set[str]:
         bridge.check_unchanged(context, self._request)

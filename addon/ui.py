@@ -3,7 +3,7 @@
 # No "from __future__ import annotations": Blender reads class annotations.
 import bpy
 
-from . import summary, units
+from . import summary, units, worker
 
 
 class JAMPACKED_UL_types(bpy.types.UIList):
@@ -71,12 +71,25 @@ class JAMPACKED_PT_pack(_Sidebar, bpy.types.Panel):
                     row.operator("jampacked.cancel", text="Finish Now",
                                  icon='CHECKMARK').action = 'FINISH'
         else:
+            _draw_warm_up(layout)
             layout.operator("jampacked.pack", icon='PLAY')
         if state.last_message and not state.running:
             icon = {'ERROR': 'ERROR', 'WARNING': 'ERROR'}.get(state.last_level, 'INFO')
             col = layout.column(align=True)
             for i, line in enumerate(_wrap(state.last_message, 48)):
                 col.label(text=line, icon=icon if i == 0 else 'BLANK1')
+
+
+def _draw_warm_up(layout: bpy.types.UILayout) -> None:
+    """While the engine compiles in the background: what it does and how far it is (Pack
+    can be pressed meanwhile: it waits for the compile, then its budget starts)."""
+    snap = worker.warm_up_snapshot()
+    if snap is None or snap.state != worker.RUNNING:
+        return
+    box = layout.box()
+    box.progress(factor=snap.fraction, type='BAR',
+                 text=f"{worker.WARM_UP_TITLE}\u2026 {snap.fraction:.0%}")
+    box.label(text=f"{snap.message} ({snap.elapsed:.0f} s)", icon='TIME')
 
 
 def _wrap(text: str, width: int) -> list[str]:

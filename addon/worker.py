@@ -5,6 +5,15 @@ what ``fn`` closes over (numpy arrays, plain values): everything Blender-side is
 the job starts and written after it ends, on Blender's main thread, by the modal operator in
 :mod:`.operators`, which polls :meth:`Job.snapshot` from a timer.
 
+Placement snapshots: a job may publish what it has placed so far (:meth:`Job.publish`,
+numpy arrays, a few times a second); the main thread reads the latest with
+:meth:`Job.placed` for the live view (:mod:`.live_view`).
+
+The engine's first run: numba compiles the kernels on first use (tens of seconds). The
+add-on starts :func:`start_warm_up` when it is enabled, a thread that compiles them ahead of
+time; a job waits for it before its own work (two threads in the kernels at once are not safe
+with every numba threading layer), showing its progress as its own.
+
 Stopping: :meth:`Job.cancel` (Esc, the Cancel button) asks the engine to stop and throws the
 result away; :meth:`Job.finish_early` asks it to stop and keeps the best certified result so
 far. Both only set a flag that the engine polls through ``should_cancel``; the thread ends
@@ -56,6 +65,23 @@ class Snapshot:
     elapsed: float
 
 
+@dataclass(frozen=True)
+class Placed:
+    """The objects a running pack has placed so far (a snapshot for the live view).
+
+    Attributes:
+        positions: (N, 3) float64 centres (world space, Blender units).
+        radii: (N,) float64 bounding radii (Blender units).
+        types: (N,) int64 type indices (the order of the panel's type list).
+        at: seconds since the job started.
+    """
+
+    positions: Any
+    radii: Any
+    types: Any
+    at: float
+
+
 class Job:
     """One background computation with progress, cancel and a result or an error.
 
@@ -79,6 +105,7 @@ class Job:
         self._error: str | None = None
         self._started = time.perf_counter()
         self._ended: float | None = None
+        self._placed: Placed | None = None
         self._thread = threading.Thread(target=self._run, name=f"jampacked {title}",
                                         daemon=True)
 
@@ -92,10 +119,21 @@ class Job:
     def _should_cancel(self) -> bool:
         return self._stop.is_set()
 
+    def publish(self, positions: Any, radii: Any, types: Any) -> None:
+        """Thread side: the objects placed so far, (N, 3) positions, (N,) bounding radii and
+        (N,) type indices (numpy arrays the caller no longer changes; world space and
+        Blender units in the add-on). The main thread sees the latest."""
+        with self._lock:
+            self._placed = Placed(positions, radii, types, time.perf_counter() - self._started)
+
     def _run(self) -> None:
         from jampacked.core import errors
 
         try:
+            wait_for_warm_up(self._progress, self._should_cancel)
+            if self._stop.is_set():  # stopped while the engine compiled: nothing to keep
+                self._end(CANCELLED)
+                return
             result = self._fn(self._progress, self._should_cancel)
         except errors.JampackedError as exc:
             cancelled = getattr(errors, "Cancelled", ())
@@ -160,6 +198,11 @@ class Job:
             return Snapshot(state=self._state, fraction=self._fraction, message=self._message,
                             stopping=self._stop.is_set() and self._state == RUNNING,
                             elapsed=end - self._started)
+
+    def placed(self) -> Placed | None:
+        """The latest snapshot :meth:`publish` gave, or None."""
+        with self._lock:
+            return self._placed
 
     @property
     def over(self) -> bool:
@@ -265,3 +308,114 @@ def abandon(timeout: float = 0.0) -> None:
     job.cancel()
     job.wait(timeout)
     job.release()
+
+
+# ---------------------------------------------------------------- the engine's first run
+
+#: the panel's line while the warm-up runs
+WARM_UP_TITLE = "Preparing the engine (first run only)"
+
+
+class WarmUp:
+    """A thread that compiles the engine's kernels (or loads them from numba's cache):
+    ``fn(progress)``, no bpy. Its progress, state and seconds are read with :meth:`snapshot`.
+    """
+
+    def __init__(self, fn: Callable[[Progress], Any]) -> None:
+        self._fn = fn
+        self._lock = threading.Lock()
+        self._fraction = 0.0
+        self._message = "starting"
+        self._state = RUNNING
+        self._error: str | None = None
+        self._started = time.perf_counter()
+        self._ended: float | None = None
+        self._thread = threading.Thread(target=self._run, name="jampacked warm-up",
+                                        daemon=True)
+
+    def _progress(self, fraction: float, message: str) -> None:
+        with self._lock:
+            self._fraction = min(max(float(fraction), self._fraction), 1.0)
+            self._message = str(message)
+
+    def _run(self) -> None:
+        try:
+            self._fn(self._progress)
+        except BaseException as exc:  # noqa: BLE001 - the first job reports it again
+            logger.warning("jampacked warm-up failed: %s", exc)
+            state, error = FAILED, f"{type(exc).__name__}: {exc}"
+        else:
+            state, error = DONE, None
+        with self._lock:
+            self._state, self._error = state, error
+            self._ended = time.perf_counter()
+            if state == DONE:
+                self._fraction = 1.0
+
+    def start(self) -> WarmUp:
+        self._thread.start()
+        return self
+
+    def snapshot(self) -> Snapshot:
+        with self._lock:
+            end = self._ended if self._ended is not None else time.perf_counter()
+            return Snapshot(state=self._state, fraction=self._fraction, message=self._message,
+                            stopping=False, elapsed=end - self._started)
+
+    @property
+    def error(self) -> str | None:
+        with self._lock:
+            return self._error
+
+    def wait(self, timeout: float | None = None) -> bool:
+        """Block until the warm-up ends or ``timeout`` passes; True when it ended."""
+        self._thread.join(timeout)
+        return not self._thread.is_alive()
+
+
+def _warm_up_engine(progress: Progress) -> None:
+    """Compile what Pack, Export and Validate call (no bpy: runs in the warm-up thread)."""
+    from jampacked.core.warmup import warm_up
+
+    try:
+        from jampacked.export.validate import validate_arrays
+    except ImportError:  # the engine without its export part: Pack still warms up
+        validate_arrays = None
+    warm_up(progress, then=validate_arrays)
+
+
+_warm_up: WarmUp | None = None
+
+
+def start_warm_up(fn: Callable[[Progress], Any] | None = None) -> WarmUp:
+    """Start the warm-up thread unless one ran or runs already (enabling the add-on again
+    in the same session finds the kernels compiled); returns it."""
+    global _warm_up
+    with _active_lock:
+        if _warm_up is None or _warm_up.snapshot().state == FAILED:
+            _warm_up = WarmUp(fn or _warm_up_engine).start()
+        return _warm_up
+
+
+def warm_up_snapshot() -> Snapshot | None:
+    """The warm-up's progress and state, or None when none was started."""
+    with _active_lock:
+        warm = _warm_up
+    return None if warm is None else warm.snapshot()
+
+
+def wait_for_warm_up(progress: Progress | None = None,
+                     should_cancel: ShouldCancel | None = None, poll: float = 0.1) -> None:
+    """Block until the warm-up (if any) ends, passing its progress on as
+    ``progress(0, "<WARM_UP_TITLE>: message")``; returns early when ``should_cancel()``
+    (the job then stops as it would anyway). A failed warm-up is not an error here: the
+    job compiles what it needs itself and reports any real failure."""
+    with _active_lock:
+        warm = _warm_up
+    if warm is None:
+        return
+    while not warm.wait(poll):
+        if progress is not None:
+            progress(0.0, f"{WARM_UP_TITLE}: {warm.snapshot().message}")
+        if should_cancel is not None and should_cancel():
+            return

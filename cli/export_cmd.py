@@ -176,12 +176,12 @@ def cmd_export(args: argparse.Namespace) -> int:
     for w in report.warnings:
         err.print(f"[yellow]warning:[/] {escape(w)}", highlight=False)
     if args.render and report.paths:
-        from jampacked.cli.render import write_render
+        from jampacked.cli.render import container_of, write_render
         from jampacked.export.io import read_mesh_arrays
 
         v, f = read_mesh_arrays(report.paths[0])
         write_render(v, f, args.render, title=f"{report.paths[0]} ({report.mode})",
-                     up=options.up)
+                     up=options.up, container=container_of(args.packing))
         if not args.quiet and not args.json:
             out.print(f"wrote {args.render}", highlight=False)
     return 0 if report.passed else EXIT_ERROR

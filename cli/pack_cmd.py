@@ -17,6 +17,7 @@ from jampacked.cli.interrupt import CancelOnInterrupt
 from jampacked.cli.reports import consoles, print_summary, progress_bar, warn
 from jampacked.cli.scene import DEFAULT_CONTAINER_SIZE, DEFAULT_TYPE_SCALE, resolve_scene
 from jampacked.core.api import pack
+from jampacked.core.numba_cache import compile_hint
 from jampacked.core.options import CavityPassOptions, PackOptions
 from jampacked.core.packing import save_packing
 
@@ -108,8 +109,10 @@ def add_pack_parser(sub: argparse._SubParsersAction) -> None:
              "Certification always uses the exact meshes")
     p.add_argument(
         "--time-budget", type=positive_float("--time-budget"), metavar="S",
-        help="stop placing objects after S seconds and certify what is there (default: no "
-             "limit; Ctrl-C also stops early)")
+        help="stop placing objects after S seconds at the latest and certify what is there: "
+             "a ceiling, placement ends sooner once new attempts only repeat the best one. "
+             "It starts after loading and, on the first run, compiling the engine (default: "
+             "no limit; Ctrl-C also stops early)")
     p.add_argument(
         "-q", "--quiet", action="store_true",
         help="no progress bar and no summary (errors and warnings are still printed)")
@@ -134,6 +137,9 @@ def cmd_pack(args: argparse.Namespace) -> int:
     save_packing(packing, args.output)
     for w in packing.report.warnings:
         warn(err, w)
+    hint = compile_hint(packing.timings.get("compile", 0.0))
+    if hint and not args.quiet:
+        err.print(f"[dim]note:[/] {escape(hint)}", highlight=False, soft_wrap=True)
     if not args.quiet:
         print_summary(packing, out)
     if args.preview:

@@ -28,11 +28,12 @@ from .fidelity import PRESETS, Fidelity, choose_fidelity
 from .margins import Margins, contact_margins
 from .meshes import MeshData, box_mesh, load_mesh, parse_box_spec
 from .metrics import compute_metrics, equivalent_radius
+from .numba_cache import COMPILE_MESSAGE, cache_is_cold
 from .objects import ObjectType, build_type
 from .options import FidelityOverrides, PackOptions
 from .packing_types import Packing, TypeRecord
 from .phases import Stop
-from .placement import Attempt, place
+from .placement import Attempt, Snapshots, place
 from .repair import certify_and_repair
 from .report import AttemptSummary, PackInputs, RepairStats, RunReport
 from .rotations import matrix_to_quat, quat_to_matrix
@@ -41,6 +42,7 @@ from .spheres import sphere_coverage
 from .threads import ThreadTuner
 
 Progress = Callable[[float, str], None]
+Snapshot = Callable[[np.ndarray, np.ndarray, np.ndarray], None]
 MeshSource = str | os.PathLike | MeshData
 
 
@@ -88,7 +90,7 @@ def pack(container: MeshSource, types: Sequence[MeshSource],
          progress: Progress | None = None, should_cancel: Callable[[], bool] | None = None,
          container_size: float | None = None, type_scale: float = 1.0,
          names: Sequence[str] | None = None, options: PackOptions | None = None,
-         use_cache: bool = True) -> Packing:
+         use_cache: bool = True, snapshot: Snapshot | None = None) -> Packing:
     """Pack object types into a container; returns a certified packing.
 
     container: mesh file path, "box:AxBxC" (a box centred at the origin) or MeshData.
@@ -99,8 +101,12 @@ def pack(container: MeshSource, types: Sequence[MeshSource],
     units). time_budget (s) bounds placement (phases 1 and 2, after loading, approximation
     and numba's compilation); time an attempt leaves goes to new attempts, and the densest
     is kept; certification runs after it. progress(fraction, message) and should_cancel()
-    are polled; cancel or the budget returns the best certified packing so far. options:
-    the method's options (`core/options.py`). Raises
+    are polled; cancel or the budget returns the best certified packing so far.
+    snapshot(positions, radii, types), when given, receives the objects placed so far
+    during placement, at most four times a second, from the calling thread: (N, 3) centres,
+    (N,) bounding radii at their current scale, (N,) type indices (copies; container frame,
+    container units), e.g. for a live view. options: the method's options
+    (`core/options.py`). Raises
     JampackedError subclasses on bad input.
     """
     t_start = time.perf_counter()
@@ -121,7 +127,7 @@ def pack(container: MeshSource, types: Sequence[MeshSource],
     t_approx = time.perf_counter()
 
     stop = Stop(None, should_cancel)
-    run = _place(scene, approx, q, seed, inputs, stop, report, t_approx)
+    run = _place(scene, approx, q, seed, inputs, stop, report, t_approx, snapshot)
     t_place = time.perf_counter()
 
     report(0.9, "certifying on the real meshes")
@@ -362,7 +368,8 @@ class _Placed:
 
 
 def _place(scene: _Scene, approx: _Approximation, q: np.ndarray, seed: int,
-           inputs: PackInputs, stop: Stop, report: Progress, t_approx: float) -> _Placed:
+           inputs: PackInputs, stop: Stop, report: Progress, t_approx: float,
+           snapshot: Snapshot | None = None) -> _Placed:
     """Margins, solver and kernels ready, then the attempts of the placement; the time
     budget starts once the kernels are compiled."""
     opts, clearance = inputs.options, inputs.clearance
@@ -375,6 +382,8 @@ def _place(scene: _Scene, approx: _Approximation, q: np.ndarray, seed: int,
     solver_params = SolverParams(
         clearance=clearance, tol=1e-6 * approx.f_min, k_obj=ph.k_obj, k_wall=ph.k_wall,
         k_rot=ph.k_rot, damping=ph.damping, wall_margin=margins.wall)
+    if cache_is_cold():  # say why the wait before the budget: numba compiles (seconds)
+        report(0.03, COMPILE_MESSAGE)
     Solver(cont, table, PackState(), solver_params).warm_up()
     tuner = ThreadTuner(numba.get_num_threads()) if opts.tune_threads else None
     t_compile = time.perf_counter()
@@ -383,7 +392,8 @@ def _place(scene: _Scene, approx: _Approximation, q: np.ndarray, seed: int,
     s1 = (float(np.sum(q * approx.volumes)) / opts.phases.phase1_density) ** (1 / 3)
     best, attempts = place(lambda: Solver(cont, table, PackState(), solver_params, tuner),
                            q, s1, approx.f_min, seed, stop, margins.objects, opts,
-                           scene.volume, report)
+                           scene.volume, report,
+                           None if snapshot is None else Snapshots(snapshot, table.radius))
     return _Placed(best, attempts, margins, tuner, s1, t_compile)
 
 

@@ -5,7 +5,10 @@ time budget, an attempt often ends before it: its rounds of cavity passes stop a
 objects. The time left then goes to new attempts from scratch (each its own random
 stream), as long as it is at least the shortest attempt so far, and the densest attempt is
 kept: attempts end at densities that differ by points between random streams
-(docs/notes-core.md).
+(docs/notes-core.md). A budget is a ceiling, not a duration: once an attempt that ran to its
+end repeats the best attempt's object count and density, the scene is taken as full at that
+count (small scenes, where every stream reaches the same count) and no further attempt
+starts.
 """
 
 from __future__ import annotations
@@ -21,6 +24,16 @@ from .options import PackOptions
 from .phases import Stop, phase1, phase2
 from .report import AttemptSummary, ExtraPassStats, PhaseStats
 from .solver import PackState, Solver
+
+#: attempts that ran to their end and repeated the best attempt's count and density (to
+#: SAME_DENSITY) after which no further attempt starts. Between random streams, densities of
+#: scenes with more than a few dozen objects differ by points (docs/notes-core.md), so an
+#: exact repeat means the count is what the container holds at this fidelity.
+REPEATS_TO_STOP = 1
+SAME_DENSITY = 1e-9
+#: why the attempts ended early (the last attempt's summary says it): not a stop reason of
+#: the run (`RunReport.stopped`), which stays None as the placement ran to its end
+REPEATED = "repeated the best attempt"
 
 
 @dataclass
@@ -106,32 +119,79 @@ def place_once(solver: Solver, q: np.ndarray, s1: float, f_min: float,
         timings={"phase1": t1 - t0, "phase2": t2 - t1, "extra": t3 - t2})
 
 
+class Snapshots:
+    """Passes the objects of a placement state on as `fn(positions, radii, types)`: (N, 3)
+    centres, (N,) bounding radii at their current scale and (N,) type indices of the alive
+    objects (copies; container frame, container units), at most once per `period` seconds
+    (a live view needs a few a second; copying costs little next to a solver call)."""
+
+    def __init__(self, fn: Callable[[np.ndarray, np.ndarray, np.ndarray], None],
+                 radius: np.ndarray, period: float = 0.25):
+        self.fn = fn
+        self.radius = radius  # (T,) bounding radius of each type at full size
+        self.period = period
+        self._last = -np.inf
+
+    def __call__(self, state: PackState) -> None:
+        now = time.perf_counter()
+        if now - self._last < self.period:
+            return
+        self._last = now
+        idx = np.flatnonzero(state.alive[: state.n])
+        typ = state.typ[idx].copy()
+        self.fn(state.pos[idx].copy(), self.radius[typ] * state.scale[idx], typ)
+
+
 def place(new_solver: Callable[[], Solver], q: np.ndarray, s1: float, f_min: float,
           seed: int, stop: Stop, margin: np.ndarray, options: PackOptions, c_volume: float,
-          report: Callable[[float, str], None]) -> tuple[Attempt, list[AttemptSummary]]:
+          report: Callable[[float, str], None],
+          watch: Callable[[PackState], None] | None = None
+          ) -> tuple[Attempt, list[AttemptSummary]]:
     """Attempts of `place_once`, each on a fresh solver from `new_solver()`; returns the
     densest and a summary of every attempt. Without a deadline there is one attempt. The
-    first uses the random stream of `seed` itself, attempt a > 0 that of (seed, a).
+    first uses the random stream of `seed` itself, attempt a > 0 that of (seed, a). The
+    attempts end early, the last one's summary saying REPEATED, once REPEATS_TO_STOP
+    attempts in a row ran to their end with the best attempt's count and density.
+    watch(state), when given, sees the running attempt's state at every progress report.
     """
     best: Attempt | None = None
     done: list[AttemptSummary] = []
     shortest = np.inf
+    repeats = 0
     high = 0.0  # the progress bar never runs backwards across attempts
+    current: Solver | None = None  # the running attempt's
 
     def monotone(fraction: float, message: str) -> None:
         nonlocal high
         high = max(high, fraction)
         report(high, message if not done else f"attempt {len(done) + 1}: {message}")
+        if watch is not None and current is not None:
+            watch(current.s)
 
     while True:
         rng = np.random.default_rng(seed if not done else [seed, len(done)])
         t0 = time.perf_counter()
-        att = place_once(new_solver(), q, s1, f_min, rng, stop, margin, options, c_volume,
+        current = new_solver()
+        att = place_once(current, q, s1, f_min, rng, stop, margin, options, c_volume,
                          stop.deadline is not None, monotone)
         shortest = min(shortest, time.perf_counter() - t0)
-        done.append(att.summary(stop.reason or None))
+        summary = att.summary(stop.reason or None)
+        done.append(summary)
+        if best is not None and not stop.reason and _repeats(att, best):
+            repeats += 1
+        else:
+            repeats = 0
         if best is None or att.density > best.density:
             best = att
+        if repeats >= REPEATS_TO_STOP and stop.deadline is not None:
+            summary.stopped = REPEATED
+            return best, done
         if (stop.deadline is None or stop() or len(done) >= options.attempts.max_attempts
                 or stop.deadline - time.perf_counter() < shortest):
             return best, done
+
+
+def _repeats(att: Attempt, best: Attempt) -> bool:
+    """`att` ended with the same object count and density as `best`."""
+    return (att.after["after_extra"]["count"] == best.after["after_extra"]["count"]
+            and abs(att.density - best.density) <= SAME_DENSITY)

@@ -330,3 +330,131 @@ def test_background_pack_prints_throttled_progress(bpy, addon, scene, capsys):
     percents = [int(ln.split(":", 1)[1].split("%")[0]) for ln in lines]
     assert percents == sorted(percents) and percents[-1] > percents[0]
     assert len(lines) <= 21 + seconds / 2.0 + 1
+
+
+# ------------------------------------------------------------ first run and live view
+
+
+@pytest.fixture(autouse=True)
+def _engine_warmed_up(addon):
+    """The warm-up the add-on started when it was registered has ended (a Finish Now while
+    a job still waits for it ends the job with nothing kept)."""
+    addon.worker.wait_for_warm_up()
+
+
+def test_enabling_the_addon_compiles_the_engine_in_the_background(addon):
+    """register() started the warm-up thread (no bpy in it); it ended with the kernels
+    ready, and enabling again does not start another."""
+    snap = addon.worker.warm_up_snapshot()
+    assert snap is not None and snap.state == addon.worker.DONE, snap
+    assert snap.fraction == 1.0 and snap.message == "engine ready"
+    from jampacked.core.numba_cache import cache_is_cold
+
+    assert cache_is_cold() is False
+    assert addon.worker.start_warm_up() is addon.worker.start_warm_up()
+
+
+class _Layout:
+    """Records what a panel's draw puts in a layout."""
+
+    def __init__(self) -> None:
+        self.items: list[tuple[str, dict]] = []
+
+    def box(self):
+        return self
+
+    def progress(self, **kw) -> None:
+        self.items.append(("progress", kw))
+
+    def label(self, **kw) -> None:
+        self.items.append(("label", kw))
+
+
+def test_the_first_pack_shows_the_compile_step_before_its_budget(bpy, addon, scene,
+                                                                 monkeypatch):
+    """While the engine still compiles, the panel shows it with its progress, and a Pack
+    started meanwhile shows the compile step as its own progress, waits, then packs."""
+    release = threading.Event()
+    message = "compiling the engine (first run only, about half a minute)"
+
+    def slow_compile(progress):
+        progress(0.4, message)
+        assert release.wait(60)
+
+    monkeypatch.setattr(addon.worker, "_warm_up", addon.worker.WarmUp(slow_compile).start())
+    layout = _Layout()
+    deadline = time.monotonic() + 10
+    while time.monotonic() < deadline and addon.worker.warm_up_snapshot().fraction < 0.4:
+        time.sleep(0.01)
+    addon.ui._draw_warm_up(layout)
+    (kind, bar), (_, label) = layout.items
+    assert kind == "progress" and bar["factor"] == pytest.approx(0.4)
+    assert bar["text"].startswith("Preparing the engine (first run only)")
+    assert label["text"].startswith(message)
+
+    run = runner(addon)
+    assert run.begin(bpy.context)
+    try:
+        for _ in range(40):
+            assert run.modal(bpy.context, Event('TIMER')) == {'RUNNING_MODAL'}
+            time.sleep(0.05)
+        state = bpy.context.window_manager.jampacked_job
+        assert state.message == f"Preparing the engine (first run only): {message}"
+        assert state.fraction == 0.0  # the budget has not started
+    finally:
+        release.set()
+    assert drive(run, bpy.context) == {'FINISHED'}
+    assert scene.settings.result is not None
+    layout = _Layout()
+    addon.ui._draw_warm_up(layout)
+    assert layout.items == []  # over: the panel shows nothing more
+
+
+def test_the_live_view_follows_the_pack_and_goes_on_every_exit(bpy, addon, scene):
+    """A pack adds the viewport draw handler, the worker's snapshots (the objects placed so
+    far) reach the main thread while it runs, and the handler is removed when it ends:
+    finished, cancelled (Esc) or failed."""
+    view = addon.live_view.VIEW
+    scene.box.scale = BIG_BOX
+    scene.settings.time_budget = 3.0
+    run = runner(addon)
+    assert run.begin(bpy.context)
+    handle = view.handle
+    assert handle is not None
+    counts = []
+    deadline = time.monotonic() + 120
+    result = {'RUNNING_MODAL'}
+    while result == {'RUNNING_MODAL'} and time.monotonic() < deadline:
+        result = run.modal(bpy.context, Event('TIMER'))
+        if view.placed is not None:
+            counts.append(len(view.placed.types))
+            lines = view.lines_by_type()
+            assert sum(len(v) for v in lines.values()) == \
+                counts[-1] * 3 * addon.live_view.SEGMENTS * 2
+        time.sleep(0.05)
+    assert result == {'FINISHED'}
+    assert len(set(counts)) >= 2 and max(counts) > 0, counts  # it grew while we watched
+    assert view.handle is None and view.placed is None
+    with pytest.raises(ValueError):  # Blender no longer has it
+        bpy.types.SpaceView3D.draw_handler_remove(handle, 'WINDOW')
+
+    run = runner(addon)
+    assert run.begin(bpy.context)
+    assert view.handle is not None
+    assert drive(run, bpy.context, events=[Event('ESC', 'PRESS')]) == {'CANCELLED'}
+    assert view.handle is None
+
+    run = runner(addon)
+    assert run.begin(bpy.context)
+    with pytest.raises(KeyboardInterrupt), run.guard(bpy.context):
+        raise KeyboardInterrupt
+    assert view.handle is None and not addon.worker.busy()
+
+
+def test_circles_of_the_live_view_lie_on_the_spheres(addon):
+    centres = np.array([[1.0, 2.0, 3.0], [-4.0, 0.0, 0.5]])
+    radii = np.array([0.5, 2.0])
+    pts = addon.live_view.circle_lines(centres, radii, segments=8).reshape(2, -1, 3)
+    assert pts.shape == (2, 3 * 8 * 2, 3)
+    for c, r, p in zip(centres, radii, pts, strict=True):
+        np.testing.assert_allclose(np.linalg.norm(p - c, axis=1), r, rtol=1e-5)

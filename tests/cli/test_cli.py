@@ -301,3 +301,105 @@ def test_python_dash_m(tmp_path):
     r = subprocess.run([sys.executable, "-m", "jampacked.cli.main", "--help"], env=env,
                        capture_output=True, text=True, timeout=120)
     assert r.returncode == 0 and "jampacked" in r.stdout
+
+
+# --------------------------------------------------------------------------- first run
+
+
+def test_a_cold_engine_cache_is_told_apart_from_a_warm_one(tmp_path):
+    """numba's cache of the placement kernels: cold in an empty NUMBA_CACHE_DIR (a first
+    run compiles), warm here where the kernels have run (a fixture packed). Reads index
+    files only: nothing compiles."""
+    code = "from jampacked.core.numba_cache import cache_is_cold; print(cache_is_cold())"
+    env = {**os.environ, "NUMBA_CACHE_DIR": str(tmp_path / "empty")}
+    cold = subprocess.run([sys.executable, "-c", code], env=env, capture_output=True,
+                          text=True, timeout=120)
+    assert cold.stdout.strip() == "True", cold.stderr
+    warm = subprocess.run([sys.executable, "-c", code], capture_output=True, text=True,
+                          timeout=120, env={k: v for k, v in os.environ.items()
+                                            if k != "NUMBA_CACHE_DIR"})
+    assert warm.stdout.strip() == "False", warm.stderr
+
+
+def test_pack_says_it_compiles_before_the_budget_and_notes_a_slow_compile(tmp_path,
+                                                                          monkeypatch):
+    """With a cold cache pack() reports the compile step before phase 1 (the budget starts
+    after it); a compile that took long gets a note on stderr saying where it is cached."""
+    from jampacked.core import api, numba_cache
+    from jampacked.core.numba_cache import COMPILE_MESSAGE
+
+    messages = []
+    monkeypatch.setattr(api, "cache_is_cold", lambda: True)
+    api.pack("box:30x30x30", [str(P1)], fidelity="low", seed=1,
+             progress=lambda f, m: messages.append(m))
+    assert COMPILE_MESSAGE in messages
+    assert messages.index(COMPILE_MESSAGE) < min(
+        i for i, m in enumerate(messages) if m.startswith("phase 1"))
+    monkeypatch.setattr(api, "cache_is_cold", lambda: False)
+    messages.clear()
+    api.pack("box:30x30x30", [str(P1)], fidelity="low", seed=1,
+             progress=lambda f, m: messages.append(m))
+    assert COMPILE_MESSAGE not in messages
+
+    monkeypatch.setattr(numba_cache, "SLOW_WARM_UP", 0.0)  # any compile time counts as slow
+    rc, _, se = run(["pack", "box:30x30x30", "--type", str(P1), *SMALL,
+                     "-o", str(tmp_path / "p.json")])
+    assert rc == 0, se
+    assert "compiling the engine took" in se and "first run only" in se
+
+
+# --------------------------------------------------------------------------- render
+
+
+def _box(size: float, inward: bool = False) -> tuple[np.ndarray, np.ndarray]:
+    from jampacked.core.meshes import box_mesh
+
+    m = box_mesh([size] * 3)
+    faces = np.asarray(m.faces)
+    return np.asarray(m.vertices, np.float64), faces[:, ::-1] if inward else faces
+
+
+def _hollow_box_with_a_cube_inside(fused: bool) -> tuple[np.ndarray, np.ndarray]:
+    """A 2-unit shell around a 20-unit cavity, a 6-unit cube inside (touching the shell's
+    inner wall through one shared vertex when ``fused``, as connect mode joins them)."""
+    parts = [_box(24.0), _box(20.0, inward=True), _box(6.0)]
+    verts, faces, base = [], [], 0
+    for v, f in parts:
+        verts.append(v)
+        faces.append(f + base)
+        base += len(v)
+    v, f = np.concatenate(verts), np.concatenate(faces)
+    if fused:  # one body: a sliver triangle from the cube to a corner of the inner wall
+        f = np.vstack([f, [[16 + 7, 16 + 6, 8 + 7]]])
+    return v, f
+
+
+def _coloured_pixels(png: Path) -> tuple[int, int]:
+    """Pixels in colour (the packed objects; the shell and the page are grey or white) in
+    the left and right halves of a render."""
+    import matplotlib.image as mpimg
+
+    img = mpimg.imread(png)[..., :3]
+    warm = img.max(axis=2) - img.min(axis=2) > 0.2
+    half = img.shape[1] // 2
+    return int(warm[:, :half].sum()), int(warm[:, half:].sum())
+
+
+@pytest.mark.parametrize("fused", [False, True])
+def test_render_cuts_the_shell_open_so_the_packed_objects_show(tmp_path, fused):
+    """The render is lit (shades vary across the shell) and its right view cuts the shell's
+    near half away: the cube inside shows there and not in the closed view. A shell fused
+    to the objects (one body) is told apart by the container (the cavity's surface)."""
+    from jampacked.cli import render
+
+    v, f = _hollow_box_with_a_cube_inside(fused)
+    body = render.bodies(f, len(v))
+    assert len(np.unique(body)) == (2 if fused else 3)  # outer wall, inner wall, cube
+    if not fused:
+        shell = render.shell_bodies(v[f], body)
+        assert sorted(shell.tolist()) == [0, 1]
+    container = _box(20.0) if fused else None
+    out = tmp_path / "render.png"
+    render.write_render(v, f, out, up="+z", container=container)
+    left, right = _coloured_pixels(out)
+    assert left == 0 and right > 500, (left, right)

@@ -3,6 +3,7 @@
 from __future__ import annotations
 
 import itertools
+import time
 
 import manifold3d as m3
 import numpy as np
@@ -22,6 +23,7 @@ from jampacked.core.options import (
 )
 from jampacked.core.packing_json import load_packing, save_packing
 from jampacked.core.phases import best_tvd
+from jampacked.core.placement import REPEATED, REPEATS_TO_STOP
 
 POLY = [str(mesh_path(f"polyhedra/convex5/polytope{i}.obj")) for i in (1, 3)]
 BOX = "box:34x30x32"
@@ -276,6 +278,22 @@ def test_time_left_after_an_attempt_goes_to_new_attempts_and_the_densest_is_kept
     assert len({(a.count, round(a.density, 9)) for a in attempts}) > 1
 
 
+def test_a_full_small_scene_stops_its_attempts_before_the_budget():
+    """A budget is a ceiling: Spot at 120 mm holding oranges and lemons at 25 mm (type
+    scale 340) is full at the same count in every attempt; once an attempt repeats the
+    best's count and density, no further attempt starts (here 4 attempts ran the whole 20 s
+    budget before). The run is not reported as stopped by the deadline."""
+    fruit = [str(mesh_path(f"fruit/ycb_lowpoly/{n}.obj")) for n in ("017_orange", "014_lemon")]
+    p = pack(str(mesh_path("containers/spot.obj")), fruit, [0.6, 0.4], container_size=120.0,
+             type_scale=340.0, time_budget=20.0)
+    attempts = p.report.attempts
+    assert p.report.stopped is None
+    assert len(attempts) == 1 + REPEATS_TO_STOP, attempts
+    assert attempts[-1].stopped == REPEATED
+    assert all(a.count == attempts[0].count for a in attempts)
+    assert p.certificate["certified"]
+
+
 def test_one_attempt_without_a_budget_or_when_attempts_are_capped():
     p = pack(BOX, POLY, seed=2, fidelity="low",
              options=PackOptions(cavity=CavityPassOptions(patience=4)))
@@ -374,3 +392,30 @@ def test_paths_tuples_and_numpy_values_are_accepted():
     p = pack(BOX, (Path(POLY[0]),), np.array([1.0]), seed=np.int64(3), fidelity="low",
              time_budget=1.0, container_size=np.float32(34.0), type_scale=np.float64(1.0))
     assert p.n > 0 and p.seed == 3
+
+def test_snapshots_show_the_placement_as_it_grows_and_change_nothing():
+    """pack(snapshot=...) sees the alive objects (centres inside the box, radii up to the
+    types' bounding radii, valid types) a few times a second; the packing is the same as
+    without it."""
+    seen = []
+    p = pack(BOX, POLY, [0.5, 0.5], seed=3, fidelity="low",
+             snapshot=lambda pos, r, t: seen.append((time.perf_counter(), pos, r, t)))
+    q = pack(BOX, POLY, [0.5, 0.5], seed=3, fidelity="low")
+    np.testing.assert_array_equal(p.translations, q.translations)
+    assert len(seen) >= 2
+    assert max(len(t) for _, _, _, t in seen) >= p.n // 2
+    bound = np.array([_bounding_radius(rec) for rec in p.types])
+    for _, pos, r, t in seen:
+        assert pos.shape == (len(t), 3) and r.shape == (len(t),)
+        assert np.all(np.abs(pos) <= np.array([17.0, 15.0, 16.0]))
+        assert np.all((r > 0) & (r <= bound[t] + 1e-6))
+        assert set(t.tolist()) <= {0, 1}
+    gaps = np.diff([s[0] for s in seen])  # throttled
+    assert gaps.min() >= 0.25 - 1e-3
+
+
+def _bounding_radius(rec) -> float:
+    """A type's bounding radius about its local origin, from its file."""
+    v = trimesh.load(rec.path, force="mesh").vertices
+    local = v @ np.asarray(rec.local_from_file)[:3, :3].T + np.asarray(rec.local_from_file)[:3, 3]
+    return float(np.linalg.norm(local, axis=1).max())
