@@ -94,12 +94,12 @@ def test_objects_larger_than_the_container_raise_packing_error():
     with pytest.raises(PackingError, match="no object fits") as e:
         pack("box:6x6x6", [LEMON, ORANGE], type_scale=300.0, fidelity="low", time_budget=2.0)
     msg = str(e.value)
-    assert "equivalent radius is 8.537" in msg and "--type-scale" in msg, msg
+    assert "014_lemon" in msg and "equivalent radius 8.537" in msg and "--type-scale" in msg, msg
 
 
 def test_clearance_too_large_is_a_clear_error():
     """A 40 mm box is 20 mm deep: a 20 mm clearance leaves no room for any lemon."""
-    with pytest.raises(PackingError, match="plus clearance 20"):
+    with pytest.raises(PackingError, match="plus the clearance 20"):
         pack("box:40x40x40", [LEMON], type_scale=300.0, clearance=20.0, fidelity="low",
              time_budget=2.0)
 
@@ -125,7 +125,7 @@ def test_one_type_that_fits_nowhere_is_named():
     """A 16 mm slab holds strawberries (about 10 mm thick) but no orange (about 21 mm):
     instead of a packing with the orange silently missing, the error names the orange
     (stability map: too-large-one)."""
-    with pytest.raises(PackingError, match=r"017_orange cannot fit") as e:
+    with pytest.raises(PackingError, match=r"017_orange \(.*017_orange\.obj\) cannot fit") as e:
         pack("box:16x80x80", [STRAWBERRY, ORANGE], type_scale=300.0, fidelity="low",
              time_budget=2.0)
     assert "012_strawberry" not in str(e.value)

@@ -22,7 +22,9 @@ def test_a_small_seeded_fuzz_run_finds_no_bug(tmp_path, pytestconfig):
     env = dict(os.environ)
     # numba's compiled kernels survive between runs (the harness's default is a fresh
     # folder under --root, which would compile them anew every time)
-    env.setdefault("NUMBA_CACHE_DIR", str(pytestconfig.cache.mkdir("fuzz-numba")))
+    cache = getattr(pytestconfig, "cache", None)  # None under -p no:cacheprovider
+    env.setdefault("NUMBA_CACHE_DIR", str(cache.mkdir("fuzz-numba") if cache is not None
+                                          else tmp_path / "numba"))
     run = subprocess.run(
         [sys.executable, str(HARNESS), "--n", "40", "--seed", "7", "--root", str(tmp_path),
          "--out", str(out), "--huge-every", "0", "--mem-gb", "8"],
