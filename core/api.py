@@ -409,7 +409,8 @@ def _certify(solver: Solver, approx: _Approximation, clearance: float, options: 
                           np.array([t.max_edge for t in objtypes]))
     return certify_and_repair(
         solver, certifier, clearance, options.repair,
-        lambda: bool(stop.should_cancel is not None and stop.should_cancel()))
+        lambda: bool(stop.should_cancel is not None and stop.should_cancel()),
+        timed=stop.deadline is not None)
 
 
 def _assemble(container: MeshSource, scene: _Scene, approx: _Approximation, run: _Placed,

@@ -88,7 +88,7 @@ class RepairOptions:
     rounds: int = 3  # certify -> push apart rounds before removing offenders
     margin: float = 0.01  # margin added per round, fraction of bounding radius
     iterations: int = 100
-    seconds: float = 20.0  # push-apart time cap; what still fails then is removed
+    seconds: float = 20.0  # push-apart cap with a time budget; what still fails is removed
 
 
 @dataclass(frozen=True)

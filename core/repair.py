@@ -2,7 +2,9 @@
 
 Failing objects are pushed apart one at a time (a bigger margin for that object, then the
 solver, rolled back if it cannot settle) and what moved is checked again; what still fails
-after the rounds, after the push-apart time cap, or on cancel is removed.
+after the rounds, after the push-apart time cap (runs with a time budget only), or on
+cancel is removed. Without a budget the rounds alone bound the work, so the result does not
+depend on how busy the machine is: the same inputs and seed give the same packing.
 """
 
 from __future__ import annotations
@@ -20,14 +22,15 @@ from .solver import Solver
 
 
 def certify_and_repair(solver: Solver, certifier: Certifier, clearance: float,
-                       options: RepairOptions, cancelled: Callable[[], bool]
-                       ) -> tuple[dict, RepairStats]:
+                       options: RepairOptions, cancelled: Callable[[], bool], *,
+                       timed: bool = True) -> tuple[dict, RepairStats]:
     """Certify the solver's alive objects; push failing objects apart for up to
-    `options.rounds` rounds and `options.seconds`; remove what still fails. Mutates the
-    solver's state. Returns (the final certificate as a dict, repair statistics)."""
+    `options.rounds` rounds and, when `timed` (the run has a time budget),
+    `options.seconds`; remove what still fails. Mutates the solver's state. Returns (the
+    final certificate as a dict, repair statistics)."""
     s = solver.s
     stats = RepairStats()
-    deadline = time.perf_counter() + options.seconds
+    deadline = time.perf_counter() + options.seconds if timed else np.inf
     subset = None
     moved_ever: set[int] = set()
     for rnd in range(options.rounds + 1):
