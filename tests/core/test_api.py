@@ -260,7 +260,8 @@ def test_time_left_after_an_attempt_goes_to_new_attempts_and_the_densest_is_kept
     """With a budget, an attempt that ends early (its cavity rounds stop adding objects) is
     followed by new attempts from scratch while the time left is at least the shortest
     attempt; the packing is the densest attempt's, and every attempt is recorded."""
-    p = pack(BOX, POLY, seed=2, fidelity="low", time_budget=8.0,
+    # a budget several attempts long also on a busy machine (an attempt takes 2-4 s idle)
+    p = pack(BOX, POLY, seed=2, fidelity="low", time_budget=20.0,
              options=PackOptions(cavity=CavityPassOptions(patience=4)))
     attempts = p.report.attempts
     assert len(attempts) >= 2, attempts
@@ -272,7 +273,7 @@ def test_time_left_after_an_attempt_goes_to_new_attempts_and_the_densest_is_kept
     assert p.timings["other_attempts"] > 0
     placing = sum(p.timings[k] for k in ("phase1", "phase2", "extra", "other_attempts"))
     assert placing == pytest.approx(sum(a.seconds for a in attempts), abs=0.5)
-    assert placing < 8.0 + 5.0
+    assert placing < 20.0 + 5.0
     assert p.certificate["certified"]
     # a different random stream per attempt: not the same packing over and over
     assert len({(a.count, round(a.density, 9)) for a in attempts}) > 1
