@@ -190,6 +190,14 @@ _PACK_GENS_CLI = [
 # worker side
 
 
+def _shown_types(types) -> str:
+    """The types argument of a pack case for its description (any value the case passes)."""
+    if not isinstance(types, (list, tuple)):
+        return repr(types)[:60]
+    return str([os.path.basename(t) if isinstance(t, (str, os.PathLike)) else repr(t)[:40]
+                for t in types])
+
+
 class HarnessTimeout(BaseException):
     """Raised by SIGALRM inside the worker (BaseException: project code catching Exception
     must not swallow it)."""
@@ -1609,7 +1617,7 @@ class Worker:
 
         shown = {k: v for k, v in kw.items()}
         return call, {"desc": f"pack({os.path.basename(str(container))!r}, "
-                              f"{[os.path.basename(t) for t in types]}, shares={shares}, "
+                              f"{_shown_types(types)}, shares={shares}, "
                               f"{shown}): {desc}; type {tdesc}",
                       "inputs": inputs, "expect": exp, "check": check,
                       "names": [os.path.basename(n) for n in names]}
