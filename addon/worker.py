@@ -316,61 +316,27 @@ def abandon(timeout: float = 0.0) -> None:
 WARM_UP_TITLE = "Preparing the engine (first run only)"
 
 
-class WarmUp:
+class WarmUp(Job):
     """A thread that compiles the engine's kernels (or loads them from numba's cache):
-    ``fn(progress)``, no bpy. Its progress, state and seconds are read with :meth:`snapshot`.
+    ``fn(progress)``, no bpy. Its progress, state and seconds are read with :meth:`snapshot`,
+    as a job's; unlike a job it holds no slot, waits for nothing and cannot be stopped.
     """
 
     def __init__(self, fn: Callable[[Progress], Any]) -> None:
-        self._fn = fn
-        self._lock = threading.Lock()
-        self._fraction = 0.0
-        self._message = "starting"
-        self._state = RUNNING
-        self._error: str | None = None
-        self._started = time.perf_counter()
-        self._ended: float | None = None
-        self._thread = threading.Thread(target=self._run, name="jampacked warm-up",
-                                        daemon=True)
-
-    def _progress(self, fraction: float, message: str) -> None:
-        with self._lock:
-            self._fraction = min(max(float(fraction), self._fraction), 1.0)
-            self._message = str(message)
+        super().__init__(WARM_UP_TITLE, lambda progress, _should_cancel: fn(progress))
 
     def _run(self) -> None:
         try:
-            self._fn(self._progress)
+            self._fn(self._progress, self._should_cancel)
         except BaseException as exc:  # noqa: BLE001 - the first job reports it again
             logger.warning("jampacked warm-up failed: %s", exc)
-            state, error = FAILED, f"{type(exc).__name__}: {exc}"
+            self._end(FAILED, error=f"{type(exc).__name__}: {exc}")
         else:
-            state, error = DONE, None
-        with self._lock:
-            self._state, self._error = state, error
-            self._ended = time.perf_counter()
-            if state == DONE:
-                self._fraction = 1.0
+            self._end(DONE)
 
     def start(self) -> WarmUp:
         self._thread.start()
         return self
-
-    def snapshot(self) -> Snapshot:
-        with self._lock:
-            end = self._ended if self._ended is not None else time.perf_counter()
-            return Snapshot(state=self._state, fraction=self._fraction, message=self._message,
-                            stopping=False, elapsed=end - self._started)
-
-    @property
-    def error(self) -> str | None:
-        with self._lock:
-            return self._error
-
-    def wait(self, timeout: float | None = None) -> bool:
-        """Block until the warm-up ends or ``timeout`` passes; True when it ended."""
-        self._thread.join(timeout)
-        return not self._thread.is_alive()
 
 
 def _warm_up_engine(progress: Progress) -> None:
