@@ -16,6 +16,7 @@ compile nothing the client has compiled.
 from __future__ import annotations
 
 import contextlib
+import logging
 import time
 import uuid
 from collections.abc import Callable, Iterator
@@ -219,6 +220,9 @@ def client_for(target=None, *, workers: int | None = None) -> Iterator:
                          f"got {target!r}.")
     if workers is None or workers < 1:
         raise InputError(f"the number of local workers must be >= 1, got {workers!r}.")
+    # silence_logs: the nanny's warnings at shutdown (a worker still busy in numba is
+    # killed after a few seconds) are not the user's concern
     with LocalCluster(n_workers=workers, threads_per_worker=1, processes=True,
-                      dashboard_address=None) as cluster, Client(cluster) as client:
+                      dashboard_address=None, silence_logs=logging.ERROR) as cluster, \
+            Client(cluster) as client:
         yield client
