@@ -21,6 +21,8 @@ from collections.abc import Callable
 from dataclasses import dataclass
 from pathlib import Path
 
+import numpy as np
+
 from .api import pack
 from .atomic import atomic_output
 from .batch_file import SceneSpec
@@ -92,12 +94,36 @@ def check_done(spec: SceneSpec, path: Path) -> tuple[Packing | None, str]:
             _same_path(t.path, s) for t, s in zip(p.types, spec.types, strict=True)) \
             or not _same_path(p.container_path, spec.container):
         return None, "made for other meshes or another seed"
+    changed = _changed_settings(spec, p)
+    if changed:
+        return None, f"made with another {changed}"
     problems = verify_sources(p)
     if problems:
         return None, problems[0]
     if p.certificate.get("certified") is not True:
         return None, "not certified"
     return p, ""
+
+
+def _changed_settings(spec: SceneSpec, p: Packing) -> str:
+    """The first setting of `spec` that the packing was not made with ("" if none)."""
+    i = p.inputs
+    given = {"clearance": (i.clearance, spec.clearance), "fidelity": (i.fidelity, spec.fidelity),
+             "time_budget": (i.time_budget, spec.time_budget),
+             "container_size": (i.container_size, spec.container_size),
+             "type_scale": (i.type_scale, spec.type_scale),
+             "attempts": (i.options.attempts.count, spec.attempts),
+             "mix_tolerance": (i.options.cavity.max_tvd, spec.mix_tolerance
+                               if spec.mix_tolerance is not None
+                               else CavityPassOptions().max_tvd)}
+    for name, (made, asked) in given.items():
+        if made != asked:
+            return name
+    if spec.shares is not None:
+        q = np.asarray(spec.shares, float) / sum(spec.shares)
+        if not np.allclose([t.share for t in p.types], q, rtol=1e-9, atol=1e-12):
+            return "shares"
+    return ""
 
 
 def _same_path(a: str | None, b: str) -> bool:

@@ -4,6 +4,7 @@ as one after another here, and no scene lost or doubled when a worker dies."""
 from __future__ import annotations
 
 import contextlib
+import dataclasses
 import os
 import threading
 import time
@@ -134,3 +135,8 @@ def test_a_rerun_skips_verified_scenes_and_packs_the_rest_again(tmp_path):
     summary = (tmp_path / "summary.csv").read_text().splitlines()
     assert summary[0].startswith("id,status,")
     assert [line.split(",")[1] for line in summary[1:]] == ["skipped", "packed"]
+    # a scene whose settings changed since its file was written is packed again
+    changed = [scenes[0], dataclasses.replace(scenes[1], clearance=0.05)]
+    assert check_done(changed[1], scene_file(tmp_path, changed[1]))[1] == \
+        "made with another clearance"
+    assert [r.status for r in run_batch(changed, tmp_path)] == ["skipped", "packed"]
