@@ -59,7 +59,7 @@ def add_batch_parser(sub: argparse._SubParsersAction) -> None:
     p.add_argument("file", metavar="FILE", help="the batch file (TOML)")
     p.add_argument("-o", "--output", required=True, metavar="DIR",
                    help="folder for the packings and the summary (created if missing)")
-    add_cluster_arguments(p, "the scenes")
+    add_cluster_arguments(p, "the scenes", reads_files=True)
     p.add_argument("-q", "--quiet", action="store_true",
                    help="no progress bar and no table (errors are still printed)")
     p.set_defaults(run=cmd_batch)

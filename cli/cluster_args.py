@@ -24,8 +24,10 @@ def positive_int(what: str):
     return parse
 
 
-def add_cluster_arguments(p: argparse.ArgumentParser, what: str) -> None:
-    """Add --workers and --scheduler to `p`; `what` says what runs on the workers."""
+def add_cluster_arguments(p: argparse.ArgumentParser, what: str,
+                          reads_files: bool = False) -> None:
+    """Add --workers and --scheduler to `p`; `what` says what runs on the workers, which
+    open the mesh files themselves when `reads_files`."""
     p.add_argument(
         "--workers", type=positive_int("--workers"), metavar="K",
         help=f"run {what} on K local worker processes (a Dask LocalCluster started for this "
@@ -33,8 +35,9 @@ def add_cluster_arguments(p: argparse.ArgumentParser, what: str) -> None:
     p.add_argument(
         "--scheduler", metavar="ADDRESS",
         help=f"run {what} on an existing Dask cluster, e.g. tcp://10.0.0.5:8786 (start one "
-             "with 'dask scheduler' and 'dask worker ADDRESS' on each machine; the mesh files "
-             "must be readable at the same paths there)")
+             "with 'dask scheduler' and 'dask worker ADDRESS' on each machine, where the same "
+             "jampacked is installed" + ("; the mesh files must be readable at the same paths "
+                                         "there)" if reads_files else ")"))
 
 
 def cluster_client(args: argparse.Namespace, stack: contextlib.ExitStack):

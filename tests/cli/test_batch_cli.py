@@ -141,3 +141,10 @@ def test_pack_attempts_on_local_workers_match_attempts_here(tmp_path):
     assert len(here.report.attempts) == len(there.report.attempts) == 2
     np.testing.assert_array_equal(here.translations, there.translations)
     np.testing.assert_array_equal(here.type_index, there.type_index)
+
+
+def test_an_unreachable_scheduler_is_a_clear_error(folder):
+    rc, _, err = run(["batch", str(write(folder, GOOD)), "-o", str(folder / "out"), "-q",
+                      "--scheduler", "tcp://127.0.0.1:1"])
+    assert rc == 1 and "cannot reach the Dask scheduler at tcp://127.0.0.1:1" in err
+    assert not (folder / "out").exists()
