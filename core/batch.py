@@ -41,7 +41,7 @@ POLL = 0.1
 @dataclass
 class SceneResult:
     """What became of one scene: status "packed", "skipped" (already done and verified),
-    "failed" (the engine refused: message) or "cancelled"."""
+    "failed" (the engine refused, or its export failed: message) or "cancelled"."""
 
     spec: SceneSpec
     status: str
@@ -154,6 +154,7 @@ def run_batch(scenes: list[SceneSpec], out_dir: str | os.PathLike, client=None,
         if done is not None:
             results[spec.id] = SceneResult(spec, "skipped", str(path), done,
                                            seconds=done.timings.get("total"))
+            export_scene(results[spec.id], out, cancel, missing_only=True)
         else:
             todo.append(spec)
     total = len(scenes)
@@ -170,6 +171,7 @@ def run_batch(scenes: list[SceneSpec], out_dir: str | os.PathLike, client=None,
             save_packing(packing, path)
             results[spec.id] = SceneResult(spec, "packed", str(path), packing,
                                            seconds=packing.timings.get("total"))
+            export_scene(results[spec.id], out, cancel)
         report(len(results), total, f"{spec.id}: {results[spec.id].status}")
 
     try:
@@ -190,6 +192,30 @@ def run_batch(scenes: list[SceneSpec], out_dir: str | os.PathLike, client=None,
         ordered = [results[s.id] for s in scenes]
         write_summary(ordered, out / SUMMARY)
     return ordered
+
+
+def export_scene(result: SceneResult, out: Path, cancel: Callable[[], bool],
+                 missing_only: bool = False) -> None:
+    """Export a written packing to the formats its scene asks for (`out`/<id>.<format>,
+    validated and written atomically by `export_packing`); `missing_only`: only the files
+    not there yet. A failed export turns the result into "failed", its packing kept."""
+    spec = result.spec
+    paths = [str(out / f"{spec.id}.{fmt}") for fmt in spec.export]
+    if missing_only:
+        paths = [p for p in paths if not os.path.isfile(p)]
+    if not paths:
+        return
+    from jampacked.export.assemble import export_packing
+    from jampacked.export.options import ExportOptions
+
+    try:
+        rep = export_packing(result.file, paths, ExportOptions(
+            mode=spec.export_mode, shell=spec.export_shell), should_cancel=cancel)
+    except JampackedError as exc:
+        result.status, result.message = "failed", f"export: {exc}"
+        return
+    if not rep.passed:
+        result.status, result.message = "failed", "export: a file did not validate"
 
 
 def _run_on_cluster(client, todo: list[SceneSpec], finish, cancel: Callable[[], bool]

@@ -13,6 +13,9 @@ shares = [0.6, 0.4]         # optional, one per type (with `types` only)
 seeds = [1, 2, 3]           # or seed = 1
 clearance = 0.4             # optional, as `jampacked pack`: type_scale, fidelity,
 time_budget = 30            # time_budget, attempts, mix_tolerance
+export = ["3mf", "stl"]     # optional: also export each packing (<id>.3mf, <id>.stl)
+export_mode = "parts"       # optional: union, connect (default) or parts
+export_shell = 2.0          # optional: a container shell this thick
 ```
 
 Each scene expands to containers x object sets x seeds; each gets an id that names its
@@ -36,7 +39,9 @@ from .meshes import parse_box_spec
 
 #: settings a scene (or [defaults]) may give, besides its meshes and seeds
 SETTINGS = ("container_size", "type_scale", "clearance", "fidelity", "time_budget",
-            "attempts", "mix_tolerance", "shares")
+            "attempts", "mix_tolerance", "shares", "export", "export_mode", "export_shell")
+EXPORT_FORMATS = ("3mf", "stl", "obj", "ply")
+EXPORT_MODES = ("union", "connect", "parts")
 SCENE_KEYS = ("name", "container", "containers", "types", "type_sets", "seed", "seeds",
               *SETTINGS)
 _ID_RE = re.compile(r"[^A-Za-z0-9_.-]+")
@@ -59,6 +64,9 @@ class SceneSpec:
     time_budget: float | None = None
     attempts: int | None = None
     mix_tolerance: float | None = None
+    export: tuple[str, ...] = ()  # file formats to export the packing to
+    export_mode: str = "connect"
+    export_shell: float | None = None
     where: str = ""  # "scene 2 (line 7)" for messages
 
 
@@ -213,6 +221,17 @@ def _settings(d: dict, where: str) -> dict[str, Any]:
         elif key == "attempts":
             if isinstance(v, bool) or not isinstance(v, int) or v < 1:
                 raise InputError(f"{where}: 'attempts' must be a whole number >= 1, got {v!r}.")
+        elif key == "export":
+            if isinstance(v, str):
+                v = [v]
+            if not isinstance(v, list) or not all(x in EXPORT_FORMATS for x in v):
+                raise InputError(f"{where}: 'export' must be a list of formats from "
+                                 f"{', '.join(EXPORT_FORMATS)}, got {v!r}.")
+            v = tuple(v)
+        elif key == "export_mode":
+            if v not in EXPORT_MODES:
+                raise InputError(f"{where}: 'export_mode' must be one of "
+                                 f"{', '.join(EXPORT_MODES)}, got {v!r}.")
         elif key == "shares":
             if not isinstance(v, list) or not all(_real(x) and x >= 0 for x in v) \
                     or not sum(v) > 0:

@@ -89,6 +89,8 @@ def test_a_scene_expands_to_containers_times_sets_times_seeds(folder):
      r"'fidelity' must be auto, low, medium or high"),
     ("[[scene]]\ncontainer='box:9x9x9'\ntypes=['a.obj']\nseed=1\ntime_budget=-3\n",
      r"'time_budget' must be a number > 0, got -3"),
+    ("[[scene]]\ncontainer='box:9x9x9'\ntypes=['a.obj']\nseed=1\nexport=['step']\n",
+     r"'export' must be a list of formats from 3mf, stl, obj, ply, got \['step'\]"),
     ("[[scene]]\ncontainer='box:9x9x9'\ntypes=['a.obj']\nseeds=[1, 1]\n",
      r"scene id 'scene1-s1' is also made by scene 1"),
 ])
@@ -148,3 +150,24 @@ def test_an_unreachable_scheduler_is_a_clear_error(folder):
                       "--scheduler", "tcp://127.0.0.1:1"])
     assert rc == 1 and "cannot reach the Dask scheduler at tcp://127.0.0.1:1" in err
     assert not (folder / "out").exists()
+
+
+def test_batch_exports_each_packing_and_a_rerun_makes_only_missing_files(folder):
+    path = write(folder, """\
+        [[scene]]
+        container = "box:16x15x14"
+        types = ["a.obj", "b.obj"]
+        seed = 1
+        fidelity = "low"
+        export = ["stl", "obj"]
+        export_mode = "union"
+        """)
+    out = folder / "out"
+    assert run(["batch", str(path), "-o", str(out), "-q"])[0] == 0
+    stl = (out / "scene1-s1.stl").stat().st_mtime_ns
+    assert (out / "scene1-s1.obj").is_file()
+    (out / "scene1-s1.obj").unlink()
+    assert run(["batch", str(path), "-o", str(out), "-q"])[0] == 0
+    assert (out / "scene1-s1.obj").is_file() and (out / "scene1-s1.stl").stat().st_mtime_ns == stl
+    with open(out / "summary.csv", newline="") as f:
+        assert [r["status"] for r in csv.DictReader(f)] == ["skipped"]
