@@ -31,6 +31,8 @@ batch file (TOML; mesh paths relative to its folder):
   seeds = [1, 2, 3]              # or seed = 1
   container_size = 120           # optional, as 'jampacked pack': type_scale,
   clearance = 0.4                # fidelity, time_budget, attempts, mix_tolerance
+  export = ["3mf"]               # optional: also OUT/jar-c1-s1.3mf, ... (export_mode =
+  export_mode = "connect"        # union/connect/parts, export_shell = MM)
 
   Each [[scene]] gives containers x object sets x seeds packings.
 
