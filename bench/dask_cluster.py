@@ -1,7 +1,7 @@
 """Dask: attempts of one packing on a LocalCluster against one after another, and a batch of
 scenes with a worker killed midway against the same batch here.
 
-    python bench/distributed.py [--attempts 4] [--scenes 20] [--workers 2]
+    python bench/dask_cluster.py [--attempts 4] [--scenes 20] [--workers 2]
 
 Attempts: the same N attempts (no budget) of one scene, one after another in this process,
 then on a LocalCluster of `--workers` single-threaded worker processes (started and warmed up
@@ -9,7 +9,8 @@ before the clock starts); same densest packing? wall ratio (target <= 0.6x). Bat
 tiny scenes packed here one after another, then on the cluster with one worker killed
 (os._exit) once it runs a scene; all present, certified, identical to the local packings?
 Timings are wall-clock seconds on this shared 2-core machine: the load average is recorded
-next to them. Writes bench/results/distributed.json and distributed.png.
+next to them. Writes bench/results/dask_cluster.json and dask_cluster.png. (Not named
+distributed.py: as a script's folder is first on sys.path, that would shadow the package.)
 """
 
 from __future__ import annotations
@@ -175,9 +176,9 @@ def main() -> None:
         client.wait_for_workers(args.workers, timeout=120)
         data["batch"] = bench_batch(client, args.scenes)
     RESULTS.mkdir(parents=True, exist_ok=True)
-    write_json(RESULTS / "distributed.json", data)
-    chart(data, RESULTS / "distributed.png")
-    print(f"wrote {RESULTS / 'distributed.json'} and distributed.png")
+    write_json(RESULTS / "dask_cluster.json", data)
+    chart(data, RESULTS / "dask_cluster.png")
+    print(f"wrote {RESULTS / 'dask_cluster.json'} and dask_cluster.png")
 
 
 if __name__ == "__main__":
