@@ -143,7 +143,8 @@ def chart(data: dict, path: Path) -> None:
     ax.bar(x + 0.2, there, 0.4, label=f"LocalCluster, {data['workers']} workers")
     ax.set_xticks(x, labels)
     ax.set_ylabel("wall seconds")
-    ax.set_title(f"Dask on this 2-core machine (load {a['runs'][0]['load_before']:.1f})")
+    ax.set_title(f"Dask on this shared 2-core machine (load {a['runs'][0]['load_before']:.1f}"
+                 f" and {b['load_before']:.1f})")
     ax.legend()
     fig.tight_layout()
     save_figure(fig, path)
