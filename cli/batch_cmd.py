@@ -15,7 +15,7 @@ from jampacked.cli.cluster_args import add_cluster_arguments, cluster_client
 from jampacked.cli.exits import EXIT_INTERRUPTED
 from jampacked.cli.interrupt import CancelOnInterrupt
 from jampacked.cli.reports import consoles
-from jampacked.core.batch import SUMMARY, SceneResult, run_batch
+from jampacked.core.batch import SUMMARY, SceneResult, check_done, run_batch, scene_file
 from jampacked.core.batch_file import read_batch
 
 BATCH_EPILOG = """\
@@ -72,7 +72,9 @@ def cmd_batch(args: argparse.Namespace) -> int:
     out, err = consoles()
     scenes = read_batch(args.file)
     with contextlib.ExitStack() as stack:
-        client = cluster_client(args, stack)
+        # no cluster to start when every scene is already done and verified
+        todo = any(check_done(s, scene_file(args.output, s))[0] is None for s in scenes)
+        client = cluster_client(args, stack, needed=todo)
         cancel = stack.enter_context(CancelOnInterrupt())
         progress = None
         if not args.quiet:

@@ -40,11 +40,13 @@ def add_cluster_arguments(p: argparse.ArgumentParser, what: str,
                                          "there)" if reads_files else ")"))
 
 
-def cluster_client(args: argparse.Namespace, stack: contextlib.ExitStack):
-    """The distributed.Client the arguments ask for (closed with `stack`), or None."""
+def cluster_client(args: argparse.Namespace, stack: contextlib.ExitStack,
+                   needed: bool = True):
+    """The distributed.Client the arguments ask for (closed with `stack`), or None (also
+    when not `needed`: nothing to run)."""
     if args.workers is not None and args.scheduler is not None:
         raise UsageError("give --workers or --scheduler, not both")
-    if args.workers is None and args.scheduler is None:
+    if not needed or (args.workers is None and args.scheduler is None):
         return None
     from jampacked.core.cluster import client_for
 

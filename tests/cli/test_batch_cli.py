@@ -171,3 +171,19 @@ def test_batch_exports_each_packing_and_a_rerun_makes_only_missing_files(folder)
     assert (out / "scene1-s1.obj").is_file() and (out / "scene1-s1.stl").stat().st_mtime_ns == stl
     with open(out / "summary.csv", newline="") as f:
         assert [r["status"] for r in csv.DictReader(f)] == ["skipped"]
+
+
+def test_a_rerun_with_nothing_to_do_starts_no_cluster(folder, monkeypatch):
+    path = write(folder, GOOD.replace('seeds = [1, 2]', 'seeds = [1]').replace(
+        ', "box:15x16x14"', ''))
+    out = folder / "out"
+    assert run(["batch", str(path), "-o", str(out), "-q"])[0] == 0
+    import jampacked.core.cluster as cluster
+
+    def no_cluster(*a, **k):
+        raise AssertionError("a cluster was started with nothing to run")
+
+    monkeypatch.setattr(cluster, "client_for", no_cluster)
+    assert run(["batch", str(path), "-o", str(out), "-q", "--workers", "2"])[0] == 0
+    with open(out / "summary.csv", newline="") as f:
+        assert [r["status"] for r in csv.DictReader(f)] == ["skipped"]
