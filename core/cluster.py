@@ -20,7 +20,7 @@ import logging
 import time
 import uuid
 from collections.abc import Callable, Iterator
-from dataclasses import dataclass, field
+from dataclasses import dataclass
 
 import numba
 import numpy as np
@@ -75,7 +75,6 @@ class AttemptResult:
     timings: dict
     stopped: str | None  # the attempt's stop reason ("deadline", "cancelled") or None
     worker: str = ""
-    extra: dict = field(default_factory=dict)
 
     def to_attempt(self, solver: Solver) -> Attempt:
         """The Attempt on `solver` (a fresh one), its state replaced by this result's."""

@@ -18,6 +18,7 @@ from jampacked.core.api import pack
 from jampacked.core.batch import check_done, pack_scene, run_batch, scene_file
 from jampacked.core.batch_file import SceneSpec
 from jampacked.core.errors import InputError
+from jampacked.core.numba_cache import cache_loads_and_compiles
 from jampacked.core.packing_json import load_packing, save_packing
 
 POLY = [str(mesh_path(f"polyhedra/convex5/polytope{i}.obj")) for i in (1, 3)]
@@ -52,6 +53,10 @@ def test_attempts_on_the_cluster_give_the_packing_of_attempts_one_after_another(
     assert len(there.report.attempts) == 3
     _same_placements(here, there)
     assert there.certificate["certified"] is True
+    # the workers loaded the kernels from numba's on-disk cache, compiling nothing
+    loads = client.run(cache_loads_and_compiles)
+    assert sum(hits for hits, _ in loads.values()) > 0
+    assert [compiles for _, compiles in loads.values()] == [0, 0]
 
 
 def test_a_scheduler_address_runs_one_attempt_per_worker_thread(client, cluster):
