@@ -43,6 +43,10 @@ examples:
   jampacked pack box:40x40x45 --type cube.stl --type ball.stl --clearance 0.4 \\
       --time-budget 60 --seed 7 -o packing.json --preview preview.png
       Equal shares in a 40 x 40 x 45 mm box, at least 0.4 mm between parts.
+  jampacked pack box:40x40x45 --type cube.stl --type ball.stl --attempts 4 \\
+      --workers 2 -o packing.json
+      Four attempts on two local worker processes; the densest is kept (the same
+      packing as --attempts 4 alone).
 
 Ctrl-C stops early: the best certified packing found so far is saved (exit status 130);
 press Ctrl-C twice to abort without saving. Exit status: 0 done, 1 the engine refused
