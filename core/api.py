@@ -112,8 +112,9 @@ def pack(container: MeshSource, types: Sequence[MeshSource],
     (`core/options.py`). attempts: run exactly this many attempts (each its own random
     stream from the seed and its index) and keep the densest, ties to the earliest
     (`options.attempts.count`). client: a `distributed.Client` or a scheduler address; the
-    attempts then run side by side on its workers with the same result as one after
-    another (default count: the cluster's worker threads; no snapshots). Raises
+    attempts then run side by side on its workers, with the same result as one after
+    another when there is no time budget (with one, each attempt stops at the deadline;
+    default count: the cluster's worker threads; no snapshots). Raises
     JampackedError subclasses on bad input.
     """
     t_start = time.perf_counter()
@@ -417,6 +418,7 @@ def _place(scene: _Scene, approx: _Approximation, q: np.ndarray, seed: int,
     if inputs.time_budget is not None:
         stop.deadline = time.perf_counter() + float(inputs.time_budget)
     s1 = (float(np.sum(q * approx.volumes)) / opts.phases.phase1_density) ** (1 / 3)
+
     def new_solver() -> Solver:
         return Solver(cont, table, PackState(), solver_params, tuner)
 
