@@ -148,7 +148,7 @@ def _flat_keys() -> dict[str, tuple[str, str]]:
     """Version-1 flat name -> (group, field). The phase, fidelity, margin and physics
     fields kept their names; the other groups' had a prefix."""
     prefix = {"cavity": "extra_", "repair": "repair_", "attempts": ""}
-    renamed = {("cavity", "factors"): "extra_passes", ("attempts", "count"): "attempts"}
+    renamed = {("cavity", "factors"): "extra_passes", ("attempts", "count"): "attempt_count"}
     out: dict[str, tuple[str, str]] = {}
     for group in fields(PackOptions):
         if group.name == "tune_threads":
