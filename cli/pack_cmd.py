@@ -12,6 +12,7 @@ import contextlib
 from rich.markup import escape
 
 from jampacked.cli.args import add_command, fraction, non_negative_float, positive_float, seed
+from jampacked.cli.cluster_args import add_cluster_arguments, cluster_client, positive_int
 from jampacked.cli.exits import EXIT_INTERRUPTED
 from jampacked.cli.interrupt import CancelOnInterrupt
 from jampacked.cli.reports import consoles, print_summary, progress_bar, warn
@@ -42,6 +43,10 @@ examples:
   jampacked pack box:40x40x45 --type cube.stl --type ball.stl --clearance 0.4 \\
       --time-budget 60 --seed 7 -o packing.json --preview preview.png
       Equal shares in a 40 x 40 x 45 mm box, at least 0.4 mm between parts.
+  jampacked pack box:40x40x45 --type cube.stl --type ball.stl --attempts 4 \\
+      --workers 2 -o packing.json
+      Four attempts on two local worker processes; the densest is kept (the same
+      packing as --attempts 4 alone).
 
 Ctrl-C stops early: the best certified packing found so far is saved (exit status 130);
 press Ctrl-C twice to abort without saving. Exit status: 0 done, 1 the engine refused
@@ -114,6 +119,13 @@ def add_pack_parser(sub: argparse._SubParsersAction) -> None:
              "It starts after loading and, on the first run, compiling the engine (default: "
              "no limit; Ctrl-C also stops early)")
     p.add_argument(
+        "--attempts", type=positive_int("--attempts"), metavar="N",
+        help="run exactly N attempts (each its own random stream from the seed and its "
+             "index) and keep the densest; the same N give the same packing on one machine "
+             "or a cluster (default: one attempt, or as many as fit the --time-budget; with "
+             "--workers/--scheduler: one per worker)")
+    add_cluster_arguments(p, "the attempts")
+    p.add_argument(
         "-q", "--quiet", action="store_true",
         help="no progress bar and no summary (errors and warnings are still printed)")
     p.set_defaults(run=cmd_pack)
@@ -124,6 +136,7 @@ def cmd_pack(args: argparse.Namespace) -> int:
     out, err = consoles()
     with contextlib.ExitStack() as stack:
         scene = resolve_scene(args, stack)
+        client = cluster_client(args, stack)
         cancel = stack.enter_context(CancelOnInterrupt())
         progress_cb = None if args.quiet else progress_bar(stack, err, cancel)
 
@@ -133,7 +146,8 @@ def cmd_pack(args: argparse.Namespace) -> int:
             progress=progress_cb, should_cancel=cancel, container_size=scene.container_size,
             type_scale=scene.type_scale, names=scene.names,
             options=None if args.mix_tolerance is None
-            else PackOptions(cavity=CavityPassOptions(max_tvd=args.mix_tolerance)))
+            else PackOptions(cavity=CavityPassOptions(max_tvd=args.mix_tolerance)),
+            attempts=args.attempts, client=client)
     save_packing(packing, args.output)
     for w in packing.report.warnings:
         warn(err, w)

@@ -6,6 +6,7 @@ from __future__ import annotations
 import argparse
 
 from jampacked.cli.args import FORMATTER, fill
+from jampacked.cli.batch_cmd import add_batch_parser
 from jampacked.cli.export_cmd import add_export_parser
 from jampacked.cli.info_cmd import add_info_parser
 from jampacked.cli.pack_cmd import add_pack_parser
@@ -22,13 +23,15 @@ examples:
       --open-plane +y@0.55 --drain 3 -o out/spot.3mf -o out/spot.stl
   jampacked info packing.json
   jampacked validate out/spot.3mf
+  jampacked batch scenes.toml -o out/ --workers 2
 
 Run 'jampacked COMMAND --help' for the options of a command.
 Lengths are in container units: millimetres when the result is meant for printing.
 """
 
 #: subcommands, in the order of the help text
-COMMANDS = (add_pack_parser, add_export_parser, add_info_parser, add_validate_parser)
+COMMANDS = (add_pack_parser, add_export_parser, add_info_parser, add_validate_parser,
+            add_batch_parser)
 
 
 def build_parser() -> argparse.ArgumentParser:

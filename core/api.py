@@ -9,6 +9,7 @@ assemble the result.
 
 from __future__ import annotations
 
+import contextlib
 import math
 import numbers
 import os
@@ -21,6 +22,7 @@ import numba
 import numpy as np
 
 from .certify import Certifier
+from .cluster import AttemptJob, client_for, cluster_threads, place_on_cluster
 from .container import Container, build_container
 from .cost import TypeSize, check_cost, check_sizes, estimate_cost
 from .errors import InputError, PackingError
@@ -90,7 +92,8 @@ def pack(container: MeshSource, types: Sequence[MeshSource],
          progress: Progress | None = None, should_cancel: Callable[[], bool] | None = None,
          container_size: float | None = None, type_scale: float = 1.0,
          names: Sequence[str] | None = None, options: PackOptions | None = None,
-         use_cache: bool = True, snapshot: Snapshot | None = None) -> Packing:
+         use_cache: bool = True, snapshot: Snapshot | None = None,
+         attempts: int | None = None, client: object | None = None) -> Packing:
     """Pack object types into a container; returns a certified packing.
 
     container: mesh file path, "box:AxBxC" (a box centred at the origin) or MeshData.
@@ -106,13 +109,19 @@ def pack(container: MeshSource, types: Sequence[MeshSource],
     during placement, at most four times a second, from the calling thread: (N, 3) centres,
     (N,) bounding radii at their current scale, (N,) type indices (copies; container frame,
     container units), e.g. for a live view. options: the method's options
-    (`core/options.py`). Raises
+    (`core/options.py`). attempts: run exactly this many attempts (each its own random
+    stream from the seed and its index) and keep the densest, ties to the earliest
+    (`options.attempts.count`). client: a `distributed.Client` or a scheduler address; the
+    attempts then run side by side on its workers, with the same result as one after
+    another when there is no time budget (with one, each attempt stops at the deadline;
+    default count: the cluster's worker threads; no snapshots). Raises
     JampackedError subclasses on bad input.
     """
     t_start = time.perf_counter()
+    options = _with_attempts(options or PackOptions(), attempts)
     inputs = PackInputs(clearance=clearance, time_budget=time_budget,
                         container_size=container_size, type_scale=type_scale,
-                        fidelity=fidelity, options=options or PackOptions())
+                        fidelity=fidelity, options=options)
     seed = _check_arguments(inputs, seed, types, names)
     q = _normalise_shares(shares, len(types))
     report = progress or (lambda f, m: None)
@@ -127,7 +136,14 @@ def pack(container: MeshSource, types: Sequence[MeshSource],
     t_approx = time.perf_counter()
 
     stop = Stop(None, should_cancel)
-    run = _place(scene, approx, q, seed, inputs, stop, report, t_approx, snapshot)
+    with contextlib.ExitStack() as stack:
+        if client is not None:
+            client = stack.enter_context(client_for(client))
+            if inputs.options.attempts.count is None:
+                inputs = replace(inputs, options=_with_attempts(
+                    inputs.options, cluster_threads(client)))
+        run = _place(scene, approx, q, seed, inputs, stop, report, t_approx, snapshot,
+                     client)
     t_place = time.perf_counter()
 
     report(0.9, "certifying on the real meshes")
@@ -144,6 +160,18 @@ def pack(container: MeshSource, types: Sequence[MeshSource],
                         timings)
     report(1.0, f"done: {packing.n} objects, density {packing.metrics['density']:.1%}")
     return packing
+
+
+def _with_attempts(options: PackOptions, attempts: object) -> PackOptions:
+    """`options` with a fixed count of attempts, when one is given (checked)."""
+    if attempts is None:
+        attempts = options.attempts.count
+        if attempts is None:
+            return options
+    if isinstance(attempts, bool) or not isinstance(attempts, numbers.Integral) \
+            or attempts < 1:
+        raise InputError(f"attempts must be a whole number >= 1, got {attempts!r}.")
+    return replace(options, attempts=replace(options.attempts, count=int(attempts)))
 
 
 def _check_arguments(inputs: PackInputs, seed: object, types: object,
@@ -369,7 +397,7 @@ class _Placed:
 
 def _place(scene: _Scene, approx: _Approximation, q: np.ndarray, seed: int,
            inputs: PackInputs, stop: Stop, report: Progress, t_approx: float,
-           snapshot: Snapshot | None = None) -> _Placed:
+           snapshot: Snapshot | None = None, client: object | None = None) -> _Placed:
     """Margins, solver and kernels ready, then the attempts of the placement; the time
     budget starts once the kernels are compiled."""
     opts, clearance = inputs.options, inputs.clearance
@@ -390,10 +418,19 @@ def _place(scene: _Scene, approx: _Approximation, q: np.ndarray, seed: int,
     if inputs.time_budget is not None:
         stop.deadline = time.perf_counter() + float(inputs.time_budget)
     s1 = (float(np.sum(q * approx.volumes)) / opts.phases.phase1_density) ** (1 / 3)
-    best, attempts = place(lambda: Solver(cont, table, PackState(), solver_params, tuner),
-                           q, s1, approx.f_min, seed, stop, margins.objects, opts,
-                           scene.volume, report,
-                           None if snapshot is None else Snapshots(snapshot, table.radius))
+
+    def new_solver() -> Solver:
+        return Solver(cont, table, PackState(), solver_params, tuner)
+
+    if client is not None:  # the attempts side by side on the cluster's workers
+        job = AttemptJob(cont, objtypes, solver_params, q, s1, approx.f_min, seed,
+                         margins.objects, opts, scene.volume)
+        best, attempts = place_on_cluster(client, job, opts.attempts.count, new_solver,
+                                          stop, report)
+    else:
+        best, attempts = place(new_solver, q, s1, approx.f_min, seed, stop, margins.objects,
+                               opts, scene.volume, report,
+                               None if snapshot is None else Snapshots(snapshot, table.radius))
     return _Placed(best, attempts, margins, tuner, s1, t_compile)
 
 

@@ -42,6 +42,14 @@ def cache_is_cold() -> bool | None:
     return not all(known)
 
 
+def cache_loads_and_compiles() -> tuple[int, int]:
+    """How often this process loaded the placement kernels from numba's on-disk cache, and
+    how often it compiled them (a cache miss): workers of a cluster should only load."""
+    stats = [d.stats for d in _placement_kernels()]
+    return (sum(sum(s.cache_hits.values()) for s in stats),
+            sum(sum(s.cache_misses.values()) for s in stats))
+
+
 def cache_location() -> str:
     """Where numba caches the kernels' machine code (a folder)."""
     from . import kernels

@@ -76,9 +76,12 @@ class CavityPassOptions:
 @dataclass(frozen=True)
 class AttemptOptions:
     """With a time budget: independent attempts while the time left is at least the
-    shortest attempt so far; the densest is kept (`core/placement.py`)."""
+    shortest attempt so far; the densest is kept (`core/placement.py`). `count` asks for
+    exactly that many attempts instead (with or without a budget), which a Dask cluster can
+    run side by side (`core/cluster.py`)."""
 
     max_attempts: int = 8
+    count: int | None = None  # None: one attempt without a budget, as many as fit with one
 
 
 @dataclass(frozen=True)
@@ -145,7 +148,7 @@ def _flat_keys() -> dict[str, tuple[str, str]]:
     """Version-1 flat name -> (group, field). The phase, fidelity, margin and physics
     fields kept their names; the other groups' had a prefix."""
     prefix = {"cavity": "extra_", "repair": "repair_", "attempts": ""}
-    renamed = {("cavity", "factors"): "extra_passes"}
+    renamed = {("cavity", "factors"): "extra_passes", ("attempts", "count"): "attempt_count"}
     out: dict[str, tuple[str, str]] = {}
     for group in fields(PackOptions):
         if group.name == "tune_threads":

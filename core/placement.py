@@ -8,7 +8,9 @@ kept: attempts end at densities that differ by points between random streams
 (docs/notes-core.md). A budget is a ceiling, not a duration: once an attempt that ran to its
 end repeats the best attempt's object count and density, the scene is taken as full at that
 count (small scenes, where every stream reaches the same count) and no further attempt
-starts.
+starts. Asked for a fixed number of attempts (`AttemptOptions.count`), exactly that many run
+(fewer only on cancel or the deadline), with no early stop, so that running them one after
+another here or side by side on a cluster (`core/cluster.py`) keeps the same densest one.
 """
 
 from __future__ import annotations
@@ -142,6 +144,16 @@ class Snapshots:
         self.fn(state.pos[idx].copy(), self.radius[typ] * state.scale[idx], typ)
 
 
+def attempt_rng(seed: int, index: int) -> np.random.Generator:
+    """The random stream of attempt `index` of a packing with `seed`."""
+    return np.random.default_rng(seed if index == 0 else [seed, index])
+
+
+def is_denser(att: Attempt, best: Attempt | None) -> bool:
+    """`att` replaces `best` as the kept attempt: strictly denser (ties keep the earlier)."""
+    return best is None or att.density > best.density
+
+
 def place(new_solver: Callable[[], Solver], q: np.ndarray, s1: float, f_min: float,
           seed: int, stop: Stop, margin: np.ndarray, options: PackOptions, c_volume: float,
           report: Callable[[float, str], None],
@@ -151,7 +163,8 @@ def place(new_solver: Callable[[], Solver], q: np.ndarray, s1: float, f_min: flo
     densest and a summary of every attempt. Without a deadline there is one attempt. The
     first uses the random stream of `seed` itself, attempt a > 0 that of (seed, a). The
     attempts end early, the last one's summary saying REPEATED, once REPEATS_TO_STOP
-    attempts in a row ran to their end with the best attempt's count and density.
+    attempts in a row ran to their end with the best attempt's count and density. With
+    `options.attempts.count` set, exactly that many run (fewer on cancel or deadline).
     watch(state), when given, sees the running attempt's state at every progress report.
     """
     best: Attempt | None = None
@@ -169,7 +182,7 @@ def place(new_solver: Callable[[], Solver], q: np.ndarray, s1: float, f_min: flo
             watch(current.s)
 
     while True:
-        rng = np.random.default_rng(seed if not done else [seed, len(done)])
+        rng = attempt_rng(seed, len(done))
         t0 = time.perf_counter()
         current = new_solver()
         att = place_once(current, q, s1, f_min, rng, stop, margin, options, c_volume,
@@ -181,8 +194,12 @@ def place(new_solver: Callable[[], Solver], q: np.ndarray, s1: float, f_min: flo
             repeats += 1
         else:
             repeats = 0
-        if best is None or att.density > best.density:
+        if is_denser(att, best):
             best = att
+        if options.attempts.count is not None:  # a fixed count: no early stop
+            if stop() or len(done) >= options.attempts.count:
+                return best, done
+            continue
         if repeats >= REPEATS_TO_STOP and stop.deadline is not None:
             summary.stopped = REPEATED
             return best, done

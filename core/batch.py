@@ -1,0 +1,254 @@
+"""Run the scenes of a batch (`core/batch_file.py`): locally one after another, or on a Dask
+cluster's workers; each packing written from this process only, atomically, as
+``<out>/<scene id>.json``, plus a summary (``summary.csv``).
+
+A scene whose file is already there and verified (it loads, names the scene's seed and
+mesh files, its sources' sha256 still match, it is certified) is skipped. On a cluster a
+worker runs `pack_scene` and returns the Packing; a worker that dies mid-scene has its
+scenes run again elsewhere by Dask's scheduler, and since only this process writes, by scene
+id, a scene is never lost nor written twice. Cancel (Ctrl-C) stops waiting: finished
+scenes stay written, unfinished ones are not written.
+"""
+
+from __future__ import annotations
+
+import csv
+import io
+import os
+import time
+import uuid
+from collections.abc import Callable
+from dataclasses import dataclass
+from pathlib import Path
+
+import numpy as np
+
+from .api import pack
+from .atomic import atomic_output
+from .batch_file import SceneSpec
+from .errors import InputError, JampackedError
+from .options import CavityPassOptions, PackOptions
+from .packing_json import load_packing, save_packing, verify_sources
+from .packing_types import Packing
+
+SUMMARY = "summary.csv"
+COLUMNS = ("id", "status", "seed", "container", "types", "count", "density", "tvd",
+           "nni_mean", "certified", "seconds", "file", "message")
+#: seconds between looks at the cluster's futures and the cancel callback
+POLL = 0.1
+
+
+@dataclass
+class SceneResult:
+    """What became of one scene: status "packed", "skipped" (already done and verified),
+    "failed" (the engine refused, or its export failed: message) or "cancelled"."""
+
+    spec: SceneSpec
+    status: str
+    file: str = ""
+    packing: Packing | None = None
+    message: str = ""
+    seconds: float | None = None
+
+    def row(self) -> dict:
+        p, s = self.packing, self.spec
+        m = p.metrics if p is not None else {}
+        return {"id": s.id, "status": self.status, "seed": s.seed, "container": s.container,
+                "types": ";".join(s.types),
+                "count": p.n if p is not None else "",
+                "density": _fmt(m.get("density")), "tvd": _fmt(m.get("tvd")),
+                "nni_mean": _fmt(m.get("nni_mean")),
+                "certified": "" if p is None else p.certificate.get("certified"),
+                "seconds": _fmt(self.seconds), "file": self.file, "message": self.message}
+
+
+def _fmt(v) -> str:
+    return "" if v is None else f"{float(v):.6g}"
+
+
+def pack_scene(spec: SceneSpec, should_cancel: Callable[[], bool] | None = None) -> Packing:
+    """The packing of one scene (what a worker runs)."""
+    options = None
+    if spec.mix_tolerance is not None:
+        options = PackOptions(cavity=CavityPassOptions(max_tvd=spec.mix_tolerance))
+    return pack(spec.container, list(spec.types), spec.shares, seed=spec.seed,
+                clearance=spec.clearance, fidelity=spec.fidelity,
+                time_budget=spec.time_budget, container_size=spec.container_size,
+                type_scale=spec.type_scale, options=options, attempts=spec.attempts,
+                should_cancel=should_cancel)
+
+
+def scene_file(out_dir: str | os.PathLike, spec: SceneSpec) -> Path:
+    return Path(out_dir) / f"{spec.id}.json"
+
+
+def check_done(spec: SceneSpec, path: Path) -> tuple[Packing | None, str]:
+    """The scene's packing file if it is done and verified, else None and why not."""
+    if not path.is_file():
+        return None, "not packed yet"
+    try:
+        p = load_packing(path)
+    except JampackedError as exc:
+        return None, f"unreadable: {exc}"
+    if p.seed != spec.seed or len(p.types) != len(spec.types) or not all(
+            _same_path(t.path, s) for t, s in zip(p.types, spec.types, strict=True)) \
+            or not _same_path(p.container_path, spec.container):
+        return None, "made for other meshes or another seed"
+    changed = _changed_settings(spec, p)
+    if changed:
+        return None, f"made with another {changed}"
+    problems = verify_sources(p)
+    if problems:
+        return None, problems[0]
+    if p.certificate.get("certified") is not True:
+        return None, "not certified"
+    return p, ""
+
+
+def _changed_settings(spec: SceneSpec, p: Packing) -> str:
+    """The first setting of `spec` that the packing was not made with ("" if none)."""
+    i = p.inputs
+    given = {"clearance": (i.clearance, spec.clearance), "fidelity": (i.fidelity, spec.fidelity),
+             "time_budget": (i.time_budget, spec.time_budget),
+             "container_size": (i.container_size, spec.container_size),
+             "type_scale": (i.type_scale, spec.type_scale),
+             "attempts": (i.options.attempts.count, spec.attempts),
+             "mix_tolerance": (i.options.cavity.max_tvd, spec.mix_tolerance
+                               if spec.mix_tolerance is not None
+                               else CavityPassOptions().max_tvd)}
+    for name, (made, asked) in given.items():
+        if made != asked:
+            return name
+    if spec.shares is not None:
+        q = np.asarray(spec.shares, float) / sum(spec.shares)
+        if not np.allclose([t.share for t in p.types], q, rtol=1e-9, atol=1e-12):
+            return "shares"
+    return ""
+
+
+def _same_path(a: str | None, b: str) -> bool:
+    return a is not None and (a == b or os.path.realpath(a) == os.path.realpath(b))
+
+
+def run_batch(scenes: list[SceneSpec], out_dir: str | os.PathLike, client=None,
+              progress: Callable[[int, int, str], None] | None = None,
+              should_cancel: Callable[[], bool] | None = None) -> list[SceneResult]:
+    """Pack every scene not already done and verified in `out_dir`; returns one result per
+    scene, in the batch's order, and writes `out_dir`/summary.csv. client: a
+    distributed.Client (its workers run the scenes) or None (here, one after another).
+    progress(done, total, message) after each scene; should_cancel() is polled."""
+    out = Path(out_dir)
+    if not out.is_dir():
+        try:
+            out.mkdir(parents=True)
+        except OSError as exc:
+            raise InputError(f"cannot create output folder {out}: {exc.strerror or exc}"
+                             ) from None
+    report = progress or (lambda d, t, m: None)
+    cancel = should_cancel or (lambda: False)
+    results: dict[str, SceneResult] = {}
+    todo = []
+    for spec in scenes:
+        path = scene_file(out, spec)
+        done, _why = check_done(spec, path)
+        if done is not None:
+            results[spec.id] = SceneResult(spec, "skipped", str(path), done,
+                                           seconds=done.timings.get("total"))
+            export_scene(results[spec.id], out, cancel, missing_only=True)
+        else:
+            todo.append(spec)
+    total = len(scenes)
+    report(len(results), total, f"{len(results)} already done, {len(todo)} to pack")
+
+    def finish(spec: SceneSpec, packing: Packing | None, error: str = "") -> None:
+        if packing is None:
+            results[spec.id] = SceneResult(spec, "failed", message=error)
+        elif packing.report.stopped == "cancelled":
+            results[spec.id] = SceneResult(spec, "cancelled", packing=None,
+                                           message="stopped before the end; not written")
+        else:
+            path = scene_file(out, spec)
+            save_packing(packing, path)
+            results[spec.id] = SceneResult(spec, "packed", str(path), packing,
+                                           seconds=packing.timings.get("total"))
+            export_scene(results[spec.id], out, cancel)
+        report(len(results), total, f"{spec.id}: {results[spec.id].status}")
+
+    try:
+        if client is None:
+            for spec in todo:
+                if cancel():
+                    break
+                try:
+                    finish(spec, pack_scene(spec, cancel))
+                except JampackedError as exc:
+                    finish(spec, None, str(exc))
+        else:
+            _run_on_cluster(client, todo, finish, cancel)
+    finally:
+        for spec in scenes:
+            results.setdefault(spec.id, SceneResult(spec, "cancelled",
+                                                    message="not run (cancelled)"))
+        ordered = [results[s.id] for s in scenes]
+        write_summary(ordered, out / SUMMARY)
+    return ordered
+
+
+def export_scene(result: SceneResult, out: Path, cancel: Callable[[], bool],
+                 missing_only: bool = False) -> None:
+    """Export a written packing to the formats its scene asks for (`out`/<id>.<format>,
+    validated and written atomically by `export_packing`); `missing_only`: only the files
+    not there yet. A failed export turns the result into "failed", its packing kept."""
+    spec = result.spec
+    paths = [str(out / f"{spec.id}.{fmt}") for fmt in spec.export]
+    if missing_only:
+        paths = [p for p in paths if not os.path.isfile(p)]
+    if not paths:
+        return
+    from jampacked.export.assemble import export_packing
+    from jampacked.export.options import ExportOptions
+
+    try:
+        rep = export_packing(result.file, paths, ExportOptions(
+            mode=spec.export_mode, shell=spec.export_shell), should_cancel=cancel)
+    except JampackedError as exc:
+        result.status, result.message = "failed", f"export: {exc}"
+        return
+    if not rep.passed:
+        result.status, result.message = "failed", "export: a file did not validate"
+
+
+def _run_on_cluster(client, todo: list[SceneSpec], finish, cancel: Callable[[], bool]
+                    ) -> None:
+    token = uuid.uuid4().hex[:8]
+    futures = {client.submit(pack_scene, spec, key=f"scene-{spec.id}-{token}", pure=False):
+               spec for spec in todo}
+    pending = dict(futures)
+    try:
+        while pending:
+            if cancel():
+                return
+            for f in [f for f in pending if f.done()]:
+                spec = pending.pop(f)
+                try:
+                    packing = f.result()
+                except JampackedError as exc:
+                    finish(spec, None, str(exc))
+                else:
+                    finish(spec, packing)
+                f.release()
+            time.sleep(POLL)
+    finally:
+        if pending:
+            client.cancel(list(pending))
+
+
+def write_summary(results: list[SceneResult], path: str | os.PathLike) -> None:
+    """The batch's summary table as CSV (one row per scene), written atomically."""
+    buf = io.StringIO()
+    w = csv.DictWriter(buf, fieldnames=COLUMNS, lineterminator="\n")
+    w.writeheader()
+    for r in results:
+        w.writerow(r.row())
+    with atomic_output(path, "w") as f:
+        f.write(buf.getvalue())

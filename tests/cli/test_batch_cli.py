@@ -1,0 +1,189 @@
+"""`jampacked batch`: the batch file's checks (clear errors naming scene, line and key), a
+local run with its summary table, and a rerun that skips what is done and verified."""
+
+from __future__ import annotations
+
+import contextlib
+import csv
+import io
+import shutil
+import textwrap
+
+import numpy as np
+import pytest
+from testdata import mesh_path
+
+from jampacked.cli.main import main
+from jampacked.core.batch_file import read_batch
+from jampacked.core.errors import InputError
+from jampacked.core.packing_json import load_packing
+
+P1 = mesh_path("polyhedra/convex5/polytope1.obj")
+P3 = mesh_path("polyhedra/convex5/polytope3.obj")
+
+
+def run(argv: list[str]) -> tuple[int, str, str]:
+    out, err = io.StringIO(), io.StringIO()
+    with contextlib.redirect_stdout(out), contextlib.redirect_stderr(err):
+        rc = main(argv)
+    return rc, out.getvalue(), err.getvalue()
+
+
+@pytest.fixture
+def folder(tmp_path):
+    shutil.copy(P1, tmp_path / "a.obj")
+    shutil.copy(P3, tmp_path / "b.obj")
+    return tmp_path
+
+
+def write(folder, text: str):
+    path = folder / "scenes.toml"
+    path.write_text(textwrap.dedent(text))
+    return path
+
+
+GOOD = """\
+    [defaults]
+    fidelity = "low"
+
+    [[scene]]
+    name = "small"
+    containers = ["box:16x15x14", "box:15x16x14"]
+    types = ["a.obj", "b.obj"]
+    shares = [0.5, 0.5]
+    seeds = [1, 2]
+    """
+
+
+def test_a_scene_expands_to_containers_times_sets_times_seeds(folder):
+    scenes = read_batch(write(folder, GOOD + """
+    [[scene]]
+    container = "box:20x20x20"
+    type_sets = [["a.obj"], ["a.obj", "b.obj"]]
+    seed = 4
+    clearance = 0.2
+    """))
+    assert [s.id for s in scenes] == ["small-c1-s1", "small-c1-s2", "small-c2-s1",
+                                      "small-c2-s2", "scene2-t1-s4", "scene2-t2-s4"]
+    assert scenes[0].types == (str(folder / "a.obj"), str(folder / "b.obj"))
+    assert scenes[0].fidelity == "low" and scenes[0].shares == (0.5, 0.5)
+    assert scenes[5].clearance == 0.2 and scenes[5].fidelity == "low"
+
+
+@pytest.mark.parametrize("text, match", [
+    ("[[scene]\ncontainer = 1", r"not valid TOML: .*line 1"),
+    ("title = 'x'\n", r"unknown top-level key 'title'"),
+    ("[defaults]\nfidelity = 'low'\n", r"lists no scenes"),
+    ("[[scene]]\ncontainer='box:9x9x9'\ntypes=['a.obj']\nseed=1\n\n[[scene]]\n"
+     "container='box:9x9x9'\ntypes=['a.obj']\nseed=1\ncolour='red'\n",
+     r"scene 2 \(line 6\): unknown key 'colour'"),
+    ("[[scene]]\ncontainer='box:9x9x9'\ntypes=['missing.obj']\nseed=1\n",
+     r"scene 1 \(line 1\), types: mesh file 'missing.obj' not found"),
+    ("[[scene]]\ncontainer='box:9x9x9'\ntypes=['a.obj']\nseeds=[1, -2]\n",
+     r"seeds must be whole numbers >= 0, got -2"),
+    ("[[scene]]\ncontainer='box:9x9x9'\ntypes=['a.obj']\n", r"'seed' \(or 'seeds', a list\) "
+     "is missing"),
+    ("[[scene]]\ncontainer='box:9x9x9'\ntypes=['a.obj', 'b.obj']\nshares=[1]\nseed=1\n",
+     r"'shares' has 1 values for 2 types"),
+    ("[[scene]]\ncontainer='box:9x9x9'\ntypes=['a.obj']\nseed=1\nfidelity='ultra'\n",
+     r"'fidelity' must be auto, low, medium or high"),
+    ("[[scene]]\ncontainer='box:9x9x9'\ntypes=['a.obj']\nseed=1\ntime_budget=-3\n",
+     r"'time_budget' must be a number > 0, got -3"),
+    ("[[scene]]\ncontainer='box:9x9x9'\ntypes=['a.obj']\nseed=1\nexport=['step']\n",
+     r"'export' must be a list of formats from 3mf, stl, obj, ply, got \['step'\]"),
+    ("[[scene]]\ncontainer='box:9x9x9'\ntypes=['a.obj']\nseeds=[1, 1]\n",
+     r"scene id 'scene1-s1' is also made by scene 1"),
+])
+def test_bad_batch_files_name_the_scene_line_and_key(folder, text, match):
+    path = write(folder, text)
+    with pytest.raises(InputError, match=match):
+        read_batch(path)
+    rc, _, err = run(["batch", str(path), "-o", str(folder / "out"), "-q"])
+    assert rc == 1 and "scenes.toml" in err
+
+
+def test_batch_writes_each_packing_and_a_summary_and_a_rerun_skips_them(folder):
+    path = write(folder, GOOD)
+    out = folder / "out"
+    rc, stdout, _ = run(["batch", str(path), "-o", str(out)])
+    assert rc == 0 and "small-c2-s2" in stdout
+    with open(out / "summary.csv", newline="") as f:
+        rows = list(csv.DictReader(f))
+    assert [r["status"] for r in rows] == ["packed"] * 4
+    assert all(r["certified"] == "True" and int(r["count"]) > 0 for r in rows)
+    assert sorted(p.name for p in out.glob("*.json")) == sorted(f"{r['id']}.json" for r in rows)
+
+    before = (out / "small-c1-s1.json").read_bytes()
+    rc, _, _ = run(["batch", str(path), "-o", str(out), "-q"])
+    assert rc == 0
+    with open(out / "summary.csv", newline="") as f:
+        assert [r["status"] for r in csv.DictReader(f)] == ["skipped"] * 4
+    assert (out / "small-c1-s1.json").read_bytes() == before
+
+    # a changed source mesh: its packings no longer verify and are made again
+    with open(folder / "b.obj", "a") as f:
+        f.write("# changed\n")
+    rc, _, _ = run(["batch", str(path), "-o", str(out), "-q"])
+    with open(out / "summary.csv", newline="") as f:
+        assert [r["status"] for r in csv.DictReader(f)] == ["packed"] * 4
+
+
+def test_workers_and_scheduler_together_are_refused(folder):
+    rc, _, err = run(["batch", str(write(folder, GOOD)), "-o", str(folder / "out"),
+                      "--workers", "2", "--scheduler", "tcp://127.0.0.1:1"])
+    assert rc == 2 and "--workers or --scheduler" in err
+
+
+def test_pack_attempts_on_local_workers_match_attempts_here(tmp_path):
+    args = ["pack", "box:22x20x21", "--type", str(P1), "--type", str(P3), "--fidelity", "low",
+            "--seed", "2", "--attempts", "2", "-q"]
+    assert run([*args, "-o", str(tmp_path / "here.json")])[0] == 0
+    assert run([*args, "-o", str(tmp_path / "there.json"), "--workers", "2"])[0] == 0
+    here, there = (load_packing(tmp_path / f"{n}.json") for n in ("here", "there"))
+    assert len(here.report.attempts) == len(there.report.attempts) == 2
+    np.testing.assert_array_equal(here.translations, there.translations)
+    np.testing.assert_array_equal(here.type_index, there.type_index)
+
+
+def test_an_unreachable_scheduler_is_a_clear_error(folder):
+    rc, _, err = run(["batch", str(write(folder, GOOD)), "-o", str(folder / "out"), "-q",
+                      "--scheduler", "tcp://127.0.0.1:1"])
+    assert rc == 1 and "cannot reach the Dask scheduler at tcp://127.0.0.1:1" in err
+    assert not (folder / "out").exists()
+
+
+def test_batch_exports_each_packing_and_a_rerun_makes_only_missing_files(folder):
+    path = write(folder, """\
+        [[scene]]
+        container = "box:16x15x14"
+        types = ["a.obj", "b.obj"]
+        seed = 1
+        fidelity = "low"
+        export = ["stl", "obj"]
+        export_mode = "union"
+        """)
+    out = folder / "out"
+    assert run(["batch", str(path), "-o", str(out), "-q"])[0] == 0
+    stl = (out / "scene1-s1.stl").stat().st_mtime_ns
+    assert (out / "scene1-s1.obj").is_file()
+    (out / "scene1-s1.obj").unlink()
+    assert run(["batch", str(path), "-o", str(out), "-q"])[0] == 0
+    assert (out / "scene1-s1.obj").is_file() and (out / "scene1-s1.stl").stat().st_mtime_ns == stl
+    with open(out / "summary.csv", newline="") as f:
+        assert [r["status"] for r in csv.DictReader(f)] == ["skipped"]
+
+
+def test_a_rerun_with_nothing_to_do_starts_no_cluster(folder, monkeypatch):
+    path = write(folder, GOOD.replace('seeds = [1, 2]', 'seeds = [1]').replace(
+        ', "box:15x16x14"', ''))
+    out = folder / "out"
+    assert run(["batch", str(path), "-o", str(out), "-q"])[0] == 0
+    import jampacked.core.cluster as cluster
+
+    def no_cluster(*a, **k):
+        raise AssertionError("a cluster was started with nothing to run")
+
+    monkeypatch.setattr(cluster, "client_for", no_cluster)
+    assert run(["batch", str(path), "-o", str(out), "-q", "--workers", "2"])[0] == 0
+    with open(out / "summary.csv", newline="") as f:
+        assert [r["status"] for r in csv.DictReader(f)] == ["skipped"]

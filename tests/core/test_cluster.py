@@ -1,0 +1,147 @@
+"""Attempts and batches on a real Dask LocalCluster (two worker processes): the same packings
+as one after another here, and no scene lost or doubled when a worker dies."""
+
+from __future__ import annotations
+
+import contextlib
+import dataclasses
+import os
+import threading
+import time
+
+import distributed
+import numpy as np
+import pytest
+from testdata import mesh_path
+
+from jampacked.core.api import pack
+from jampacked.core.batch import check_done, pack_scene, run_batch, scene_file
+from jampacked.core.batch_file import SceneSpec
+from jampacked.core.errors import InputError
+from jampacked.core.numba_cache import cache_loads_and_compiles
+from jampacked.core.packing_json import load_packing, save_packing
+
+POLY = [str(mesh_path(f"polyhedra/convex5/polytope{i}.obj")) for i in (1, 3)]
+BOX = "box:22x20x21"  # about six objects: seconds per attempt
+
+
+@pytest.fixture(scope="module")
+def cluster():
+    with distributed.LocalCluster(n_workers=2, processes=True, threads_per_worker=1,
+                                  dashboard_address=None) as c:
+        yield c
+
+
+@pytest.fixture
+def client(cluster):
+    with distributed.Client(cluster) as cl:
+        cl.wait_for_workers(2, timeout=120)
+        yield cl
+
+
+def _same_placements(a, b) -> None:
+    np.testing.assert_array_equal(a.type_index, b.type_index)
+    np.testing.assert_array_equal(a.translations, b.translations)
+    np.testing.assert_array_equal(a.rotations, b.rotations)
+
+
+def test_attempts_on_the_cluster_give_the_packing_of_attempts_one_after_another(client):
+    here = pack(BOX, POLY, seed=3, fidelity="low", attempts=3)
+    there = pack(BOX, POLY, seed=3, fidelity="low", attempts=3, client=client)
+    assert [a.density for a in there.report.attempts] == \
+        [a.density for a in here.report.attempts]
+    assert len(there.report.attempts) == 3
+    _same_placements(here, there)
+    assert there.certificate["certified"] is True
+    # the workers loaded the kernels from numba's on-disk cache, compiling nothing
+    loads = client.run(cache_loads_and_compiles)
+    assert sum(hits for hits, _ in loads.values()) > 0
+    assert [compiles for _, compiles in loads.values()] == [0, 0]
+
+
+def test_a_scheduler_address_runs_one_attempt_per_worker_thread(client, cluster):
+    there = pack(BOX, POLY, seed=5, fidelity="low", client=cluster.scheduler_address)
+    assert there.inputs.options.attempts.count == 2
+    here = pack(BOX, POLY, seed=5, fidelity="low", attempts=2)
+    _same_placements(here, there)
+
+
+def test_cancel_on_the_cluster_returns_a_certified_packing(client):
+    calls = []
+
+    def cancel() -> bool:
+        calls.append(1)
+        return len(calls) > 3
+
+    p = pack(BOX, POLY, seed=1, fidelity="low", attempts=2, client=client,
+             should_cancel=cancel)
+    assert p.report.stopped == "cancelled"
+    assert p.certificate["certified"] is True
+
+
+def test_a_fixed_count_runs_every_attempt_and_is_saved(tmp_path):
+    p = pack(BOX, POLY, seed=3, fidelity="low", attempts=2)
+    assert len(p.report.attempts) == 2  # without a budget there would be one
+    save_packing(p, tmp_path / "p.json")
+    assert load_packing(tmp_path / "p.json").inputs.options.attempts.count == 2
+
+
+@pytest.mark.parametrize("bad", [0, -1, True, 1.5, "2"])
+def test_bad_attempts_are_refused(bad):
+    with pytest.raises(InputError, match="attempts must be a whole number >= 1"):
+        pack(BOX, POLY, attempts=bad)
+
+
+def _scenes() -> list[SceneSpec]:
+    return [SceneSpec(id=f"s{box[4:6]}-{seed}", container=box, types=tuple(POLY), seed=seed,
+                      fidelity="low")
+            for box in (BOX, "box:16x15x14") for seed in (1, 2)]
+
+
+def test_a_batch_with_a_worker_killed_midway_has_every_packing_once(client, tmp_path):
+    scenes = _scenes()
+    results: list = []
+    writes: list[str] = []
+    runner = threading.Thread(target=lambda: results.extend(run_batch(
+        scenes, tmp_path, client, progress=lambda d, t, m: writes.append(m))))
+    runner.start()
+    killed = None
+    t0 = time.monotonic()
+    while killed is None and time.monotonic() - t0 < 120:
+        busy = [w for w, keys in client.processing().items() if keys]
+        if busy:
+            time.sleep(0.3)  # the scene has started there
+            killed = busy[0]
+            with contextlib.suppress(Exception):
+                client.run(os._exit, 1, workers=[killed])
+        time.sleep(0.05)
+    runner.join(timeout=300)
+    assert killed is not None and not runner.is_alive()
+    assert killed not in client.scheduler_info()["workers"]  # it died (the nanny restarts one)
+    assert [r.status for r in results] == ["packed"] * len(scenes)
+    # each scene written once: one progress message per scene, one file per scene
+    assert sorted(m.split(":")[0] for m in writes[1:]) == sorted(s.id for s in scenes)
+    assert sorted(p.name for p in tmp_path.glob("*.json")) == sorted(
+        f"{s.id}.json" for s in scenes)
+    for spec in scenes:
+        done, why = check_done(spec, scene_file(tmp_path, spec))
+        assert done is not None, why
+        _same_placements(done, pack_scene(spec))
+
+
+def test_a_rerun_skips_verified_scenes_and_packs_the_rest_again(tmp_path):
+    scenes = _scenes()[2:]  # the smallest box: a second each
+    first = run_batch(scenes, tmp_path)
+    assert [r.status for r in first] == ["packed", "packed"]
+    (tmp_path / f"{scenes[1].id}.json").write_text("{ not json")
+    again = run_batch(scenes, tmp_path)
+    assert [r.status for r in again] == ["skipped", "packed"]
+    _same_placements(again[1].packing, first[1].packing)
+    summary = (tmp_path / "summary.csv").read_text().splitlines()
+    assert summary[0].startswith("id,status,")
+    assert [line.split(",")[1] for line in summary[1:]] == ["skipped", "packed"]
+    # a scene whose settings changed since its file was written is packed again
+    changed = [scenes[0], dataclasses.replace(scenes[1], clearance=0.05)]
+    assert check_done(changed[1], scene_file(tmp_path, changed[1]))[1] == \
+        "made with another clearance"
+    assert [r.status for r in run_batch(changed, tmp_path)] == ["skipped", "packed"]
