@@ -201,15 +201,20 @@ def encode_3mf(bodies: Sequence[Body], names: Sequence[str] | None = None) -> by
         f'<model unit="millimeter" xml:lang="en-US" xmlns="{CORE_NAMESPACE}">\n'
         "<resources>\n",
     ]
+    # bodies that share their faces (the objects of one type) share their triangles' text
+    triangles: dict[bytes, str] = {}
     for k, (v, f) in enumerate(bodies):
         name = quoteattr(str(names[k]) if names is not None else f"body {k + 1}")
         parts.append(f'<object id="{k + 1}" type="model" name={name}>\n<mesh>\n<vertices>\n')
         # repr-exact float64 text (the shortest round-trip digits)
-        parts.append("".join(f'<vertex x="{x!r}" y="{y!r}" z="{z!r}"/>\n'
-                             for x, y, z in v.tolist()))
+        parts.append(('<vertex x="%r" y="%r" z="%r"/>\n' * len(v)) % tuple(v.ravel().tolist()))
         parts.append("</vertices>\n<triangles>\n")
-        parts.append("".join(f'<triangle v1="{a}" v2="{b}" v3="{c}"/>\n'
-                             for a, b, c in f.tolist()))
+        f = np.ascontiguousarray(f, np.int64)
+        key = f.tobytes()
+        if key not in triangles:
+            triangles[key] = (('<triangle v1="%d" v2="%d" v3="%d"/>\n' * len(f))
+                              % tuple(f.ravel().tolist()))
+        parts.append(triangles[key])
         parts.append("</triangles>\n</mesh>\n</object>\n")
     parts.append("</resources>\n<build>\n")
     parts += [f'<item objectid="{k + 1}"/>\n' for k in range(len(bodies))]
