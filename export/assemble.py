@@ -27,6 +27,7 @@ from jampacked.core.packing import Packing, is_spec
 from jampacked.core.packing_json import load_packing
 
 from .connect import connect_scene, default_diameter
+from .cost import check_export_cost, estimate_export
 from .io import WRITE_FORMATS, write_mesh
 from .options import ExportOptions, check_scale, rotate_axis, up_rotation
 from .parts import require_gap, separate_parts
@@ -55,7 +56,8 @@ def export_packing(packing: Packing | str | os.PathLike,
     (e.g. from Blender). Lengths in container units.
 
     Raises InputError (bad options, missing/changed sources, an output that is an input,
-    placements that cannot be exported, parts of a packing without clearance), MeshError (a
+    placements that cannot be exported, parts of a packing without clearance, an export
+    that needs more memory than the machine has: see :mod:`jampacked.export.cost`), MeshError (a
     file cannot be written, or the result does not validate: nothing is put in place then),
     Cancelled (should_cancel() said so; nothing is written).
     """
@@ -93,7 +95,15 @@ def export_packing(packing: Packing | str | os.PathLike,
                        triangles=0, clearance=clearance)
     scene = place(packing, container, types, source)
     check_scale(options, scene.hi - scene.lo, smallest_object(packing))
-    scene.make_solids(packing, options.resolution, source)
+    scene.make_type_solids(packing, options.resolution)
+    # refused here, before the objects are made solid, when the machine cannot hold it
+    cost = estimate_export(options.mode, [s.num_tri() for s in scene.type_solids],
+                           packing.type_index,
+                           2 * len(scene.container_faces) if options.shell is not None else 0)
+    check_export_cost(cost)
+    report(0.05, f"exporting ~{cost.triangles:,.0f} triangles (estimated peak memory "
+                 f"{cost.memory / 2**30:.2g} GiB)")
+    scene.place_solids(packing, source)
     out.triangles_saved = scene.triangles_saved
     out.timings["load"] = time.perf_counter() - t0
     check_cancel()
