@@ -4,10 +4,10 @@
 meshes are solids (each type once) and before the objects are placed as solids, and
 :func:`check_export_cost` refuses a request whose peak memory would exceed
 ``MEMORY_FRACTION`` of the machine's, with the numbers, the count of objects this machine
-can export, and the fix. The per-triangle figures are peak resident memory and single-core
-seconds measured on whole exports (docs/benchmarks.md, "Parts export at scale"): the solids,
-the arrays, the encoded file and its validation read back all scale with the triangles
-written. Memory in bytes, time in seconds.
+can export, and the fix. The per-triangle figures are peak resident memory and seconds
+measured on whole exports (docs/benchmarks.md, "Parts export at scale"): the solids, the
+arrays, the encoded file and its validation read back all scale with the triangles written.
+Memory in bytes, time in seconds.
 """
 
 from __future__ import annotations
@@ -23,13 +23,16 @@ from jampacked.core.errors import InputError
 __all__ = ["BYTES_PER_TRIANGLE", "SECONDS_PER_TRIANGLE", "ExportCost", "check_export_cost",
            "estimate_export"]
 
-#: peak bytes per triangle written, per mode (parts: every object a solid plus its arrays;
-#: union and connect: the pieces, the union and its cleaning), file and validation included
-BYTES_PER_TRIANGLE = {"parts": 1200.0, "union": 1600.0, "connect": 1600.0}
-#: single-core seconds per triangle written, per mode
-SECONDS_PER_TRIANGLE = {"parts": 2e-5, "union": 3e-5, "connect": 6e-5}
-#: bytes before the first triangle (the interpreter, numba, manifold3d, the loaded meshes)
-BASE_BYTES = 400 * 2.0**20
+#: peak bytes per triangle written, per mode, beyond BASE_BYTES (parts: 1.82 kB measured on
+#: 104 YCB scans, 1.7M triangles; union: 2.05 kB on 250 low-poly fruit; connect adds struts
+#: to the union and is not measured apart: the union's figure with a margin)
+BYTES_PER_TRIANGLE = {"parts": 1900.0, "union": 2100.0, "connect": 2300.0}
+#: seconds per triangle written, per mode (parts: at a load of 11-14 on this 2-core machine;
+#: union and connect: bench/export_bench.py with nothing else running)
+SECONDS_PER_TRIANGLE = {"parts": 7e-5, "union": 2.1e-5, "connect": 4.1e-5}
+#: bytes before the first triangle (the interpreter, numba, manifold3d, the loaded meshes:
+#: 227 MiB measured after a warm-up export)
+BASE_BYTES = 256 * 2.0**20
 
 
 @dataclass(frozen=True)
@@ -38,7 +41,8 @@ class ExportCost:
 
     objects: objects exported; triangles: triangles written (for union and connect, the sum
     over the objects: an upper bound, as the union removes what is inside); memory: peak
-    bytes; seconds: single-core seconds; machine: bytes this process may use.
+    bytes; seconds: roughly, on a machine like the one measured; machine: bytes this
+    process may use.
     """
 
     mode: str
@@ -90,7 +94,7 @@ def check_export_cost(cost: ExportCost) -> None:
         f"the export needs ~{_gib(cost.memory)} at its peak (~"
         f"{BYTES_PER_TRIANGLE[cost.mode]:,.0f} bytes per triangle for the solids, the file "
         f"and its validation), more than {MEMORY_FRACTION:.0%} of the {_gib(cost.machine)} "
-        f"this process may use; it would also take ~{_duration(cost.seconds)} on one core. "
+        f"this process may use; it would also take ~{_duration(cost.seconds)}. "
         f"This machine can export about {cost.affordable_objects:,} objects of this "
         "packing. Simplify the objects (--resolution, e.g. 0.1 for 0.1 mm, or type meshes "
         "with fewer triangles) or export on a machine with more memory.")
