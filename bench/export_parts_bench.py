@@ -5,6 +5,7 @@ bench/results/export_parts.json.
     python bench/export_parts_bench.py                    # packs the scene first if needed
     python bench/export_parts_bench.py --baseline 52ce484 # also times that commit's code
     python bench/export_parts_bench.py --regenerate       # packs the scene again
+    python bench/export_parts_bench.py --baseline A --ref B  # commit A against commit B
 
 The scene: five YCB google_16k scans (apple, lemon, pear, orange, plum; the peach scan is
 self-intersecting and cannot be exported as a watertight part) x250 in an 82 mm box, seed 1,
@@ -102,6 +103,8 @@ def main(argv: list[str] | None = None) -> int:
     ap.add_argument("--packing", type=Path, default=PACKING)
     ap.add_argument("--regenerate", action="store_true", help="pack the scene again")
     ap.add_argument("--baseline", metavar="REF", help="also time the code of this commit")
+    ap.add_argument("--ref", metavar="REF",
+                    help="time the code of this commit instead of this checkout")
     ap.add_argument("--child", nargs=2, help=argparse.SUPPRESS)
     args = ap.parse_args(argv)
     if args.child:
@@ -118,9 +121,14 @@ def main(argv: list[str] | None = None) -> int:
         with tempfile.TemporaryDirectory() as tmp:
             path = _checkout(args.baseline, Path(tmp))
             record["runs"][f"baseline {args.baseline}"] = _run(args.packing, path)
-    head = subprocess.run(["git", "-C", str(ROOT), "rev-parse", "--short", "HEAD"],
-                          capture_output=True, text=True).stdout.strip()
-    record["runs"][f"this checkout ({head})"] = _run(args.packing, None)
+    if args.ref:
+        with tempfile.TemporaryDirectory() as tmp:
+            path = _checkout(args.ref, Path(tmp))
+            record["runs"][f"commit {args.ref}"] = _run(args.packing, path)
+    else:
+        head = subprocess.run(["git", "-C", str(ROOT), "rev-parse", "--short", "HEAD"],
+                              capture_output=True, text=True).stdout.strip()
+        record["runs"][f"this checkout ({head})"] = _run(args.packing, None)
     record["load_after"] = os.getloadavg()
     for name, r in record["runs"].items():
         print(f"{name}: {r['wall']:.1f} s ({r['objects']} objects, {r['triangles']:,} "
