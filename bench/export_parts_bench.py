@@ -13,7 +13,8 @@ self-intersecting and cannot be exported as a watertight part) x250 in an 82 mm 
 packing is kept (default /tmp/jampacked-bench/ycb-parts.json). Each export runs in its own
 process (peak memory is that process's), after a warm-up export of three of the objects
 that loads numba's cache; a baseline runs the code of a git commit (``git archive``) the same
-way, in the same run. Bar (issue 21): <= 60 s. Wall-clock seconds on this 2-core machine.
+way, in the same run, after the code measured (each run's figures are saved as it ends).
+Bar (issue 21): <= 60 s. Wall-clock seconds on this 2-core machine.
 """
 
 from __future__ import annotations
@@ -117,19 +118,20 @@ def main(argv: list[str] | None = None) -> int:
     load = os.getloadavg()
     record: dict = {"scene": "ycb-16k-x250-box82-clearance0.5", "packing": str(args.packing),
                     "bar_seconds": BAR_SECONDS, "load_before": load, "runs": {}}
-    if args.baseline:
-        with tempfile.TemporaryDirectory() as tmp:
-            path = _checkout(args.baseline, Path(tmp))
-            record["runs"][f"baseline {args.baseline}"] = _run(args.packing, path)
-    if args.ref:
-        with tempfile.TemporaryDirectory() as tmp:
-            path = _checkout(args.ref, Path(tmp))
-            record["runs"][f"commit {args.ref}"] = _run(args.packing, path)
-    else:
-        head = subprocess.run(["git", "-C", str(ROOT), "rev-parse", "--short", "HEAD"],
-                              capture_output=True, text=True).stdout.strip()
-        record["runs"][f"this checkout ({head})"] = _run(args.packing, None)
-    record["load_after"] = os.getloadavg()
+    runs = [(f"commit {args.ref}", args.ref)] if args.ref else [(None, None)]
+    if args.baseline:  # after the code measured, so that its figure comes first
+        runs.append((f"baseline {args.baseline}", args.baseline))
+    for name, ref in runs:
+        if ref is None:
+            head = subprocess.run(["git", "-C", str(ROOT), "rev-parse", "--short", "HEAD"],
+                                  capture_output=True, text=True).stdout.strip()
+            record["runs"][f"this checkout ({head})"] = _run(args.packing, None)
+        else:
+            with tempfile.TemporaryDirectory() as tmp:
+                record["runs"][name] = _run(args.packing, _checkout(ref, Path(tmp)))
+        record["load_after"] = os.getloadavg()
+        # written after each run: a baseline can take half an hour on a busy machine
+        (RESULTS / "export_parts.json").write_text(json.dumps(record, indent=1))
     for name, r in record["runs"].items():
         print(f"{name}: {r['wall']:.1f} s ({r['objects']} objects, {r['triangles']:,} "
               f"triangles; assemble {r['timings']['assemble']:.1f} s, write+validate "
@@ -137,7 +139,6 @@ def main(argv: list[str] | None = None) -> int:
               f"{r['peak_rss_bytes'] / 2**30:.2f} GiB; smallest gap {r['min_gap']:.4g}; "
               f"valid {r['passed']})")
     print(f"load {load[0]:.1f} before, {record['load_after'][0]:.1f} after")
-    (RESULTS / "export_parts.json").write_text(json.dumps(record, indent=1))
     return 0
 
 
