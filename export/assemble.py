@@ -3,7 +3,8 @@
 Frames: the packing's container frame, container units (mm for printing); see
 :mod:`jampacked.export.scene`. manifold3d does every boolean; results go straight from
 manifold3d arrays to the writer (no trimesh processing), and every file is validated as
-written before it is put in place (:func:`jampacked.export.io.write_mesh`).
+written before it is put in place (:func:`jampacked.export.io.write_mesh`). A 3MF of parts
+stores each type's mesh once and each part as a component: that mesh and its placement.
 
 :func:`export_packing` runs the stages: read the packing and check the request, load the
 sources (checked against their hashes), place the solids, build the shell, then union,
@@ -25,9 +26,12 @@ from jampacked.core.errors import Cancelled, InputError, MeshError
 from jampacked.core.meshes import MeshData
 from jampacked.core.packing import Packing, is_spec
 from jampacked.core.packing_json import load_packing
+from jampacked.core.solids import solid_arrays
 
 from .connect import connect_scene, default_diameter
+from .cost import check_export_cost, estimate_export
 from .io import WRITE_FORMATS, write_mesh
+from .mesh_write import Instances
 from .options import ExportOptions, check_scale, rotate_axis, up_rotation
 from .parts import require_gap, separate_parts
 from .report import ExportReport
@@ -55,7 +59,8 @@ def export_packing(packing: Packing | str | os.PathLike,
     (e.g. from Blender). Lengths in container units.
 
     Raises InputError (bad options, missing/changed sources, an output that is an input,
-    placements that cannot be exported, parts of a packing without clearance), MeshError (a
+    placements that cannot be exported, parts of a packing without clearance, an export
+    that needs more memory than the machine has: see :mod:`jampacked.export.cost`), MeshError (a
     file cannot be written, or the result does not validate: nothing is put in place then),
     Cancelled (should_cancel() said so; nothing is written).
     """
@@ -93,7 +98,15 @@ def export_packing(packing: Packing | str | os.PathLike,
                        triangles=0, clearance=clearance)
     scene = place(packing, container, types, source)
     check_scale(options, scene.hi - scene.lo, smallest_object(packing))
-    scene.make_solids(packing, options.resolution, source)
+    scene.make_type_solids(packing, options.resolution)
+    # refused here, before the objects are made solid, when the machine cannot hold it
+    cost = estimate_export(options.mode, [s.num_tri() for s in scene.type_solids],
+                           packing.type_index,
+                           2 * len(scene.container_faces) if options.shell is not None else 0)
+    check_export_cost(cost)
+    report(0.05, f"exporting ~{cost.triangles:,.0f} triangles (estimated peak memory "
+                 f"{cost.memory / 2**30:.2g} GiB)")
+    scene.place_solids(packing, source)
     out.triangles_saved = scene.triangles_saved
     out.timings["load"] = time.perf_counter() - t0
     check_cancel()
@@ -106,9 +119,14 @@ def export_packing(packing: Packing | str | os.PathLike,
         check_cancel()
 
     t = time.perf_counter()
+    instances = None
     if options.mode == "parts":
         bodies, out.min_gap = separate_parts(scene.solids, clearance)
         names = [f"{packing.types[k].name}_{i:03d}" for i, k in enumerate(packing.type_index)]
+        # a 3MF stores each type's mesh once and each part as that mesh and its placement
+        instances = Instances([solid_arrays(s) for s in scene.type_solids],
+                              [t.name for t in packing.types], scene.type_index,
+                              scene.matrices)
         out.bodies = len(bodies)
         out.volume = float(sum(s.volume() for s in scene.solids))
     else:
@@ -120,7 +138,8 @@ def export_packing(packing: Packing | str | os.PathLike,
 
     report(0.8, "writing and validating")
     t = time.perf_counter()
-    out.paths = _write(bodies, names, paths, options.split_files, protect, out, check_cancel)
+    out.paths = _write(bodies, names, paths, options.split_files, protect, out, check_cancel,
+                       instances)
     out.timings["write_validate"] = time.perf_counter() - t
     out.timings["total"] = time.perf_counter() - t0
     report(1.0, "done")
@@ -214,9 +233,10 @@ def _struts(packing: Packing, scene: PlacedScene, shell: m3.Manifold | None,
 
 
 def _write(bodies: Bodies, names: list[str], paths: list[str], split_files: bool,
-           protect: list[str], out: ExportReport, check_cancel: Callable[[], None]
-           ) -> list[str]:
-    """Write and validate every file (one per part with ``split_files``); the paths written."""
+           protect: list[str], out: ExportReport, check_cancel: Callable[[], None],
+           instances: Instances | None = None) -> list[str]:
+    """Write and validate every file (one per part with ``split_files``); the paths written.
+    ``instances``: the same bodies as copies of the type meshes, for a 3MF of parts."""
     written: list[str] = []
     for p in paths:
         if split_files:
@@ -226,7 +246,8 @@ def _write(bodies: Bodies, names: list[str], paths: list[str], split_files: bool
                 out.validation.append(write_mesh(part, bv, bf, protect=protect))
                 written.append(part)
         elif len(bodies) > 1:
-            out.validation.append(write_mesh(p, bodies, names=names, protect=protect))
+            data = instances if instances is not None and p.lower().endswith(".3mf") else bodies
+            out.validation.append(write_mesh(p, data, names=names, protect=protect))
             written.append(p)
         else:
             out.validation.append(write_mesh(p, bodies[0][0], bodies[0][1], protect=protect))

@@ -34,7 +34,8 @@ def write_mesh(
     """Write a mesh atomically, then (by default) validate the file as written.
 
     Call as ``write_mesh(path, vertices, faces)`` for one mesh, or ``write_mesh(path,
-    bodies)`` with a list of ``(vertices, faces)`` bodies (3MF: one object each).
+    bodies)`` with a list of ``(vertices, faces)`` bodies (3MF: one object each) or a
+    :class:`jampacked.export.mesh_write.Instances` (3MF: each mesh stored once).
 
     Args:
         path: output file; its extension picks the format: .stl (binary), .obj, .ply

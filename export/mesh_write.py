@@ -13,6 +13,7 @@ from __future__ import annotations
 import contextlib
 import os
 from collections.abc import Callable, Iterable, Sequence
+from dataclasses import dataclass
 
 import numpy as np
 import trimesh
@@ -20,9 +21,9 @@ import trimesh
 from jampacked.core.atomic import atomic_output
 from jampacked.core.errors import InputError, MeshError
 from jampacked.core.mesh_files import extension
-from jampacked.core.threemf import encode_3mf
+from jampacked.core.threemf import encode_3mf, encode_3mf_components
 
-__all__ = ["WRITE_FORMATS", "encode_mesh", "write_mesh_file"]
+__all__ = ["WRITE_FORMATS", "Instances", "encode_mesh", "write_mesh_file"]
 
 #: file extensions write_mesh_file can write
 WRITE_FORMATS = ("stl", "obj", "ply", "3mf")
@@ -30,7 +31,35 @@ WRITE_FORMATS = ("stl", "obj", "ply", "3mf")
 Body = tuple[np.ndarray, np.ndarray]
 
 
+@dataclass(frozen=True)
+class Instances:
+    """Bodies that are copies of a few meshes, each moved by its own transform (the objects
+    of a packing: one mesh per type). A 3MF stores each mesh once and each body as a
+    component (:func:`jampacked.core.threemf.encode_3mf_components`); the other formats get
+    the moved meshes (:meth:`bodies`).
+
+    meshes: ``(vertices, faces)`` per mesh in its own frame; mesh_names: one per mesh;
+    index: (N,) the mesh of each body; matrices: (N, 4, 4) each body's transform (column
+    vectors: the mesh's frame to the file's).
+    """
+
+    meshes: Sequence[Body]
+    mesh_names: Sequence[str]
+    index: np.ndarray
+    matrices: np.ndarray
+
+    def bodies(self) -> list[Body]:
+        """Each body's moved mesh, computed as a 3MF reader applies a component transform."""
+        out = []
+        for k, m in zip(self.index, self.matrices, strict=True):
+            v, f = self.meshes[int(k)]
+            out.append((v @ m[:3, :3].T + m[:3, 3], f))
+        return out
+
+
 def _as_bodies(vertices: object, faces: object) -> list[Body]:
+    if isinstance(vertices, Instances):
+        vertices, faces = vertices.bodies(), None
     if faces is None:
         items = list(vertices)  # type: ignore[call-overload]
     else:
@@ -54,9 +83,17 @@ def _concatenate(bodies: Sequence[Body]) -> Body:
             np.concatenate([f + o for (_, f), o in zip(bodies, offsets, strict=True)]))
 
 
-def encode_mesh(ext: str, bodies: Sequence[Body], names: Sequence[str] | None = None) -> bytes:
+def encode_mesh(ext: str, bodies: Sequence[Body] | Instances,
+                names: Sequence[str] | None = None) -> bytes:
     """The bytes of a mesh file of format ``ext`` (one of ``WRITE_FORMATS``) holding
-    ``bodies``, each ``(vertices (V, 3), faces (F, 3))``; ``names`` name 3MF objects."""
+    ``bodies``, each ``(vertices (V, 3), faces (F, 3))``, or :class:`Instances`; ``names``
+    name 3MF objects."""
+    if isinstance(bodies, Instances):
+        if ext == "3mf":
+            return encode_3mf_components([(np.asarray(v, np.float64), f)
+                                          for v, f in bodies.meshes], bodies.mesh_names,
+                                         bodies.index, bodies.matrices, names)
+        bodies = _as_bodies(bodies, None)
     if ext == "3mf":
         return encode_3mf(bodies, names)
     v, f = _concatenate(bodies)
@@ -90,7 +127,8 @@ def write_mesh_file(
     """Write a mesh atomically.
 
     Call as ``write_mesh_file(path, vertices, faces)`` for one mesh, or
-    ``write_mesh_file(path, bodies)`` with a list of ``(vertices, faces)`` bodies.
+    ``write_mesh_file(path, bodies)`` with a list of ``(vertices, faces)`` bodies or an
+    :class:`Instances` (a 3MF then stores each mesh once).
 
     Args:
         path: output file; its extension picks the format: .stl (binary), .obj, .ply
@@ -117,9 +155,13 @@ def write_mesh_file(
         if _same_file(path_str, os.fspath(p)):
             raise InputError(f"refusing to write '{path_str}': it is an input file "
                              f"('{os.fspath(p)}'); choose another output name.")
-    bodies = _as_bodies(vertices, faces)
-    if names is not None and len(names) != len(bodies):
-        raise InputError(f"{len(names)} names for {len(bodies)} bodies writing '{path_str}': "
+    # a 3MF of instances is written without moving every mesh
+    bodies: Sequence[Body] | Instances = (
+        vertices if isinstance(vertices, Instances) and ext == "3mf"
+        else _as_bodies(vertices, faces))
+    count = len(bodies.index) if isinstance(bodies, Instances) else len(bodies)
+    if names is not None and len(names) != count:
+        raise InputError(f"{len(names)} names for {count} bodies writing '{path_str}': "
                          "give one name per body.")
     folder = os.path.dirname(os.path.abspath(path_str))
     if not os.path.isdir(folder):

@@ -176,6 +176,15 @@ class PlacedScene:
         Raises InputError for a type or an object that comes out empty, so that no object is
         dropped silently.
         """
+        self.make_type_solids(packing, resolution)
+        self.place_solids(packing, source)
+
+    def make_type_solids(self, packing: Packing, resolution: float | None) -> None:
+        """Each type as a solid in its local frame, simplified to ``resolution`` when given
+        (``type_solids``; the objects are placed by :meth:`place_solids`).
+
+        Raises InputError for a type that comes out empty.
+        """
         type_solids = []
         saved_per_type = []
         for v, f, rec in zip(self.local, self.type_faces, packing.types, strict=True):
@@ -193,7 +202,15 @@ class PlacedScene:
             saved_per_type.append(before - s.num_tri())
             type_solids.append(s)
         counts = np.bincount(self.type_index, minlength=len(type_solids))
-        solids = [type_solids[t].transform(self.matrices[i][:3, :]) for i, t in
+        self.type_solids = type_solids
+        self.triangles_saved = int(np.dot(counts, saved_per_type))
+
+    def place_solids(self, packing: Packing, source: str | None = None) -> None:
+        """Every object's solid (``solids``): its type's solid moved by its placement matrix.
+
+        Raises InputError for an object that comes out empty (scaled to nothing).
+        """
+        solids = [self.type_solids[t].transform(self.matrices[i][:3, :]) for i, t in
                   enumerate(self.type_index)]
         # the union drops components this small as specks: such an object would vanish
         speck = SPECK_REL * float(np.prod(self.hi - self.lo))
@@ -205,9 +222,7 @@ class PlacedScene:
                 f"cannot export: {where} scales {_objects(packing, vanished)} to nothing "
                 f"(scales {scales}); they would vanish from the export. A finished packing "
                 "has scale 1: re-run the packing, or fix these placements.")
-        self.type_solids = type_solids
         self.solids = solids
-        self.triangles_saved = int(np.dot(counts, saved_per_type))
 
 
 def place(packing: Packing, container: MeshData, types: Sequence[MeshData],

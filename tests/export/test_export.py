@@ -5,6 +5,7 @@ from __future__ import annotations
 import itertools
 import json
 import os
+import zipfile
 from pathlib import Path
 
 import manifold3d as m3
@@ -12,6 +13,7 @@ import meshio
 import numpy as np
 import pytest
 import trimesh
+from lxml import etree
 from scipy.sparse import coo_matrix
 from scipy.sparse.csgraph import connected_components
 from testdata import DATA, mesh_path
@@ -185,9 +187,20 @@ def test_parts_keep_clearance_one_object_per_part(apart, tmp_path):
     assert rep.passed and rep.bodies == 8
     assert rep.min_gap is not None and rep.min_gap >= 1.0
     assert len(validate_file(out).bodies) == 8
+    # each type's mesh is stored once; trimesh (another reader) places it 8 times
     scene = trimesh.load(out, process=False)
-    names = sorted(scene.geometry)
-    assert len(names) == 8 and all(n.startswith(("polytope1_", "polytope3_")) for n in names)
+    assert sorted(scene.geometry) == ["polytope1", "polytope3"]
+    assert len(scene.graph.nodes_geometry) == 8
+    placed = scene.to_geometry() if hasattr(scene, "to_geometry") else scene.dump(concatenate=True)
+    assert placed.volume == pytest.approx(rep.volume, rel=1e-9)
+    # every part is a named object of its own, one build item each
+    with zipfile.ZipFile(out) as z:
+        model = etree.fromstring(z.read("3D/3dmodel.model"))
+    ns = {"m": model.nsmap[None]}
+    named = {o.get("id"): o.get("name") for o in model.iterfind("m:resources/m:object", ns)}
+    parts = [named[i.get("objectid")] for i in model.iterfind("m:build/m:item", ns)]
+    assert len(parts) == 8 and all(n.startswith(("polytope1_", "polytope3_")) for n in parts)
+    assert len(set(parts)) == 8
 
 
 def test_parts_split_writes_one_valid_file_per_part(apart, tmp_path):
