@@ -83,6 +83,7 @@ class WallLayerOptions:
     depth: float = 0.8  # the offset's depth
     spacing: float = 2.0  # distance between the layer's seeds, and from them to the lattice
     orient: bool = True  # grow each layer object with its flattest side to the wall
+    wall_first: bool = False  # grow the layer before the lattice behind it
 
 
 @dataclass(frozen=True)

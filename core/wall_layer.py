@@ -32,19 +32,24 @@ PROJECTION_STEPS = 3
 
 @dataclass(frozen=True)
 class Seeds:
-    """Phase 1's seed points: the first `n_wall` lie on the wall's offset, with their
-    outward wall normals; `spin` (M,) is each wall seed's angle about its normal (rad)."""
+    """Phase 1's seed points, in the order phase 1 grows them. Wall seeds lie on the wall's
+    offset and carry their outward unit normal and an angle about it (rad); lattice seeds
+    have a zero normal."""
 
     points: np.ndarray  # (M,3)
-    normals: np.ndarray  # (n_wall,3) unit, pointing out of the container
-    spin: np.ndarray  # (n_wall,)
-    n_wall: int
+    normals: np.ndarray  # (M,3) unit for wall seeds, zero for lattice seeds
+    spin: np.ndarray  # (M,)
+
+    @property
+    def wall(self) -> np.ndarray:
+        """(M,) True for the wall seeds."""
+        return np.any(self.normals != 0.0, axis=1)
 
     def orientation(self, i: int, flat: np.ndarray | None) -> np.ndarray | None:
         """Quaternion (w,x,y,z) turning the local unit direction `flat` of an object grown
-        at seed i onto its wall normal, spun by the seed's angle; None for an interior
+        at seed i onto its wall normal, spun by the seed's angle; None for a lattice
         seed or without a direction."""
-        if flat is None or i >= self.n_wall:
+        if flat is None or not np.any(self.normals[i] != 0.0):
             return None
         return wall_quaternion(flat, self.normals[i], float(self.spin[i]))
 
@@ -105,20 +110,26 @@ def poisson_disk(pts: np.ndarray, radius: float, order: np.ndarray) -> np.ndarra
 
 
 def layered_seeds(container: Container, lattice_spacing: float, min_depth: float,
-                  depth: float, spacing: float, rng: np.random.Generator) -> Seeds:
-    """Wall seeds on the offset at `depth`, `spacing` apart, followed by the points of
-    phase 1's lattice (`lattice_spacing`, at least `min_depth` deep) that lie deeper than
-    the offset and farther than `spacing` from every wall seed; each group in random order.
-    """
+                  depth: float, spacing: float, rng: np.random.Generator,
+                  wall_first: bool = False) -> Seeds:
+    """Wall seeds on the offset at `depth`, `spacing` apart, and the points of phase 1's
+    lattice (`lattice_spacing`, at least `min_depth` deep) that lie deeper than the offset
+    and farther than `spacing` from every wall seed, in random order (`wall_first`: the
+    wall seeds first, each group in random order)."""
     wall, normals = offset_points(container, depth, spacing, rng)
     inner = interior_points(container, lattice_spacing, max(min_depth, depth), rng)
     if len(wall) and len(inner):
         near, _ = cKDTree(wall).query(inner, distance_upper_bound=spacing)
         inner = inner[~np.isfinite(near)]
-    rng.shuffle(inner)
-    order = rng.permutation(len(wall))
-    return Seeds(np.concatenate([wall[order], inner]), normals[order],
-                 rng.random(len(wall)) * 2 * np.pi, len(wall))
+    pts = np.concatenate([wall, inner])
+    nrm = np.concatenate([normals, np.zeros_like(inner)])
+    spin = rng.random(len(pts)) * 2 * np.pi
+    if wall_first:
+        order = np.concatenate([rng.permutation(len(wall)),
+                                len(wall) + rng.permutation(len(inner))])
+    else:
+        order = rng.permutation(len(pts))
+    return Seeds(pts[order], nrm[order], spin[order])
 
 
 def flattest_direction(vertices: np.ndarray) -> np.ndarray:
@@ -149,7 +160,8 @@ def wall_seeds(solver: Solver, shares: np.ndarray, lattice_spacing: float,
     r = float(np.sum(shares * equivalent_radius(solver.t.volume)))
     min_depth = START_SCALE * solver.t.radius.max() + solver.p.clearance + margin.max()
     seeds = layered_seeds(solver.c, lattice_spacing, min_depth,
-                          max(options.depth * r, min_depth), options.spacing * r, rng)
+                          max(options.depth * r, min_depth), options.spacing * r, rng,
+                          options.wall_first)
     flat = (np.stack([flattest_direction(t.vertices) for t in solver.t.types])
             if options.orient else None)
     return seeds, flat

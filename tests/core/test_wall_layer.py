@@ -61,13 +61,20 @@ def test_offset_points_lie_at_the_depth_with_outward_normals():
 def test_layered_seeds_put_the_lattice_behind_the_layer():
     c = box_container()
     s = layered_seeds(c, 4.0, 0.1, 3.0, 4.0, np.random.default_rng(2))
-    assert 0 < s.n_wall < len(s.points)
-    assert len(s.normals) == len(s.spin) == s.n_wall
-    inner = s.points[s.n_wall:]
+    wall = s.wall
+    assert 0 < wall.sum() < len(s.points)
+    assert len(s.normals) == len(s.spin) == len(s.points)
+    assert not np.all(wall[: wall.sum()])  # mixed order
+    inner = s.points[~wall]
     assert (HALF - np.abs(inner).max(axis=1)).min() >= 3.0
-    assert cdist(inner, s.points[: s.n_wall]).min() >= 4.0
-    assert s.orientation(s.n_wall, np.array([1.0, 0, 0])) is None  # interior seed
-    assert s.orientation(0, None) is None
+    assert cdist(inner, s.points[wall]).min() >= 4.0
+    flat = np.array([1.0, 0, 0])
+    assert s.orientation(int(np.flatnonzero(~wall)[0]), flat) is None  # a lattice seed
+    assert s.orientation(int(np.flatnonzero(wall)[0]), None) is None
+    assert s.orientation(int(np.flatnonzero(wall)[0]), flat) is not None
+    first = layered_seeds(c, 4.0, 0.1, 3.0, 4.0, np.random.default_rng(2), wall_first=True)
+    n = int(first.wall.sum())
+    assert np.all(first.wall[:n]) and not np.any(first.wall[n:])
 
 
 def test_flattest_direction_is_the_nearest_face_of_a_box():
