@@ -74,19 +74,6 @@ class CavityPassOptions:
 
 
 @dataclass(frozen=True)
-class WallLayerOptions:
-    """Phase 1's first layer along the wall (`core/wall_layer.py`): seeds on the wall's
-    inward offset instead of the lattice there. Lengths in mean equivalent radii of the
-    types (weighted by their shares)."""
-
-    layer: bool = False
-    depth: float = 0.8  # the offset's depth
-    spacing: float = 2.0  # distance between the layer's seeds, and from them to the lattice
-    orient: bool = True  # grow each layer object with its flattest side to the wall
-    wall_first: bool = False  # grow the layer before the lattice behind it
-
-
-@dataclass(frozen=True)
 class AttemptOptions:
     """With a time budget: independent attempts while the time left is at least the
     shortest attempt so far; the densest is kept (`core/placement.py`)."""
@@ -122,7 +109,6 @@ class PackOptions:
     fidelity: FidelityOverrides = field(default_factory=FidelityOverrides)
     margins: MarginOptions = field(default_factory=MarginOptions)
     cavity: CavityPassOptions = field(default_factory=CavityPassOptions)
-    wall: WallLayerOptions = field(default_factory=WallLayerOptions)
     attempts: AttemptOptions = field(default_factory=AttemptOptions)
     repair: RepairOptions = field(default_factory=RepairOptions)
     physics: PhysicsOptions = field(default_factory=PhysicsOptions)
@@ -158,7 +144,7 @@ class PackOptions:
 def _flat_keys() -> dict[str, tuple[str, str]]:
     """Version-1 flat name -> (group, field). The phase, fidelity, margin and physics
     fields kept their names; the other groups' had a prefix."""
-    prefix = {"cavity": "extra_", "repair": "repair_", "attempts": "", "wall": "wall_"}
+    prefix = {"cavity": "extra_", "repair": "repair_", "attempts": ""}
     renamed = {("cavity", "factors"): "extra_passes"}
     out: dict[str, tuple[str, str]] = {}
     for group in fields(PackOptions):

@@ -9,7 +9,6 @@ from __future__ import annotations
 
 import time
 from collections.abc import Callable
-from typing import TYPE_CHECKING
 
 import numpy as np
 
@@ -19,9 +18,6 @@ from .metrics import density, equivalent_radius, tvd_of_counts
 from .report import PhaseStats
 from .rotations import random_quaternions
 from .solver import Solver
-
-if TYPE_CHECKING:
-    from .wall_layer import Seeds
 
 START_SCALE = 0.05
 GROWTH_STEPS = 30
@@ -100,16 +96,13 @@ def grow(solver: Solver, k: int, start: float, iters: int, stop: Stop,
 
 def phase1(solver: Solver, shares: np.ndarray, spacing: float, rng: np.random.Generator,
            stop: Stop, *, iters: int = 30, margin: np.ndarray,
-           growth_steps: int = GROWTH_STEPS, seeds: Seeds | None = None,
-           flat: np.ndarray | None = None,
+           growth_steps: int = GROWTH_STEPS,
            progress: Callable[[float, str], None] | None = None) -> PhaseStats:
     """Place one shrunken object per interior lattice point and grow them one at a time.
 
     spacing: lattice spacing (container units). shares: (T,) target shares by count.
     margin: (T,) per-type safety margin (container units). growth_steps: steps from scale 0
-    to 1 (the paper: 30). seeds: the points to use instead of the lattice, in their order
-    (`wall_layer.layered_seeds`); flat: (T,3) each type's local direction that a wall
-    seed's object turns to the wall (None: random rotations).
+    to 1 (the paper: 30).
     The next object to grow is the first ungrown one, as the largest type that is below its
     target share (or, when none is, the type furthest below it).
     """
@@ -118,11 +111,8 @@ def phase1(solver: Solver, shares: np.ndarray, spacing: float, rng: np.random.Ge
     table = solver.t
     n_types = len(shares)
     min_depth = START_SCALE * table.radius.max() + solver.p.clearance + margin.max()
-    if seeds is None:
-        pts = interior_points(solver.c, spacing, min_depth, rng)
-        rng.shuffle(pts)
-    else:
-        pts = seeds.points
+    pts = interior_points(solver.c, spacing, min_depth, rng)
+    rng.shuffle(pts)
     types = rng.choice(n_types, size=len(pts), p=shares)
     quats = random_quaternions(rng, len(pts))
     queue: list[int] = []
@@ -163,10 +153,6 @@ def phase1(solver: Solver, shares: np.ndarray, spacing: float, rng: np.random.Ge
         # up front; typing on demand keeps the mix when big types fail more often)
         solver.s.typ[k] = t
         solver.s.margin[k] = margin[t]
-        if seeds is not None and flat is not None:
-            quat = seeds.orientation(done - 1, flat[t])
-            if quat is not None:
-                solver.s.quat[k] = quat
         if grow(solver, k, solver.s.scale[k], iters, stop, growth_steps):
             counts[t] += 1
             st.grown += 1

@@ -24,7 +24,6 @@ from .options import PackOptions
 from .phases import Stop, phase1, phase2
 from .report import AttemptSummary, ExtraPassStats, PhaseStats
 from .solver import PackState, Solver
-from .wall_layer import wall_seeds
 
 #: attempts that ran to their end and repeated the best attempt's count and density (to
 #: SAME_DENSITY) after which no further attempt starts. Between random streams, densities of
@@ -77,9 +76,8 @@ def place_once(solver: Solver, q: np.ndarray, s1: float, f_min: float,
     vol = solver.t.volume
     ph, cav = options.phases, options.cavity
     t0 = time.perf_counter()
-    seeds, flat = wall_seeds(solver, q, s1, margin, options.wall, rng)
     st1 = phase1(solver, q, s1, rng, stop, iters=ph.phase1_iterations, margin=margin,
-                 growth_steps=ph.phase1_growth_steps, seeds=seeds, flat=flat,
+                 growth_steps=ph.phase1_growth_steps,
                  progress=lambda f, m: report(0.05 + 0.55 * f, m))
     after1 = snapshot_metrics(solver.s, vol, q, c_volume)
     t1 = time.perf_counter()
