@@ -8,7 +8,8 @@ Frames (Blender units throughout):
 - results: one mesh per type, made from the type object with modifiers applied and moved
   into the local frame (vertices ``L @ W @ v``, W the source's world matrix), shared by every
   placement of the type; each placement is an object with ``matrix_world`` = the packing's
-  matrix [R | t] (rotation quaternion and location set exactly).
+  matrix [R | t] (rotation quaternion and location set exactly), or, for an instanced
+  result (:mod:`.instances`), a point with the same rotation, location and scale.
 
 Everything here runs on Blender's main thread.
 """
@@ -22,7 +23,7 @@ import bpy
 import numpy as np
 from mathutils import Matrix
 
-from . import summary, units
+from . import instances, summary, units
 from .engine import PackOutcome, Triangles, check_extent
 
 
@@ -295,10 +296,28 @@ def _set_descriptions(coll: bpy.types.Collection) -> None:
                 pass
 
 
+def place_object(coll: bpy.types.Collection, packing: Any, i: int, mesh: bpy.types.Mesh,
+                 colour: tuple[float, float, float, float]) -> bpy.types.Object:
+    """An object for placement ``i`` of ``packing``, sharing its type's ``mesh``, at the
+    packing's matrix (quaternion, location and scale set exactly), linked to ``coll``."""
+    t = int(packing.type_index[i])
+    obj = bpy.data.objects.new(f"{packing.types[t].name} {i + 1}", mesh)
+    obj.rotation_mode = 'QUATERNION'
+    obj.rotation_quaternion = [float(x) for x in packing.rotations[i]]
+    obj.location = [float(x) for x in packing.translations[i]]
+    obj.scale = [float(packing.scales[i])] * 3
+    obj.color = colour
+    obj["jampacked_type"] = t
+    coll.objects.link(obj)
+    return obj
+
+
 def build_result(context: bpy.types.Context, request: PackRequest,
                  outcome: PackOutcome) -> bpy.types.Collection:
     """Create the result collection: one shared mesh and material per type, one object per
-    placement at the packing's matrix, metrics and the packing JSON as custom properties.
+    placement at the packing's matrix (or, when the settings ask for instances, one points
+    object that instances the type meshes: :mod:`.instances`), metrics and the packing JSON
+    as custom properties.
 
     On any failure everything created is removed again and the exception re-raised, so the
     scene is as it was.
@@ -328,18 +347,15 @@ def build_result(context: bpy.types.Context, request: PackRequest,
                 mesh.materials.append(mat)
             mesh.update()
             meshes.append((mesh, colour))
-        for i in range(packing.n):
-            t = int(packing.type_index[i])
-            mesh, colour = meshes[t]
-            obj = bpy.data.objects.new(f"{packing.types[t].name} {i + 1}", mesh)
-            created.append(obj)
-            obj.rotation_mode = 'QUATERNION'
-            obj.rotation_quaternion = [float(x) for x in packing.rotations[i]]
-            obj.location = [float(x) for x in packing.translations[i]]
-            obj.scale = [float(packing.scales[i])] * 3
-            obj.color = colour
-            obj["jampacked_type"] = t
-            coll.objects.link(obj)
+        s = context.scene.jampacked
+        if instances.use_instances(s.result_kind, s.instance_threshold, packing.n):
+            instances.build(coll, request.container_name, packing, [m for m, _ in meshes],
+                            [c for _, c in meshes], created)
+        else:
+            for i in range(packing.n):
+                t = int(packing.type_index[i])
+                created.append(place_object(coll, packing, i, *meshes[t]))
+            coll[instances.KIND_KEY] = "objects"
         props = summary.collection_properties(packing)
         for key, value in props.items():
             coll[summary.PREFIX + key] = value
@@ -361,13 +377,52 @@ def _remove(ids: list[Any]) -> None:
     """Remove datablocks created by a failed build, newest first."""
     for block in reversed(ids):
         for coll in (bpy.data.objects, bpy.data.meshes, bpy.data.materials,
-                     bpy.data.collections):
+                     bpy.data.node_groups, bpy.data.collections):
             try:
                 if block.name in coll and coll[block.name] == block:
                     coll.remove(block)
                     break
             except ReferenceError:
                 break
+
+
+def make_real(coll: bpy.types.Collection, which: str, type_index: int = -1
+              ) -> list[bpy.types.Object]:
+    """Turn instances of an instanced result into objects that share the type meshes,
+    placed exactly as an object result places them (from the packing JSON), and remove
+    their points. ``which``: 'ALL', 'SELECTED' (points selected in Edit Mode) or 'TYPE'
+    (the instances of type ``type_index``). Returns the new objects."""
+    from .engine import packing_from_json
+
+    obj = instances.points_object(coll)
+    if obj is None:
+        raise _input_error(f"'{coll.name}' has no instances: its objects are real already.")
+    names = [str(n) for n in coll.get(summary.PREFIX + "type_names", [])]
+    if which == 'TYPE' and not 0 <= type_index < len(names):
+        raise _input_error(f"there is no type {type_index + 1} in '{coll.name}' (it has "
+                           f"{len(names)}): pick one of {', '.join(names)}.")
+    points = instances.read_points(obj.data)
+    mask = instances.pick(points, which, type_index)
+    if not mask.any():
+        what = {'SELECTED': f"no points of '{obj.name}' are selected: select some in Edit "
+                            "Mode (Tab) first",
+                'TYPE': f"no instances of '{names[type_index] if names else ''}' are left"
+                }.get(which, f"'{obj.name}' has no instances left")
+        raise _input_error(what + ".")
+    packing = packing_from_json(str(coll[summary.PREFIX + "packing"]))
+    meshes = []
+    for t, mesh_name in enumerate(coll.get(summary.PREFIX + "type_meshes", [])):
+        mesh = bpy.data.meshes.get(str(mesh_name))
+        if mesh is None:
+            raise _input_error(f"the mesh '{mesh_name}' of '{coll.name}' is gone: undo its "
+                               "removal or pack again.")
+        meshes.append((mesh, summary.type_colour(t)))
+    made = []
+    for i in points["indices"][mask]:
+        made.append(place_object(coll, packing, int(i),
+                                 *meshes[int(packing.type_index[int(i)])]))
+    instances.drop_points(obj, mask)
+    return made
 
 
 # ------------------------------------------------------------------------------ export
