@@ -14,6 +14,7 @@ Frames (Blender units throughout):
 Everything here runs on Blender's main thread.
 """
 
+import json
 import os
 from collections.abc import Mapping
 from dataclasses import dataclass, field
@@ -296,16 +297,17 @@ def _set_descriptions(coll: bpy.types.Collection) -> None:
                 pass
 
 
-def place_object(coll: bpy.types.Collection, packing: Any, i: int, mesh: bpy.types.Mesh,
+def place_object(coll: bpy.types.Collection, name: str, t: int, rotation: Any,
+                 translation: Any, scale: float, mesh: bpy.types.Mesh,
                  colour: tuple[float, float, float, float]) -> bpy.types.Object:
-    """An object for placement ``i`` of ``packing``, sharing its type's ``mesh``, at the
-    packing's matrix (quaternion, location and scale set exactly), linked to ``coll``."""
-    t = int(packing.type_index[i])
-    obj = bpy.data.objects.new(f"{packing.types[t].name} {i + 1}", mesh)
+    """An object of type ``t`` sharing the type's ``mesh``, at the packing's matrix: the
+    rotation quaternion (w x y z), location and uniform scale set exactly; linked to
+    ``coll``."""
+    obj = bpy.data.objects.new(name, mesh)
     obj.rotation_mode = 'QUATERNION'
-    obj.rotation_quaternion = [float(x) for x in packing.rotations[i]]
-    obj.location = [float(x) for x in packing.translations[i]]
-    obj.scale = [float(packing.scales[i])] * 3
+    obj.rotation_quaternion = [float(x) for x in rotation]
+    obj.location = [float(x) for x in translation]
+    obj.scale = [float(scale)] * 3
     obj.color = colour
     obj["jampacked_type"] = t
     coll.objects.link(obj)
@@ -354,7 +356,9 @@ def build_result(context: bpy.types.Context, request: PackRequest,
         else:
             for i in range(packing.n):
                 t = int(packing.type_index[i])
-                created.append(place_object(coll, packing, i, *meshes[t]))
+                created.append(place_object(
+                    coll, f"{packing.types[t].name} {i + 1}", t, packing.rotations[i],
+                    packing.translations[i], packing.scales[i], *meshes[t]))
             coll[instances.KIND_KEY] = "objects"
         props = summary.collection_properties(packing)
         for key, value in props.items():
@@ -389,11 +393,10 @@ def _remove(ids: list[Any]) -> None:
 def make_real(coll: bpy.types.Collection, which: str, type_index: int = -1
               ) -> list[bpy.types.Object]:
     """Turn instances of an instanced result into objects that share the type meshes,
-    placed exactly as an object result places them (from the packing JSON), and remove
-    their points. ``which``: 'ALL', 'SELECTED' (points selected in Edit Mode) or 'TYPE'
-    (the instances of type ``type_index``). Returns the new objects."""
-    from .engine import packing_from_json
-
+    placed exactly as an object result places them (the packing JSON's values, not the
+    points' single precision), and remove their points. ``which``: 'ALL', 'SELECTED'
+    (points selected in Edit Mode) or 'TYPE' (the instances of type ``type_index``).
+    Returns the new objects."""
     obj = instances.points_object(coll)
     if obj is None:
         raise _input_error(f"'{coll.name}' has no instances: its objects are real already.")
@@ -409,7 +412,9 @@ def make_real(coll: bpy.types.Collection, which: str, type_index: int = -1
                 'TYPE': f"no instances of '{names[type_index] if names else ''}' are left"
                 }.get(which, f"'{obj.name}' has no instances left")
         raise _input_error(what + ".")
-    packing = packing_from_json(str(coll[summary.PREFIX + "packing"]))
+    # only the placements asked for: reading the whole packing checks every placement
+    # (tens of seconds at 100,000)
+    placements = json.loads(str(coll[summary.PREFIX + "packing"])).get("placements", [])
     meshes = []
     for t, mesh_name in enumerate(coll.get(summary.PREFIX + "type_meshes", [])):
         mesh = bpy.data.meshes.get(str(mesh_name))
@@ -419,8 +424,15 @@ def make_real(coll: bpy.types.Collection, which: str, type_index: int = -1
         meshes.append((mesh, summary.type_colour(t)))
     made = []
     for i in points["indices"][mask]:
-        made.append(place_object(coll, packing, int(i),
-                                 *meshes[int(packing.type_index[int(i)])]))
+        try:
+            p = placements[int(i)]
+            t = int(p["type"])
+            made.append(place_object(coll, f"{names[t]} {int(i) + 1}", t, p["rotation"],
+                                     p["translation"], p["scale"], *meshes[t]))
+        except (IndexError, KeyError, TypeError, ValueError) as exc:
+            bpy.data.batch_remove(made)
+            raise _input_error(f"the packing of '{coll.name}' does not match its instances "
+                               f"(placement {int(i) + 1}: {exc!r}): pack again.") from None
     instances.drop_points(obj, mask)
     return made
 

@@ -274,3 +274,20 @@ def test_panels_show_the_choice_and_make_real(bpy, addon, scene):
     assert not bpy.ops.jampacked.make_real.poll()
     assert not any(name == "operator" and args[0] == "jampacked.make_real"
                    for name, args, _kw in _draw_all(bpy, addon))
+
+
+def test_make_real_refuses_a_packing_that_does_not_match(bpy, addon, scene):
+    """A packing JSON with fewer placements than the points (edited by hand): a clear
+    error, no object made, the instances kept."""
+    import json
+
+    coll = _pack(bpy, 'INSTANCES')
+    n = coll["jampacked_count"]
+    doc = json.loads(coll["jampacked_packing"])
+    doc["placements"] = doc["placements"][:2]
+    coll["jampacked_packing"] = json.dumps(doc)
+    objects = {o.name for o in bpy.data.objects}
+    with pytest.raises(RuntimeError, match="does not match its instances \\(placement 3"):
+        bpy.ops.jampacked.make_real(which='ALL')
+    assert {o.name for o in bpy.data.objects} == objects
+    assert len(addon.instances.points_object(coll).data.vertices) == n
