@@ -14,7 +14,6 @@ Frames (Blender units throughout):
 Everything here runs on Blender's main thread.
 """
 
-import json
 import os
 from collections.abc import Mapping
 from dataclasses import dataclass, field
@@ -393,10 +392,10 @@ def _remove(ids: list[Any]) -> None:
 def make_real(coll: bpy.types.Collection, which: str, type_index: int = -1
               ) -> list[bpy.types.Object]:
     """Turn instances of an instanced result into objects that share the type meshes,
-    placed exactly as an object result places them (the packing JSON's values, not the
-    points' single precision), and remove their points. ``which``: 'ALL', 'SELECTED'
-    (points selected in Edit Mode) or 'TYPE' (the instances of type ``type_index``).
-    Returns the new objects."""
+    placed exactly as an object result places them (the points object's double-precision
+    placements, not the points' single precision), and remove their points. ``which``:
+    'ALL', 'SELECTED' (points selected in Edit Mode) or 'TYPE' (the instances of type
+    ``type_index``). Returns the new objects."""
     obj = instances.points_object(coll)
     if obj is None:
         raise _input_error(f"'{coll.name}' has no instances: its objects are real already.")
@@ -412,9 +411,10 @@ def make_real(coll: bpy.types.Collection, which: str, type_index: int = -1
                 'TYPE': f"no instances of '{names[type_index] if names else ''}' are left"
                 }.get(which, f"'{obj.name}' has no instances left")
         raise _input_error(what + ".")
-    # only the placements asked for: reading the whole packing checks every placement
-    # (tens of seconds at 100,000)
-    placements = json.loads(str(coll[summary.PREFIX + "packing"])).get("placements", [])
+    exact = instances.placements(obj)
+    if exact is None or len(exact) <= int(points["indices"].max(initial=-1)):
+        raise _input_error(f"'{obj.name}' lacks its placements (property "
+                           f"'{instances.PLACEMENTS_KEY}' missing or damaged): pack again.")
     meshes = []
     for t, mesh_name in enumerate(coll.get(summary.PREFIX + "type_meshes", [])):
         mesh = bpy.data.meshes.get(str(mesh_name))
@@ -423,16 +423,14 @@ def make_real(coll: bpy.types.Collection, which: str, type_index: int = -1
                                "removal or pack again.")
         meshes.append((mesh, summary.type_colour(t)))
     made = []
+    if len(meshes) != len(names) or not np.isin(exact[:, 8], np.arange(len(names))).all():
+        raise _input_error(f"'{coll.name}' does not record its types and meshes: pack "
+                           "again.")
     for i in points["indices"][mask]:
-        try:
-            p = placements[int(i)]
-            t = int(p["type"])
-            made.append(place_object(coll, f"{names[t]} {int(i) + 1}", t, p["rotation"],
-                                     p["translation"], p["scale"], *meshes[t]))
-        except (IndexError, KeyError, TypeError, ValueError) as exc:
-            bpy.data.batch_remove(made)
-            raise _input_error(f"the packing of '{coll.name}' does not match its instances "
-                               f"(placement {int(i) + 1}: {exc!r}): pack again.") from None
+        p = exact[int(i)]
+        t = int(p[8])
+        made.append(place_object(coll, f"{names[t]} {int(i) + 1}", t, p[:4], p[4:7], p[7],
+                                 *meshes[t]))
     instances.drop_points(obj, mask)
     return made
 

@@ -34,6 +34,11 @@ TYPE_ATTR = "jampacked_type"
 ROTATION_ATTR = "jampacked_rotation"
 SCALE_ATTR = "jampacked_scale"
 INDEX_ATTR = "jampacked_index"
+#: custom property of the points object: every placement in double precision, 9 numbers
+#: each (rotation w x y z, translation, scale, type), for Make Real to place objects exactly
+#: as an object result does (the points hold single precision)
+PLACEMENTS_KEY = "jampacked_placements"
+PLACEMENT_WIDTH = 9
 #: custom property of a prototype object: its type index
 PROTOTYPE_KEY = "jampacked_prototype"
 #: node group of the modifier (one per result, since it names that result's prototypes)
@@ -152,6 +157,9 @@ def build(coll: bpy.types.Collection, name: str, packing: Any,
     obj = bpy.data.objects.new(points_mesh.name, points_mesh)
     created.append(obj)
     obj[POINTS_KEY] = True
+    obj[PLACEMENTS_KEY] = np.concatenate(
+        [packing.rotations, packing.translations, np.reshape(packing.scales, (-1, 1)),
+         np.reshape(packing.type_index, (-1, 1))], axis=1).astype(np.float64).reshape(-1)
     modifier = obj.modifiers.new("Jampacked Instances", 'NODES')
     modifier.node_group = group
     coll.objects.link(obj)
@@ -207,6 +215,18 @@ def rename(obj: bpy.types.Object, name: str) -> None:
     for modifier in obj.modifiers:
         if modifier.type == 'NODES' and modifier.node_group is not None:
             modifier.node_group.name = f"{GROUP_NAME} {name}"
+
+
+def placements(obj: bpy.types.Object) -> np.ndarray | None:
+    """(N, 9) placements of the points object (see :data:`PLACEMENTS_KEY`), None if the
+    property is missing or not a whole number of placements."""
+    values = obj.get(PLACEMENTS_KEY)
+    if values is None:
+        return None
+    arr = np.asarray(values, np.float64).reshape(-1)
+    if len(arr) % PLACEMENT_WIDTH:
+        return None
+    return arr.reshape(-1, PLACEMENT_WIDTH)
 
 
 def pick(points: dict[str, np.ndarray], which: str, type_index: int = -1) -> np.ndarray:

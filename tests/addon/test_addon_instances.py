@@ -276,18 +276,17 @@ def test_panels_show_the_choice_and_make_real(bpy, addon, scene):
                    for name, args, _kw in _draw_all(bpy, addon))
 
 
-def test_make_real_refuses_a_packing_that_does_not_match(bpy, addon, scene):
-    """A packing JSON with fewer placements than the points (edited by hand): a clear
-    error, no object made, the instances kept."""
-    import json
-
+def test_make_real_refuses_damaged_placements(bpy, addon, scene):
+    """The points object's placements cut short (edited by a script): a clear error, no
+    object made, the instances kept."""
     coll = _pack(bpy, 'INSTANCES')
     n = coll["jampacked_count"]
-    doc = json.loads(coll["jampacked_packing"])
-    doc["placements"] = doc["placements"][:2]
-    coll["jampacked_packing"] = json.dumps(doc)
+    points = addon.instances.points_object(coll)
+    short = np.array(points["jampacked_placements"])[:18]
+    del points["jampacked_placements"]  # an assignment keeps an array property's length
+    points["jampacked_placements"] = short
     objects = {o.name for o in bpy.data.objects}
-    with pytest.raises(RuntimeError, match="does not match its instances \\(placement 3"):
+    with pytest.raises(RuntimeError, match="lacks its placements"):
         bpy.ops.jampacked.make_real(which='ALL')
     assert {o.name for o in bpy.data.objects} == objects
-    assert len(addon.instances.points_object(coll).data.vertices) == n
+    assert len(points.data.vertices) == n
