@@ -1,6 +1,6 @@
 """Blender benchmark: a 100,000-object result as instances, against one object per placement.
 
-    python bench/blender_instances.py                     # 100,000 instances, 5,000 objects
+    python bench/blender_instances.py          # 100,000 instances; 5,000 and 20,000 objects
     python bench/blender_instances.py --instances 20000 --objects 2000
 
 Runs in real Blender (the bpy wheel of the venv, headless). Placements are synthetic: the
@@ -142,7 +142,8 @@ def run_case(addon, packing, n: int, kind: str, folder: Path) -> dict:
 def main(argv: list[str] | None = None) -> int:
     ap = argparse.ArgumentParser(description=__doc__.splitlines()[0])
     ap.add_argument("--instances", type=int, default=100_000)
-    ap.add_argument("--objects", type=int, default=5_000)
+    ap.add_argument("--objects", type=int, nargs="+", default=[5_000, 20_000],
+                    help="counts for the per-object path (each also as instances)")
     ap.add_argument("--output", type=Path, default=OUT)
     args = ap.parse_args(argv)
 
@@ -161,8 +162,9 @@ def main(argv: list[str] | None = None) -> int:
     cases = []
     try:
         with tempfile.TemporaryDirectory(prefix="jampacked-bench-") as tmp:
-            for n, kind in ((args.instances, 'INSTANCES'), (args.objects, 'OBJECTS'),
-                            (args.objects, 'INSTANCES')):
+            runs = [(args.instances, 'INSTANCES')]
+            runs += [(n, kind) for n in args.objects for kind in ('OBJECTS', 'INSTANCES')]
+            for n, kind in runs:
                 load = os.getloadavg()[0]
                 record = run_case(addon, packing, n, kind, Path(tmp))
                 record["load_1min_before"] = round(load, 2)
