@@ -290,3 +290,27 @@ def test_make_real_refuses_damaged_placements(bpy, addon, scene):
         bpy.ops.jampacked.make_real(which='ALL')
     assert {o.name for o in bpy.data.objects} == objects
     assert len(points.data.vertices) == n
+
+
+def test_make_real_from_edit_mode(bpy, addon, scene):
+    """The user's way: Tab into the points object, select points, Make Real (Selected
+    Points): Blender leaves Edit Mode with the selection and the points become objects."""
+    import bmesh
+
+    coll = _pack(bpy, 'INSTANCES')
+    packing = _packing(addon, coll)
+    points = addon.instances.points_object(coll)
+    bpy.context.view_layer.objects.active = points
+    points.select_set(True)
+    bpy.ops.object.mode_set(mode='EDIT')
+    bm = bmesh.from_edit_mesh(points.data)
+    bm.verts.ensure_lookup_table()
+    for v in bm.verts:
+        v.select_set(v.index in (1, 2))
+    bmesh.update_edit_mesh(points.data)
+    assert bpy.ops.jampacked.make_real(which='SELECTED') == {'FINISHED'}
+    assert points.mode == 'OBJECT'
+    real = sorted(o.name for o in coll.objects if "jampacked_type" in o.keys())
+    assert real == sorted(f"{packing.types[packing.type_index[i]].name} {i + 1}"
+                          for i in (1, 2))
+    _check_instances(bpy, packing, points, np.setdiff1d(np.arange(packing.n), [1, 2]))
