@@ -422,10 +422,10 @@ def make_real(coll: bpy.types.Collection, which: str, type_index: int = -1
             raise _input_error(f"the mesh '{mesh_name}' of '{coll.name}' is gone: undo its "
                                "removal or pack again.")
         meshes.append((mesh, summary.type_colour(t)))
-    made = []
     if len(meshes) != len(names) or not np.isin(exact[:, 8], np.arange(len(names))).all():
         raise _input_error(f"'{coll.name}' does not record its types and meshes: pack "
                            "again.")
+    made = []
     for i in points["indices"][mask]:
         p = exact[int(i)]
         t = int(p[8])
