@@ -8,7 +8,8 @@ Frames (Blender units throughout):
 - results: one mesh per type, made from the type object with modifiers applied and moved
   into the local frame (vertices ``L @ W @ v``, W the source's world matrix), shared by every
   placement of the type; each placement is an object with ``matrix_world`` = the packing's
-  matrix [R | t] (rotation quaternion and location set exactly).
+  matrix [R | t] (rotation quaternion and location set exactly), or, for an instanced
+  result (:mod:`.instances`), a point with the same rotation, location and scale.
 
 Everything here runs on Blender's main thread.
 """
@@ -22,7 +23,7 @@ import bpy
 import numpy as np
 from mathutils import Matrix
 
-from . import summary, units
+from . import instances, summary, units
 from .engine import PackOutcome, Triangles, check_extent
 
 
@@ -295,10 +296,29 @@ def _set_descriptions(coll: bpy.types.Collection) -> None:
                 pass
 
 
+def place_object(coll: bpy.types.Collection, name: str, t: int, rotation: Any,
+                 translation: Any, scale: float, mesh: bpy.types.Mesh,
+                 colour: tuple[float, float, float, float]) -> bpy.types.Object:
+    """An object of type ``t`` sharing the type's ``mesh``, at the packing's matrix: the
+    rotation quaternion (w x y z), location and uniform scale set exactly; linked to
+    ``coll``."""
+    obj = bpy.data.objects.new(name, mesh)
+    obj.rotation_mode = 'QUATERNION'
+    obj.rotation_quaternion = [float(x) for x in rotation]
+    obj.location = [float(x) for x in translation]
+    obj.scale = [float(scale)] * 3
+    obj.color = colour
+    obj["jampacked_type"] = t
+    coll.objects.link(obj)
+    return obj
+
+
 def build_result(context: bpy.types.Context, request: PackRequest,
                  outcome: PackOutcome) -> bpy.types.Collection:
     """Create the result collection: one shared mesh and material per type, one object per
-    placement at the packing's matrix, metrics and the packing JSON as custom properties.
+    placement at the packing's matrix (or, when the settings ask for instances, one points
+    object that instances the type meshes: :mod:`.instances`), metrics and the packing JSON
+    as custom properties.
 
     On any failure everything created is removed again and the exception re-raised, so the
     scene is as it was.
@@ -328,18 +348,17 @@ def build_result(context: bpy.types.Context, request: PackRequest,
                 mesh.materials.append(mat)
             mesh.update()
             meshes.append((mesh, colour))
-        for i in range(packing.n):
-            t = int(packing.type_index[i])
-            mesh, colour = meshes[t]
-            obj = bpy.data.objects.new(f"{packing.types[t].name} {i + 1}", mesh)
-            created.append(obj)
-            obj.rotation_mode = 'QUATERNION'
-            obj.rotation_quaternion = [float(x) for x in packing.rotations[i]]
-            obj.location = [float(x) for x in packing.translations[i]]
-            obj.scale = [float(packing.scales[i])] * 3
-            obj.color = colour
-            obj["jampacked_type"] = t
-            coll.objects.link(obj)
+        s = context.scene.jampacked
+        if instances.use_instances(s.result_kind, s.instance_threshold, packing.n):
+            instances.build(coll, request.container_name, packing, [m for m, _ in meshes],
+                            [c for _, c in meshes], created)
+        else:
+            for i in range(packing.n):
+                t = int(packing.type_index[i])
+                created.append(place_object(
+                    coll, f"{packing.types[t].name} {i + 1}", t, packing.rotations[i],
+                    packing.translations[i], packing.scales[i], *meshes[t]))
+            coll[instances.KIND_KEY] = "objects"
         props = summary.collection_properties(packing)
         for key, value in props.items():
             coll[summary.PREFIX + key] = value
@@ -361,13 +380,59 @@ def _remove(ids: list[Any]) -> None:
     """Remove datablocks created by a failed build, newest first."""
     for block in reversed(ids):
         for coll in (bpy.data.objects, bpy.data.meshes, bpy.data.materials,
-                     bpy.data.collections):
+                     bpy.data.node_groups, bpy.data.collections):
             try:
                 if block.name in coll and coll[block.name] == block:
                     coll.remove(block)
                     break
             except ReferenceError:
                 break
+
+
+def make_real(coll: bpy.types.Collection, which: str, type_index: int = -1
+              ) -> list[bpy.types.Object]:
+    """Turn instances of an instanced result into objects that share the type meshes,
+    placed exactly as an object result places them (the points object's double-precision
+    placements, not the points' single precision), and remove their points. ``which``:
+    'ALL', 'SELECTED' (points selected in Edit Mode) or 'TYPE' (the instances of type
+    ``type_index``). Returns the new objects."""
+    obj = instances.points_object(coll)
+    if obj is None:
+        raise _input_error(f"'{coll.name}' has no instances: its objects are real already.")
+    names = [str(n) for n in coll.get(summary.PREFIX + "type_names", [])]
+    if which == 'TYPE' and not 0 <= type_index < len(names):
+        raise _input_error(f"there is no type {type_index + 1} in '{coll.name}' (it has "
+                           f"{len(names)}): pick one of {', '.join(names)}.")
+    points = instances.read_points(obj.data)
+    mask = instances.pick(points, which, type_index)
+    if not mask.any():
+        what = {'SELECTED': f"no points of '{obj.name}' are selected: select some in Edit "
+                            "Mode (Tab) first",
+                'TYPE': f"no instances of '{names[type_index] if names else ''}' are left"
+                }.get(which, f"'{obj.name}' has no instances left")
+        raise _input_error(what + ".")
+    exact = instances.placements(obj)
+    if exact is None or len(exact) <= int(points["indices"].max(initial=-1)):
+        raise _input_error(f"'{obj.name}' lacks its placements (property "
+                           f"'{instances.PLACEMENTS_KEY}' missing or damaged): pack again.")
+    meshes = []
+    for t, mesh_name in enumerate(coll.get(summary.PREFIX + "type_meshes", [])):
+        mesh = bpy.data.meshes.get(str(mesh_name))
+        if mesh is None:
+            raise _input_error(f"the mesh '{mesh_name}' of '{coll.name}' is gone: undo its "
+                               "removal or pack again.")
+        meshes.append((mesh, summary.type_colour(t)))
+    if len(meshes) != len(names) or not np.isin(exact[:, 8], np.arange(len(names))).all():
+        raise _input_error(f"'{coll.name}' does not record its types and meshes: pack "
+                           "again.")
+    made = []
+    for i in points["indices"][mask]:
+        p = exact[int(i)]
+        t = int(p[8])
+        made.append(place_object(coll, f"{names[t]} {int(i) + 1}", t, p[:4], p[4:7], p[7],
+                                 *meshes[t]))
+    instances.drop_points(obj, mask)
+    return made
 
 
 # ------------------------------------------------------------------------------ export

@@ -16,9 +16,9 @@ from typing import Any
 
 import bpy
 import numpy as np
-from bpy.props import EnumProperty, FloatProperty, StringProperty
+from bpy.props import EnumProperty, FloatProperty, IntProperty, StringProperty
 
-from . import bridge, engine, live_view, repair, results, worker
+from . import bridge, engine, instances, live_view, repair, results, worker
 from .props import axis_name
 
 #: seconds between progress updates
@@ -368,6 +368,52 @@ class JAMPACKED_OT_cancel(bpy.types.Operator):
         return {'FINISHED'}
 
 
+class JAMPACKED_OT_make_real(bpy.types.Operator):
+    """Turn instances of the packing into real objects sharing the type meshes (all, the
+    points selected in Edit Mode, or one type)"""
+
+    bl_idname = "jampacked.make_real"
+    bl_label = "Make Real"
+    bl_options = {'REGISTER', 'UNDO'}
+
+    which: EnumProperty(
+        name="Which",
+        items=[('ALL', "All", "Every instance of the result"),
+               ('SELECTED', "Selected Points", "The points selected in Edit Mode on the "
+                                               "result's instances object"),
+               ('TYPE', "One Type", "The instances of one object type")],
+        default='ALL')
+    type_index: IntProperty(name="Type", default=0, min=0,
+                            description="One Type: the type's row (0 = the first type)")
+
+    @classmethod
+    def poll(cls, context: bpy.types.Context) -> bool:
+        coll = context.scene.jampacked.result if context.scene else None
+        if coll is None or instances.points_object(coll) is None:
+            cls.poll_message_set("The last Pack's result has no instances")
+            return False
+        return not worker.busy()
+
+    def execute(self, context: bpy.types.Context) -> set[str]:
+        try:
+            coll = bridge.result_collection(context)
+            if context.object is not None and context.object.mode == 'EDIT':
+                bpy.ops.object.mode_set(mode='OBJECT')  # the points' selection is saved
+            made = bridge.make_real(coll, self.which, self.type_index)
+        except _errors().JampackedError as exc:
+            self.report({'ERROR'}, str(exc)[:1].upper() + str(exc)[1:])
+            return {'CANCELLED'}
+        for obj in context.selected_objects:
+            obj.select_set(False)
+        for obj in made:
+            obj.select_set(True)
+        context.view_layer.objects.active = made[-1]
+        left = len(instances.points_object(coll).data.vertices)
+        self.report({'INFO'}, f"Made {len(made)} object(s) real in '{coll.name}'; {left} "
+                              "instance(s) left.")
+        return {'FINISHED'}
+
+
 # ------------------------------------------------------------------------------ type list
 
 
@@ -619,6 +665,7 @@ classes = (
     JAMPACKED_OT_pack,
     JAMPACKED_OT_export,
     JAMPACKED_OT_cancel,
+    JAMPACKED_OT_make_real,
     JAMPACKED_OT_type_add,
     JAMPACKED_OT_type_remove,
     JAMPACKED_OT_type_move,

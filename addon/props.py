@@ -68,6 +68,16 @@ OPENING_ITEMS = [
 AXIS_ITEMS = [(a.upper().replace("+", "P").replace("-", "N"), a, f"Along {a}")
               for a in ("+x", "-x", "+y", "-y", "+z", "-z")]
 
+RESULT_KIND_ITEMS = [
+    ('AUTO', "Auto", "Instances from the threshold count on, objects below it"),
+    ('OBJECTS', "Objects", "One object per placement (slow and heavy at tens of thousands)"),
+    ('INSTANCES', "Instances", "One points object drawing every placement as an instance of "
+                               "its type (Make Real turns the ones you want into objects)"),
+]
+
+#: placements from which an Auto result is instanced
+INSTANCE_THRESHOLD = 2000
+
 FORMAT_ITEMS = [
     ('STL', "STL", "Binary STL (one mesh)"),
     ('3MF', "3MF", "3MF (one object per body, millimetres)"),
@@ -118,6 +128,12 @@ class JAMPACKED_PG_settings(bpy.types.PropertyGroup):
         name="Keep Previous", default=False,
         description="Keep the earlier results of this container: without it a Pack "
                     "replaces the last result (one undo brings it back)")
+    result_kind: EnumProperty(
+        name="Result As", items=RESULT_KIND_ITEMS, default='AUTO',
+        description="How Pack adds the placements to the scene")
+    instance_threshold: IntProperty(
+        name="Instances From", default=INSTANCE_THRESHOLD, min=1, soft_max=100000,
+        description="Auto: a packing with at least this many objects is added as instances")
     result: PointerProperty(
         name="Result", type=bpy.types.Collection,
         description="Collection made by the last Pack: its metrics are shown and Export "

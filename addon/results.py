@@ -8,7 +8,7 @@ removal is part of Pack's one undo step.
 
 import bpy
 
-from . import summary
+from . import instances, summary
 
 
 def is_result(coll: bpy.types.Collection) -> bool:
@@ -24,14 +24,18 @@ def previous_results(scene: bpy.types.Scene, container_name: str
 
 
 def remove_result(coll: bpy.types.Collection) -> None:
-    """Remove a result: its placed objects (those in no other collection), then the type
-    meshes and their materials once nothing else uses them, then the collection."""
+    """Remove a result: its placed objects and its instances (those in no other
+    collection), then the type meshes and their materials once nothing else uses them,
+    then the collection."""
     meshes = [bpy.data.meshes.get(str(name))
               for name in coll.get(summary.PREFIX + "type_meshes", [])]
     objects = [o for o in coll.objects
                if "jampacked_type" in o.keys() and len(o.users_collection) == 1]
     if objects:
         bpy.data.batch_remove(objects)
+    points = instances.points_object(coll)
+    if points is not None and len(points.users_collection) == 1:
+        instances.remove(points)  # with its prototypes, which use the type meshes
     for mesh in meshes:
         if mesh is None or mesh.users:
             continue
@@ -63,4 +67,7 @@ def replace_previous(scene: bpy.types.Scene, new: bpy.types.Collection) -> int:
                 mat.name = base
         names.append(mesh.name)
     new[summary.PREFIX + "type_meshes"] = names
+    points = instances.points_object(new)
+    if points is not None:
+        instances.rename(points, container)
     return len(old)

@@ -3,7 +3,7 @@
 # No "from __future__ import annotations": Blender reads class annotations.
 import bpy
 
-from . import summary, units, worker
+from . import instances, summary, units, worker
 
 
 class JAMPACKED_UL_types(bpy.types.UIList):
@@ -57,6 +57,9 @@ class JAMPACKED_PT_pack(_Sidebar, bpy.types.Panel):
         col.prop(s, "mix_tolerance")
         col.prop(s, "time_budget")
         col.prop(s, "keep_previous")
+        col.prop(s, "result_kind")
+        if s.result_kind == 'AUTO':
+            col.prop(s, "instance_threshold")
         if state.running:
             box = layout.box()
             box.progress(factor=state.fraction, type='BAR',
@@ -127,6 +130,16 @@ class JAMPACKED_PT_result(_Sidebar, bpy.types.Panel):
             row = col.row()
             row.label(text=label)
             row.label(text=value)
+        points = instances.points_object(coll)
+        if points is not None:
+            box = layout.box()
+            box.label(text=f"{len(points.data.vertices)} instances", icon='OUTLINER_OB_POINTCLOUD')
+            row = box.row(align=True)
+            row.operator("jampacked.make_real", text="Make All Real").which = 'ALL'
+            row.operator("jampacked.make_real", text="Selected Points").which = 'SELECTED'
+            for t, name in enumerate(coll.get(summary.PREFIX + "type_names", [])):
+                op = box.operator("jampacked.make_real", text=f"Make {name} Real")
+                op.which, op.type_index = 'TYPE', t
 
 
 class JAMPACKED_PT_export(_Sidebar, bpy.types.Panel):

@@ -31,7 +31,7 @@ def test_register_and_unregister_twice(bpy, addon):
     assert {c.bl_idname for c in addon.operators.classes} == {
         "jampacked.pack", "jampacked.export", "jampacked.cancel", "jampacked.type_add",
         "jampacked.type_remove", "jampacked.type_move", "jampacked.validate",
-        "jampacked.select_defects", "jampacked.make_manifold"}
+        "jampacked.select_defects", "jampacked.make_manifold", "jampacked.make_real"}
 
 
 class Layout:

@@ -1,0 +1,316 @@
+"""Instanced results: points under a Geometry Nodes modifier draw the placements; Make Real.
+
+What headless bpy allows: the evaluated instances are read from the depsgraph (as the
+viewport and renderers get them), undo runs with ``ed.undo`` after an explicit first
+``undo_push`` (background mode starts no undo system), Edit Mode selections are set on the
+points' vertices directly (no viewport to box-select in).
+"""
+
+from __future__ import annotations
+
+import numpy as np
+import pytest
+
+pytest.importorskip("bpy")
+
+from addon_helpers import load_addon, scene_state  # noqa: E402
+
+#: the engine's packing of the scene fixture per seed: these tests are about how a packing is
+#: added to the scene, so each seed is packed once (a pack takes 1-20 s on a busy machine)
+_OUTCOMES: dict = {}
+
+
+@pytest.fixture(autouse=True)
+def _pack_once(addon, monkeypatch):
+    real = addon.engine.pack_triangles
+
+    def pack_once(container, types, shares, *, seed, **kwargs):
+        if seed not in _OUTCOMES:
+            _OUTCOMES[seed] = real(container, types, shares, seed=seed, **kwargs)
+        return _OUTCOMES[seed]
+
+    monkeypatch.setattr(addon.engine, "pack_triangles", pack_once)
+
+
+def _packing(addon, coll):
+    return addon.engine.packing_from_json(coll["jampacked_packing"])
+
+
+def _pack(bpy, kind: str, undo: bool = False) -> object:
+    bpy.context.scene.jampacked.result_kind = kind
+    args = ('EXEC_DEFAULT', True) if undo else ()
+    assert bpy.ops.jampacked.pack(*args) == {'FINISHED'}
+    return bpy.context.scene.jampacked.result
+
+
+def _instances(bpy, points) -> list[tuple[str, np.ndarray]]:
+    """(prototype name, world matrix) of every instance the points object draws."""
+    depsgraph = bpy.context.evaluated_depsgraph_get()
+    out = []
+    for inst in depsgraph.object_instances:
+        if inst.is_instance and inst.parent is not None and inst.parent.original == points:
+            out.append((inst.instance_object.original.name,
+                        np.array([list(r) for r in inst.matrix_world])))
+    return out
+
+
+def _check_instances(bpy, packing, points, indices=None) -> None:
+    """The instances are exactly the placements ``indices`` (all by default): type and
+    matrix of each, matched by position."""
+    indices = np.arange(packing.n) if indices is None else np.asarray(indices)
+    got = _instances(bpy, points)
+    assert len(got) == len(indices)
+    mats = packing.matrices()
+    for name, matrix in got:
+        d = np.linalg.norm(packing.translations[indices] - matrix[:3, 3], axis=1)
+        i = int(indices[np.argmin(d)])
+        assert d.min() < 1e-4
+        assert name == f"Jampacked {packing.types[packing.type_index[i]].name}"
+        np.testing.assert_allclose(matrix, mats[i], atol=1e-5)
+
+
+def _matrix(obj) -> np.ndarray:
+    return np.array([list(r) for r in obj.matrix_world], dtype=np.float64)
+
+
+def _jam_node_groups(bpy) -> list[str]:
+    return sorted(g.name for g in bpy.data.node_groups if g.name.startswith("Jampacked"))
+
+
+def test_use_instances_follows_the_choice_and_threshold():
+    inst = load_addon().instances
+    assert inst.use_instances('AUTO', 2000, 2000)
+    assert not inst.use_instances('AUTO', 2000, 1999)
+    assert inst.use_instances('INSTANCES', 2000, 1)
+    assert not inst.use_instances('OBJECTS', 10, 100000)
+
+
+def test_instanced_result_draws_the_placements(bpy, addon, scene):
+    """The depsgraph's instances have the packing's types and matrices [R * s | t]; the
+    result holds one points object, the type meshes are the object result's."""
+    coll = _pack(bpy, 'INSTANCES')
+    packing = _packing(addon, coll)
+    assert packing.n > 5
+    assert coll["jampacked_result_kind"] == "instances"
+    (points,) = coll.objects
+    assert points.name == "Jampacked Box instances" and len(points.data.vertices) == packing.n
+    _check_instances(bpy, packing, points)
+    # the prototypes use the shared type meshes, in the types' local frames
+    protos = addon.instances.prototypes(points)
+    assert sorted(p.data.name for p in protos) == ["Jampacked P4", "Jampacked P5"]
+    assert all(not p.users_collection for p in protos)
+    assert list(coll["jampacked_type_meshes"]) == ["Jampacked P5", "Jampacked P4"]
+    rows = dict(addon.summary.panel_lines(coll))
+    assert rows["Objects"] == str(packing.n)
+
+
+def test_instances_and_objects_place_the_same(bpy, addon, scene):
+    """The same packing added as objects and as instances: the objects' matrices are the
+    instances' matrices."""
+    scene.settings.keep_previous = True
+    objects = _pack(bpy, 'OBJECTS')
+    assert objects["jampacked_result_kind"] == "objects"
+    packing = _packing(addon, objects)
+    matrices = {o.name: _matrix(o) for o in objects.objects}
+    coll = _pack(bpy, 'INSTANCES')
+    assert _packing(addon, coll).n == packing.n == len(matrices)
+    points = addon.instances.points_object(coll)
+    got = sorted(_instances(bpy, points), key=lambda x: tuple(np.round(x[1][:3, 3], 4)))
+    want = sorted(matrices.values(), key=lambda m: tuple(np.round(m[:3, 3], 4)))
+    for (_, a), b in zip(got, want, strict=True):
+        np.testing.assert_allclose(a, b, atol=1e-5)
+
+
+def test_auto_instances_from_the_threshold(bpy, addon, scene):
+    s = scene.settings
+    s.result_kind = 'AUTO'
+    n = _packing(addon, _pack(bpy, 'OBJECTS')).n
+    s.instance_threshold = n + 1
+    coll = _pack(bpy, 'AUTO')
+    assert coll["jampacked_result_kind"] == "objects" and len(coll.objects) == n
+    s.instance_threshold = n
+    coll = _pack(bpy, 'AUTO')
+    assert coll["jampacked_result_kind"] == "instances" and len(coll.objects) == 1
+
+
+def test_a_pack_replaces_an_instanced_result_either_way(bpy, addon, scene):
+    """Instances replace objects and objects replace instances: one result, the same names,
+    no prototype, node group or points mesh left behind."""
+    inputs = {o.name for o in bpy.data.objects}
+    input_meshes = {m.name for m in bpy.data.meshes}
+    _pack(bpy, 'OBJECTS')
+    coll = _pack(bpy, 'INSTANCES')
+    assert [c.name for c in bpy.context.scene.collection.children] == ["Jampacked Box"]
+    points = addon.instances.points_object(coll)
+    assert points.name == "Jampacked Box instances"
+    assert {o.name for o in bpy.data.objects} == inputs | {
+        points.name, "Jampacked P5", "Jampacked P4"}
+    assert _jam_node_groups(bpy) == ["Jampacked Instances Box"]
+    scene.settings.seed = 2
+    coll = _pack(bpy, 'INSTANCES')  # instances replace instances: names kept
+    assert addon.instances.points_object(coll).name == "Jampacked Box instances"
+    assert _jam_node_groups(bpy) == ["Jampacked Instances Box"]
+    assert {m.name for m in bpy.data.meshes} == input_meshes | {
+        "Jampacked P5", "Jampacked P4", "Jampacked Box instances"}
+    _check_instances(bpy, _packing(addon, coll), addon.instances.points_object(coll))
+    coll = _pack(bpy, 'OBJECTS')
+    assert _jam_node_groups(bpy) == []
+    assert {o.name for o in bpy.data.objects} == inputs | {o.name for o in coll.objects}
+    assert {m.name for m in bpy.data.meshes} == input_meshes | {
+        "Jampacked P5", "Jampacked P4"}
+
+
+def test_instanced_pack_is_one_undo_step(bpy, addon, scene):
+    bpy.ops.ed.undo_push(message="before pack")
+    before = scene_state(bpy)
+    _pack(bpy, 'INSTANCES', undo=True)
+    assert _jam_node_groups(bpy)
+    bpy.ops.ed.undo()
+    assert scene_state(bpy) == before
+    assert _jam_node_groups(bpy) == []
+    assert bpy.context.scene.jampacked.result is None
+
+
+def test_make_all_real_gives_the_object_result(bpy, addon, scene):
+    """Make Real (all): objects sharing the type meshes at the object result's matrices, no
+    instances left; one undo step brings the instances back."""
+    coll = _pack(bpy, 'INSTANCES')
+    packing = _packing(addon, coll)
+    points = addon.instances.points_object(coll)
+    bpy.ops.ed.undo_push(message="before make real")
+    assert bpy.ops.jampacked.make_real('EXEC_DEFAULT', True, which='ALL') == {'FINISHED'}
+    real = [o for o in coll.objects if "jampacked_type" in o.keys()]
+    assert len(real) == packing.n
+    mats = packing.matrices()
+    for obj in real:
+        i = int(obj.name.rsplit(" ", 1)[1]) - 1
+        t = int(packing.type_index[i])
+        assert obj["jampacked_type"] == t
+        assert obj.data.name == f"Jampacked {packing.types[t].name}"
+        np.testing.assert_allclose(_matrix(obj), mats[i], atol=1e-6)
+    assert len(points.data.vertices) == 0 and _instances(bpy, points) == []
+    assert sorted(o.name for o in bpy.context.selected_objects) == sorted(o.name for o in real)
+    bpy.ops.ed.undo()
+    coll = bpy.context.scene.jampacked.result
+    assert [o.name for o in coll.objects] == ["Jampacked Box instances"]
+    _check_instances(bpy, packing, addon.instances.points_object(coll))
+
+
+def test_make_real_selected_points_and_one_type(bpy, addon, scene):
+    coll = _pack(bpy, 'INSTANCES')
+    packing = _packing(addon, coll)
+    points = addon.instances.points_object(coll)
+    with pytest.raises(RuntimeError, match="No points of 'Jampacked Box instances' are "
+                                           "selected"):
+        bpy.ops.jampacked.make_real(which='SELECTED')
+    # the Edit Mode selection, as Object Mode keeps it: the points of placements 0 and 3
+    select = np.zeros(packing.n, bool)
+    select[[0, 3]] = True
+    points.data.vertices.foreach_set("select", select)
+    assert bpy.ops.jampacked.make_real(which='SELECTED') == {'FINISHED'}
+    real = sorted(o.name for o in coll.objects if "jampacked_type" in o.keys())
+    assert real == sorted(f"{packing.types[packing.type_index[i]].name} {i + 1}"
+                          for i in (0, 3))
+    left = np.setdiff1d(np.arange(packing.n), [0, 3])
+    _check_instances(bpy, packing, points, left)
+    # then every remaining instance of the second type (P4)
+    assert bpy.ops.jampacked.make_real(which='TYPE', type_index=1) == {'FINISHED'}
+    left = left[packing.type_index[left] != 1]
+    _check_instances(bpy, packing, points, left)
+    n_real = len([o for o in coll.objects if "jampacked_type" in o.keys()])
+    assert n_real == packing.n - len(left)
+    with pytest.raises(RuntimeError, match="There is no type 3 in 'Jampacked Box'"):
+        bpy.ops.jampacked.make_real(which='TYPE', type_index=2)
+    # a new Pack replaces instances and real objects alike
+    scene.settings.seed = 2
+    coll = _pack(bpy, 'INSTANCES')
+    assert len(coll.objects) == 1
+
+
+def test_export_of_instances_equals_export_of_objects(bpy, addon, scene, tmp_path):
+    s = scene.settings
+    s.export_mode, s.file_format = 'UNION', 'STL'
+    files = []
+    for kind in ('OBJECTS', 'INSTANCES'):
+        _pack(bpy, kind)
+        s.filepath = str(tmp_path / kind.lower())
+        assert bpy.ops.jampacked.export() == {'FINISHED'}
+        files.append((tmp_path / f"{kind.lower()}.stl").read_bytes())
+    assert len(files[0]) > 1000 and files[0] == files[1]
+
+
+def test_instanced_result_survives_save_and_reopen(bpy, addon, scene, tmp_path):
+    coll = _pack(bpy, 'INSTANCES')
+    packing = _packing(addon, coll)
+    path = tmp_path / "instanced.blend"
+    bpy.ops.wm.save_as_mainfile(filepath=str(path))
+    bpy.ops.wm.read_factory_settings(use_empty=True)
+    bpy.ops.wm.open_mainfile(filepath=str(path))
+    coll = bpy.context.scene.jampacked.result
+    points = addon.instances.points_object(coll)
+    _check_instances(bpy, packing, points)
+    assert bpy.ops.jampacked.make_real(which='TYPE', type_index=0) == {'FINISHED'}
+    left = np.flatnonzero(packing.type_index != 0)
+    _check_instances(bpy, packing, points, left)
+
+
+def test_panels_show_the_choice_and_make_real(bpy, addon, scene):
+    from test_addon_register import _draw_all, _labels
+
+    calls = _draw_all(bpy, addon)
+    props = [args[1] for name, args, _kw in calls if name == "prop"]
+    assert "result_kind" in props and "instance_threshold" in props
+    scene.settings.result_kind = 'OBJECTS'
+    assert "instance_threshold" not in [args[1] for name, args, _kw in _draw_all(bpy, addon)
+                                        if name == "prop"]
+    coll = _pack(bpy, 'INSTANCES')
+    calls = _draw_all(bpy, addon)
+    assert f"{coll['jampacked_count']} instances" in _labels(calls)
+    texts = [kw.get("text") for name, args, kw in calls
+             if name == "operator" and args[0] == "jampacked.make_real"]
+    assert texts == ["Make All Real", "Selected Points", "Make P5 Real", "Make P4 Real"]
+    assert bpy.ops.jampacked.make_real.poll()
+    _pack(bpy, 'OBJECTS')
+    assert not bpy.ops.jampacked.make_real.poll()
+    assert not any(name == "operator" and args[0] == "jampacked.make_real"
+                   for name, args, _kw in _draw_all(bpy, addon))
+
+
+def test_make_real_refuses_damaged_placements(bpy, addon, scene):
+    """The points object's placements cut short (edited by a script): a clear error, no
+    object made, the instances kept."""
+    coll = _pack(bpy, 'INSTANCES')
+    n = coll["jampacked_count"]
+    points = addon.instances.points_object(coll)
+    short = np.array(points["jampacked_placements"])[:18]
+    del points["jampacked_placements"]  # an assignment keeps an array property's length
+    points["jampacked_placements"] = short
+    objects = {o.name for o in bpy.data.objects}
+    with pytest.raises(RuntimeError, match="lacks its placements"):
+        bpy.ops.jampacked.make_real(which='ALL')
+    assert {o.name for o in bpy.data.objects} == objects
+    assert len(points.data.vertices) == n
+
+
+def test_make_real_from_edit_mode(bpy, addon, scene):
+    """The user's way: Tab into the points object, select points, Make Real (Selected
+    Points): Blender leaves Edit Mode with the selection and the points become objects."""
+    import bmesh
+
+    coll = _pack(bpy, 'INSTANCES')
+    packing = _packing(addon, coll)
+    points = addon.instances.points_object(coll)
+    bpy.context.view_layer.objects.active = points
+    points.select_set(True)
+    bpy.ops.object.mode_set(mode='EDIT')
+    bm = bmesh.from_edit_mesh(points.data)
+    bm.verts.ensure_lookup_table()
+    for v in bm.verts:
+        v.select_set(v.index in (1, 2))
+    bmesh.update_edit_mesh(points.data)
+    assert bpy.ops.jampacked.make_real(which='SELECTED') == {'FINISHED'}
+    assert points.mode == 'OBJECT'
+    real = sorted(o.name for o in coll.objects if "jampacked_type" in o.keys())
+    assert real == sorted(f"{packing.types[packing.type_index[i]].name} {i + 1}"
+                          for i in (1, 2))
+    _check_instances(bpy, packing, points, np.setdiff1d(np.arange(packing.n), [1, 2]))
