@@ -18,7 +18,7 @@ def _placement_kernels() -> list:
     """The numba dispatchers a pack's warm-up compiles (`Solver.warm_up`)."""
     from . import kernels
 
-    return [kernels.resolve, kernels.free_distances]
+    return [kernels.resolve, kernels.free_distances_near]
 
 
 def _has_code(dispatcher) -> bool | None:
