@@ -12,6 +12,7 @@ from __future__ import annotations
 import json
 import os
 import re
+import resource
 import subprocess
 import sys
 import tempfile
@@ -114,6 +115,8 @@ def run_record(container: str, types: list[str], seed: int, kwargs: dict,
         "stopped": run.stopped, "kwargs": kwargs, "params": params or {},
         "threads": None if run.threads is None else asdict(run.threads),
         "density_trace": trace,
+        # the process's peak resident memory so far (Linux reports KiB), MiB
+        "peak_rss_mb": resource.getrusage(resource.RUSAGE_SELF).ru_maxrss / 1024,
     }
 
 
