@@ -108,16 +108,17 @@ def main(argv: list[str] | None = None) -> int:
 
 
 def fits(data: dict, phases: tuple[str, ...], fit_from: int) -> dict:
-    """Per phase (and peak memory, "peak_rss_mb"): exponent and coefficient of the fit over
-    the runs with at least fit_from objects, or None."""
+    """Per phase (and peak memory "peak_rss_mb", CPU time "cpu_seconds"): exponent and
+    coefficient of the fit over the runs with at least fit_from objects, or None."""
     runs = [r for r in data["runs"] if r["metrics"]["count"] >= fit_from]
     n = np.array([r["metrics"]["count"] for r in runs], float)
     out = {}
     for ph in phases:
         f = fit(n, np.array([r["timings"].get(ph, 0.0) for r in runs], float))
         out[ph] = None if f is None else {"exponent": f[0], "coefficient": f[1]}
-    f = fit(n, np.array([r.get("peak_rss_mb", 0.0) for r in runs], float))
-    out["peak_rss_mb"] = None if f is None else {"exponent": f[0], "coefficient": f[1]}
+    for key in ("peak_rss_mb", "cpu_seconds"):
+        f = fit(n, np.array([r.get(key, 0.0) for r in runs], float))
+        out[key] = None if f is None else {"exponent": f[0], "coefficient": f[1]}
     return out
 
 
@@ -139,6 +140,11 @@ def _chart(data: dict, path: Path, paper: dict | None = None) -> None:
         if f is not None:
             xs = np.geomspace(max(n.min(), data.get("fit_from", 0)), n.max(), 20)
             ax.loglog(xs, f["coefficient"] * xs ** f["exponent"], "-", color=color, lw=1)
+    cpu = np.array([r.get("cpu_seconds", np.nan) for r in data["runs"]], float)
+    f = data["fits"].get("cpu_seconds")
+    if f is not None:
+        ax.loglog(n, cpu, "s", mfc="none", color="k",
+                  label=f"CPU time (all threads): ~ n^{f['exponent']:.2f}")
     if paper is not None:
         pn = np.array([r["metrics"]["count"] for r in paper["runs"]], float)
         pt = np.array([r["timings"]["total"] for r in paper["runs"]], float)
