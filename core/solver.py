@@ -14,7 +14,7 @@ import numba
 import numpy as np
 
 from . import kernels
-from .cellgrid import CellGrid
+from .cellgrid import CellGrid, insert_range
 from .container import Container
 from .objects import ObjectType, point_clusters
 from .options import PhysicsOptions
@@ -186,6 +186,9 @@ class Solver:
         install)."""
         self.resolve(np.zeros(0, np.int64), 1, rollback=True)
         self.free_distances(np.zeros((1, 3)))
+        # the cell lists link new objects from Python: compile that too (an empty range)
+        insert_range(self.cells.sync(self.s, np.zeros(0, np.int64)), self.s.pos,
+                     self.s.alive, 0, 0)
 
     def container_arrays(self) -> tuple:
         """The container's grid and its min pyramid, as the kernels take them:
