@@ -1,18 +1,26 @@
-"""Growth: time against the number of objects, per phase, on log-log axes.
+"""Growth: time and peak memory against the number of objects, per phase, on log-log axes.
 
-    python bench/growth.py [--counts 100 300 1000 2000 5000]
+    python bench/growth.py [--counts 1000 3000 10000 30000 100000] [--method full|paper]
 
 The scene: oranges and lemons (YCB low-poly, x100: 6-7 mm) in a cube whose side is chosen
-for about N objects, the paper's two phases only (no extra cavity passes), automatic
-fidelity, one attempt (the cap is pack's time budget: a run that passes --cap seconds is
-stopped and marked); above 1500 expected objects auto uses 24 spheres per type instead of 64, which
-the chart labels. Each size is its own process with warm caches. Fits t = a * n^k per phase by least
-squares on the logs. Writes bench/results/growth.json and growth.png.
+for about N objects, automatic fidelity, one attempt; above 1500 expected objects auto uses
+24 spheres per type instead of 64, which the chart labels. Each size is its own process with
+warm caches; its peak resident memory is recorded. Fits t = a * n^k per phase by least
+squares on the logs, over the runs with at least --fit-from objects.
+
+--method full (default): the whole method without a time budget, as a user runs it: phase 1,
+phase 2, the extra cavity passes and certification; writes bench/results/growth.json and
+growth.png (with the paper method's total for comparison when growth_paper.json exists).
+--method paper: the paper's two phases only (no extra passes), with --cap as pack's time
+budget (a run that passes it is stopped and marked); writes growth_paper.json and
+growth_paper.png.
 """
 
 from __future__ import annotations
 
 import argparse
+import json
+import os
 import sys
 import tempfile
 from pathlib import Path
@@ -27,7 +35,10 @@ TYPES = ["fruit/ycb_lowpoly/017_orange.obj", "fruit/ycb_lowpoly/014_lemon.obj"]
 TYPE_SCALE = 100.0
 #: a 60 mm cube held 646 of them (44.7%) in a trial run: side = 60 * (N / 646)^(1/3)
 SIDE_60_COUNT = 646
-PHASES = ("approximate", "phase1", "phase2", "certify", "total")
+PHASES = {"full": ("approximate", "phase1", "phase2", "extra", "certify", "total"),
+          "paper": ("approximate", "phase1", "phase2", "certify", "total")}
+COLORS = {"approximate": "tab:gray", "phase1": "tab:blue", "phase2": "tab:green",
+          "extra": "tab:orange", "certify": "tab:purple", "total": "k"}
 
 
 def fit(n: np.ndarray, t: np.ndarray) -> tuple[float, float] | None:
@@ -41,17 +52,20 @@ def fit(n: np.ndarray, t: np.ndarray) -> tuple[float, float] | None:
 
 def main(argv: list[str] | None = None) -> int:
     ap = argparse.ArgumentParser(description=__doc__.splitlines()[0])
-    ap.add_argument("--counts", type=int, nargs="+", default=[100, 300, 1000, 2000, 5000])
+    ap.add_argument("--counts", type=int, nargs="+",
+                    default=[1000, 3000, 10000, 30000, 100000])
+    ap.add_argument("--method", choices=("full", "paper"), default="full")
     ap.add_argument("--cap", type=float, default=900.0,
-                    help="placement time budget per run, seconds (default 900)")
+                    help="paper method: placement time budget per run, seconds (default 900)")
+    ap.add_argument("--fit-from", type=int, default=1000,
+                    help="fit the runs with at least this many objects (default 1000)")
     ap.add_argument("--seed", type=int, default=1)
     ap.add_argument("--meshes", type=Path, default=MESHES)
     ap.add_argument("--report-only", action="store_true")
     a = ap.parse_args(argv)
-    out = RESULTS / "growth.json"
+    stem = "growth" if a.method == "full" else "growth_paper"
+    out = RESULTS / f"{stem}.json"
     if a.report_only:
-        import json
-
         data = json.loads(out.read_text())
     else:
         runs = []
@@ -62,59 +76,100 @@ def main(argv: list[str] | None = None) -> int:
                          meshes=a.meshes)  # compile numba once
             for n in a.counts:
                 side = 60.0 * (n / SIDE_60_COUNT) ** (1 / 3)
+                if a.method == "paper":
+                    # one attempt: the cap is a budget, and a budget's spare time would go
+                    # to more attempts, not to these phases
+                    kwargs = {"type_scale": TYPE_SCALE, "time_budget": a.cap}
+                    params = {"extra_passes": [], "max_attempts": 1}
+                else:  # no budget: one attempt, its extra passes run to their end
+                    kwargs, params = {"type_scale": TYPE_SCALE}, {}
                 rec = run_in_child(f"box:{side:.3f}x{side:.3f}x{side:.3f}", TYPES, a.seed,
-                                   {"type_scale": TYPE_SCALE, "time_budget": a.cap},
-                                   # one attempt: the cap is a budget, and a budget's spare
-                                   # time would go to more attempts, not to these phases
-                                   {"extra_passes": [], "max_attempts": 1}, env=env,
-                                   meshes=a.meshes)
+                                   kwargs, params, env=env, meshes=a.meshes)
                 rec["target"] = n
                 rec["side"] = side
+                rec["load"] = os.getloadavg()
                 runs.append(rec)
                 print(f"target {n}: {rec['metrics']['count']} objects, "
-                      f"{rec['wall_seconds']:.1f} s, density {rec['metrics']['density']:.1%}"
+                      f"{rec['wall_seconds']:.1f} s, density {rec['metrics']['density']:.1%}, "
+                      f"peak {rec['peak_rss_mb']:.0f} MiB, load {rec['load'][0]:.1f}"
                       f"{', stopped by the cap' if rec['stopped'] else ''}", flush=True)
-        data = {"types": TYPES, "type_scale": TYPE_SCALE, "cap": a.cap, "runs": runs}
-    n = np.array([r["metrics"]["count"] for r in data["runs"]], float)
-    data["fits"] = {}
-    for ph in PHASES:
-        f = fit(n, np.array([r["timings"][ph] for r in data["runs"]], float))
-        data["fits"][ph] = None if f is None else {"exponent": f[0], "coefficient": f[1]}
+                # each size is saved as it ends: the large ones take long
+                write_json(out, {"method": a.method, "types": TYPES,
+                                 "type_scale": TYPE_SCALE, "cap": a.cap, "runs": runs})
+        data = {"method": a.method, "types": TYPES, "type_scale": TYPE_SCALE, "cap": a.cap,
+                "runs": runs}
+    data["fit_from"] = a.fit_from
+    data["fits"] = fits(data, PHASES[data.get("method", "paper")], a.fit_from)
     write_json(out, data)
-    _chart(data, RESULTS / "growth.png")
+    other = RESULTS / "growth_paper.json"
+    paper = json.loads(other.read_text()) if a.method == "full" and other.exists() else None
+    _chart(data, RESULTS / f"{stem}.png", paper)
     return 0
 
 
-def _chart(data: dict, path: Path) -> None:
+def fits(data: dict, phases: tuple[str, ...], fit_from: int) -> dict:
+    """Per phase (and peak memory "peak_rss_mb", CPU time "cpu_seconds"): exponent and
+    coefficient of the fit over the runs with at least fit_from objects, or None."""
+    runs = [r for r in data["runs"] if r["metrics"]["count"] >= fit_from]
+    n = np.array([r["metrics"]["count"] for r in runs], float)
+    out = {}
+    for ph in phases:
+        f = fit(n, np.array([r["timings"].get(ph, 0.0) for r in runs], float))
+        out[ph] = None if f is None else {"exponent": f[0], "coefficient": f[1]}
+    for key in ("peak_rss_mb", "cpu_seconds"):
+        f = fit(n, np.array([r.get(key, 0.0) for r in runs], float))
+        out[key] = None if f is None else {"exponent": f[0], "coefficient": f[1]}
+    return out
+
+
+def _chart(data: dict, path: Path, paper: dict | None = None) -> None:
     import matplotlib
 
     matplotlib.use("Agg")
     import matplotlib.pyplot as plt
 
+    method = data.get("method", "paper")
     n = np.array([r["metrics"]["count"] for r in data["runs"]], float)
-    fig, ax = plt.subplots(figsize=(7, 5))
-    for ph, color in zip(PHASES, ("tab:gray", "tab:blue", "tab:green", "tab:purple", "k"),
-                         strict=True):
-        t = np.array([r["timings"][ph] for r in data["runs"]], float)
-        f = data["fits"][ph]
+    fig, (ax, axm) = plt.subplots(1, 2, figsize=(11, 5), width_ratios=(3, 2))
+    for ph in PHASES[method]:
+        color = COLORS[ph]
+        t = np.array([r["timings"].get(ph, 0.0) for r in data["runs"]], float)
+        f = data["fits"].get(ph)
         label = ph if f is None else f"{ph}: t ~ n^{f['exponent']:.2f}"
         ax.loglog(n, np.maximum(t, 1e-3), "o", color=color, label=label)
         if f is not None:
-            xs = np.geomspace(n.min(), n.max(), 20)
+            xs = np.geomspace(max(n.min(), data.get("fit_from", 0)), n.max(), 20)
             ax.loglog(xs, f["coefficient"] * xs ** f["exponent"], "-", color=color, lw=1)
+    cpu = np.array([r.get("cpu_seconds", np.nan) for r in data["runs"]], float)
+    f = data["fits"].get("cpu_seconds")
+    if f is not None:
+        ax.loglog(n, cpu, "s", mfc="none", color="k",
+                  label=f"CPU time (all threads): ~ n^{f['exponent']:.2f}")
+    if paper is not None:
+        pn = np.array([r["metrics"]["count"] for r in paper["runs"]], float)
+        pt = np.array([r["timings"]["total"] for r in paper["runs"]], float)
+        ax.loglog(pn, pt, "x--", color="tab:red", lw=1, label="paper's two phases: total")
     for r, x in zip(data["runs"], n, strict=True):
         # auto fidelity uses fewer spheres above MANY_OBJECTS expected objects
-        note = f"{r['fidelity_detail']['spheres']} spheres"
+        note = f"{r['metrics']['density']:.1%}, {r['fidelity_detail']['spheres']} sph"
         if r["stopped"]:
             note += ", stopped by the cap"
         ax.annotate(note, (x, r["timings"]["total"]), fontsize=7, xytext=(-20, 6),
                     textcoords="offset points")
     ax.set_xlabel("objects placed")
     ax.set_ylabel("wall time (s)")
-    ax.set_title("Growth: oranges and lemons in a cube (paper's phases, 2 cores)",
-                 fontsize=10)
+    title = ("the whole method, no budget" if method == "full" else "paper's phases")
+    ax.set_title(f"Growth: oranges and lemons in a cube ({title}, 2 cores)", fontsize=10)
     ax.legend(fontsize=8)
     ax.grid(True, which="both", alpha=0.3)
+    mem = np.array([r.get("peak_rss_mb", np.nan) for r in data["runs"]], float)
+    f = data["fits"].get("peak_rss_mb")
+    axm.loglog(n, mem, "o", color="tab:brown",
+               label="peak RSS" if f is None else f"peak RSS ~ n^{f['exponent']:.2f}")
+    axm.set_xlabel("objects placed")
+    axm.set_ylabel("peak resident memory (MiB)")
+    axm.legend(fontsize=8)
+    axm.grid(True, which="both", alpha=0.3)
     fig.tight_layout()
     save_figure(fig, path)
 

@@ -192,7 +192,9 @@ def write_table(summaries: list[dict], path: Path) -> None:
         "Other parts of the suite:", "",
         "- speed against accuracy: [fidelity.md](fidelity.md), "
         "![speed against accuracy](fidelity.png)",
-        "- growth: [growth.json](growth.json), ![time against objects](growth.png)",
+        "- growth (the whole method): [growth.json](growth.json), "
+        "![time against objects](growth.png); the paper's two phases only: "
+        "[growth_paper.json](growth_paper.json), ![paper's phases](growth_paper.png)",
         "- the paper's tables beside ours: [paper.md](paper.md)",
         "- Blender rigid bodies as a peer: [peer_bullet.json](peer_bullet.json), "
         "![peer](peer_bullet.png)",

@@ -12,6 +12,7 @@ from __future__ import annotations
 import json
 import os
 import re
+import resource
 import subprocess
 import sys
 import tempfile
@@ -95,11 +96,15 @@ def run_record(container: str, types: list[str], seed: int, kwargs: dict,
             trace.append((time.perf_counter() - t0, float(m.group(1)) / 100))
 
     t0 = time.perf_counter()
+    c0 = time.process_time()
     p = pack(container, type_paths, seed=seed, options=options, progress=progress, **kwargs)
     wall = time.perf_counter() - t0
+    cpu = time.process_time() - c0
     rep, run = asdict(p.report.repair), p.report
     return {
         "seed": seed, "wall_seconds": wall, "timings": p.timings,
+        # every thread's CPU time: on a busy machine it follows the work more closely
+        "cpu_seconds": cpu,
         "metrics": dict(p.metrics),
         "count_per_type": dict(zip([t.name for t in p.types],
                                    p.metrics["count_per_type"], strict=True)),
@@ -114,6 +119,8 @@ def run_record(container: str, types: list[str], seed: int, kwargs: dict,
         "stopped": run.stopped, "kwargs": kwargs, "params": params or {},
         "threads": None if run.threads is None else asdict(run.threads),
         "density_trace": trace,
+        # the process's peak resident memory so far (Linux reports KiB), MiB
+        "peak_rss_mb": resource.getrusage(resource.RUSAGE_SELF).ru_maxrss / 1024,
     }
 
 

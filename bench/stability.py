@@ -120,7 +120,7 @@ def cases(quick: bool = False) -> list[dict]:
               "box:100x100x100", [STRAWBERRY, LEMON], b(60, 5.0), type_scale=110.0,
               timeout=b(60, 5.0) + 400.0),
     ]
-    if not quick:  # beyond the range: the kernels are quadratic in the object count
+    if not quick:  # beyond the range: 100,000 expected objects, far more than 10 s can place
         out.append(_case("many-100k", "many objects", "expected objects",
                          "~100000 (x40 in 100 mm box)", "box:100x100x100", [STRAWBERRY, LEMON],
                          10.0, type_scale=40.0, timeout=400.0))

@@ -25,6 +25,8 @@ from .kernels import sample_grid_many
 from .solids import outside_of, to_solid
 
 DEFAULT_TOL = 1e-4
+#: vertices placed at once when bounding and depth-testing objects
+CHUNK_VERTICES = 1 << 20
 
 
 @dataclass
@@ -84,13 +86,16 @@ class Certifier:
         subset: only pairs and walls involving these indices are checked (others trusted).
         """
         n = len(typ)
-        objs = [self.types[typ[i]].transform(matrices[i, :3, :4].tolist()) for i in range(n)]
-        world = [self.vertices[typ[i]] @ matrices[i, :3, :3].T + matrices[i, :3, 3]
-                 for i in range(n)]
-        lo = np.array([w.min(axis=0) for w in world]).reshape(-1, 3)
-        hi = np.array([w.max(axis=0) for w in world]).reshape(-1, 3)
+        lo, hi, depth = self._bounds_and_depth(typ, matrices)
         vol = self.volumes[typ] if n else np.zeros(0)
         check = np.ones(n, bool) if subset is None else np.isin(np.arange(n), subset)
+
+        def solid(i: int):
+            # made where a check needs it and dropped after: a transformed manifold holds
+            # its own mesh once evaluated, and holding every object's would grow memory by
+            # a mesh per object
+            return self.types[typ[i]].transform(matrices[i, :3, :4].tolist())
+
         rep = CertifyReport(True, tol, clearance, 0.0, None, 0.0, None,
                             None, None)
         # --- pairs
@@ -104,14 +109,15 @@ class Certifier:
                 if np.any(lo[i] > hi[j] + clearance) or np.any(lo[j] > hi[i] + clearance):
                     continue
                 rep.pairs_checked += 1
-                inter = (objs[i] ^ objs[j]).volume()
+                oi, oj = solid(i), solid(j)
+                inter = (oi ^ oj).volume()
                 ratio = inter / min(vol[i], vol[j])
                 bad = ratio > tol
                 if ratio > rep.worst_overlap:
                     rep.worst_overlap = ratio
                     rep.worst_overlap_pair = (int(i), int(j))
                 if clearance > 0:
-                    gap = objs[i].min_gap(objs[j], 2.0 * clearance)
+                    gap = oi.min_gap(oj, 2.0 * clearance)
                     rep.min_pair_gap = gap if rep.min_pair_gap is None else min(
                         rep.min_pair_gap, gap)
                     bad = bad or gap < clearance * (1 - 1e-6)
@@ -121,18 +127,18 @@ class Certifier:
         g = self.container.grid
         grid_err = 0.5 * g.spacing
         for i in np.flatnonzero(check):
-            depth = sample_grid_many(g.values, g.origin, g.spacing, world[i]).min()
-            if depth >= clearance + self.max_edge[typ[i]] + grid_err:
+            if depth[i] >= clearance + self.max_edge[typ[i]] + grid_err:
                 continue
             rep.walls_checked += 1
-            out = objs[i] ^ self.outside
+            oi = solid(i)
+            out = oi ^ self.outside
             ratio = out.volume() / vol[i]
             bad = ratio > tol
             if ratio > rep.worst_outside:
                 rep.worst_outside = ratio
                 rep.worst_outside_object = int(i)
             if clearance > 0:
-                gap = objs[i].min_gap(self.outside, 2.0 * clearance)
+                gap = oi.min_gap(self.outside, 2.0 * clearance)
                 rep.min_wall_gap = gap if rep.min_wall_gap is None else min(
                     rep.min_wall_gap, gap)
                 bad = bad or gap < clearance * (1 - 1e-6)
@@ -140,3 +146,25 @@ class Certifier:
                 rep.bad_wall.append(int(i))
         rep.certified = not rep.bad_pairs and not rep.bad_wall
         return rep
+
+    def _bounds_and_depth(self, typ: np.ndarray, matrices: np.ndarray
+                          ) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+        """Each object's bounding box lo, hi (N,3) and the container grid's smallest value at
+        its vertices (N,), container frame; a type's objects at a time, in chunks of at
+        most CHUNK_VERTICES vertices, so that memory does not grow with the count."""
+        n = len(typ)
+        lo, hi, depth = np.zeros((n, 3)), np.zeros((n, 3)), np.zeros(n)
+        g = self.container.grid
+        for t, verts in enumerate(self.vertices):
+            idx = np.flatnonzero(typ == t)
+            step = max(1, CHUNK_VERTICES // max(len(verts), 1))
+            for c in range(0, len(idx), step):
+                part = idx[c:c + step]
+                m = matrices[part]
+                world = (np.einsum("kij,vj->kvi", m[:, :3, :3], verts)
+                         + m[:, None, :3, 3])  # (k, V, 3)
+                lo[part] = world.min(axis=1)
+                hi[part] = world.max(axis=1)
+                d = sample_grid_many(g.values, g.origin, g.spacing, world.reshape(-1, 3))
+                depth[part] = d.reshape(len(part), -1).min(axis=1)
+        return lo, hi, depth

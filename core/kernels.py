@@ -21,6 +21,8 @@ from __future__ import annotations
 import numpy as np
 from numba import njit, prange
 
+from . import cellgrid
+
 
 @njit(cache=True)
 def quat_to_rot(q):
@@ -532,14 +534,17 @@ def contacts_parallel(pa, pb, n_pairs, wa, n_wall, typ, pos, quat, scale, margin
 
 
 @njit(cache=True)
-def resolve(focus, state, table, cont, scratch, params, max_iter, rollback, par_min):
+def resolve(focus, state, table, cont, scratch, grid, params, max_iter, rollback, par_min):
     """Penalty-force overlap resolution starting from the objects in `focus`.
 
     state: (typ, pos, quat, scale, alive, margin, vel) of every inserted object; table: the
     flat type table (radius, sph_off, sph_c, sph_r, pc_off, pcl, pcl_off, box, pts, g_off,
     g_vals, g_shape, g_origin, g_h); cont: the container grid (c_vals, c_origin, c_h, c_pyr,
-    c_poff, c_pshape); scratch: (Fc, Tqc); params: (clearance, tol, k_obj, k_wall, k_rot,
-    damping, wall_extra). See the module doc for the arrays.
+    c_poff, c_pshape); scratch: `resolve_scratch(N)`, the call's working arrays, zero (or
+    -1) where the call expects it and left so; grid: the cell lists of the objects
+    (`cellgrid`), cells at least the largest contact reach wide, updated as objects move;
+    params: (clearance, tol, k_obj, k_wall, k_rot, damping, wall_extra). See the module doc
+    for the arrays. Work per iteration follows the objects in contact, not N.
 
     Only objects in contact move: each gets the sum of its contact forces, normalised,
     scaled by its deepest penetration times the stiffness (k_obj for object contacts, k_wall
@@ -554,7 +559,7 @@ def resolve(focus, state, table, cont, scratch, params, max_iter, rollback, par_
     chunks' forces in chunk order: the result does not depend on the number of threads, and
     differs from testing them one after the other only by rounding. Fc (C,>=N,4) and
     Tqc (C,>=N,3) are the chunks' zeroed scratch force and torque rows, zero again on return
-    (kept by the caller, so that no call allocates C x N rows).
+    (kept by the caller, so that no call allocates C x N rows, nor the N-long arrays).
 
     Mutates pos, quat, vel. With `rollback`, a failed call restores every object it moved to
     its state at the call (the last overlap-free state). Returns (resolved, iterations used,
@@ -564,24 +569,13 @@ def resolve(focus, state, table, cont, scratch, params, max_iter, rollback, par_
     (radius, sph_off, sph_c, sph_r, pc_off, pcl, pcl_off, box, pts, g_off, g_vals, g_shape,
      g_origin, g_h) = table
     c_vals, c_origin, c_h, c_pyr, c_poff, c_pshape = cont
-    Fc, Tqc = scratch
+    (Fc, Tqc, moved, moved_list, bpos, bquat, bvel, F, Tq, pen_obj, pen_wall, active, hit,
+     act_list, hit_list, pen_w) = scratch
     clearance, tol, k_obj, k_wall, k_rot, damping, wall_extra = params
-    n = typ.shape[0]
-    moved = np.zeros(n, np.uint8)
-    moved_list = np.empty(n, np.int64)
     n_moved = 0
-    bpos = np.empty((n, 3))
-    bquat = np.empty((n, 4))
-    bvel = np.empty((n, 3))
-    F = np.zeros((n, 4))
-    Tq = np.zeros((n, 3))
-    pen_obj = np.zeros(n)
-    pen_wall = np.zeros(n)
-    active = np.zeros(n, np.uint8)
-    hit = np.zeros(n, np.uint8)
+    n_hit = 0
     c_shape = np.array(c_vals.shape, np.int64)
     c_flat = c_vals.ravel()
-    act_list = np.empty(n, np.int64)
     n_act = 0
     for f in focus:
         if alive[f] and not active[f]:
@@ -590,18 +584,24 @@ def resolve(focus, state, table, cont, scratch, params, max_iter, rollback, par_
             n_act += 1
     # the contact tests of one iteration: pairs (pa, pb) grouped by their active object
     # in act_list order, each group after that object's wall test
-    cap = n + 64
+    cap = 256
     pa = np.empty(cap, np.int64)
     pb = np.empty(cap, np.int64)
     pen_pair = np.empty(cap)
-    pen_w = np.empty(n)
     tests = 0
+    ok = False
+    its = max_iter
     for it in range(max_iter + 1):
         n_pairs = 0
         for ii in range(n_act):
             a = act_list[ii]
-            if n_pairs + n > cap:  # room for every pair of a: no check in the loop below
-                cap = 2 * (n_pairs + n)
+            while True:
+                got = cellgrid.near_pairs(a, n_pairs, pa, pb, typ, pos, scale, alive, active,
+                                          margin, radius, clearance, grid)
+                if got >= 0:
+                    n_pairs = got
+                    break
+                cap *= 2  # out of room for a's pairs: grow and scan a again
                 pa2 = np.empty(cap, np.int64)
                 pb2 = np.empty(cap, np.int64)
                 pa2[:n_pairs] = pa[:n_pairs]
@@ -609,8 +609,6 @@ def resolve(focus, state, table, cont, scratch, params, max_iter, rollback, par_
                 pa = pa2
                 pb = pb2
                 pen_pair = np.empty(cap)
-            n_pairs = _near_pairs(a, n_pairs, pa, pb, typ, pos, scale, alive, active, margin,
-                                  radius, clearance)
         tests += n_pairs + n_act
         if n_pairs + n_act >= par_min:
             contacts_parallel(pa, pb, n_pairs, act_list, n_act, typ, pos, quat, scale,
@@ -634,7 +632,6 @@ def resolve(focus, state, table, cont, scratch, params, max_iter, rollback, par_
                                                pc_off, pcl, pcl_off, box, pts, g_off, g_vals,
                                                g_shape, g_origin, g_h, F, Tq)
                     kp += 1
-        hit_list = np.empty(n, np.int64)
         n_hit = 0
         kp = 0
         for ii in range(n_act):
@@ -667,7 +664,9 @@ def resolve(focus, state, table, cont, scratch, params, max_iter, rollback, par_
                 vel[a, 1] = 0.0
                 vel[a, 2] = 0.0
         if n_hit == 0:
-            return True, it, tests
+            ok = True
+            its = it
+            break
         if it == max_iter:
             break
         n_act = 0
@@ -687,6 +686,7 @@ def resolve(focus, state, table, cont, scratch, params, max_iter, rollback, par_
                     vel[a, d] = damping * vel[a, d] + step * F[a, d] / fn
             for d in range(3):
                 pos[a, d] += vel[a, d]
+            cellgrid.move(grid, a, pos[a, 0], pos[a, 1], pos[a, 2])
             tn = np.sqrt(Tq[a, 0] ** 2 + Tq[a, 1] ** 2 + Tq[a, 2] ** 2)
             if tn > 1e-300 and k_rot > 0.0:
                 ang = k_rot * step / (radius[typ[a]] * scale[a])
@@ -704,13 +704,37 @@ def resolve(focus, state, table, cont, scratch, params, max_iter, rollback, par_
             active[a] = 1
             act_list[n_act] = a
             n_act += 1
-    if rollback:
-        for ii in range(n_moved):
-            a = moved_list[ii]
+    # leave the scratch as the next call expects it: the last iteration's hit objects
+    # still hold their forces and flags
+    for ii in range(n_hit):
+        a = hit_list[ii]
+        hit[a] = 0
+        pen_obj[a] = 0.0
+        pen_wall[a] = 0.0
+        for d in range(4):
+            F[a, d] = 0.0
+        for d in range(3):
+            Tq[a, d] = 0.0
+    for ii in range(n_moved):
+        a = moved_list[ii]
+        moved[a] = 0
+        if rollback and not ok:
             pos[a] = bpos[a]
             quat[a] = bquat[a]
             vel[a] = bvel[a]
-    return False, max_iter, tests
+            cellgrid.move(grid, a, pos[a, 0], pos[a, 1], pos[a, 2])
+    return ok, its, tests
+
+
+def resolve_scratch(n: int) -> tuple:
+    """Working arrays for `resolve` on states of up to n objects, in the state it expects
+    and leaves them: (Fc, Tqc, moved, moved_list, bpos, bquat, bvel, F, Tq, pen_obj,
+    pen_wall, active, hit, act_list, hit_list, pen_w)."""
+    return (np.zeros((CONTACT_CHUNKS, n, 4)), np.zeros((CONTACT_CHUNKS, n, 3)),
+            np.zeros(n, np.uint8), np.empty(n, np.int64), np.empty((n, 3)),
+            np.empty((n, 4)), np.empty((n, 3)), np.zeros((n, 4)), np.zeros((n, 3)),
+            np.zeros(n), np.zeros(n), np.zeros(n, np.uint8), np.zeros(n, np.uint8),
+            np.empty(n, np.int64), np.empty(n, np.int64), np.empty(n))
 
 
 @njit(cache=True)
@@ -787,10 +811,96 @@ def free_distance(px, py, pz, typ, pos, quat, scale, alive, radius, g_off, g_val
 @njit(cache=True)
 def free_distances(points, typ, pos, quat, scale, alive, radius, g_off, g_vals, g_shape,
                    g_origin, g_h, c_vals, c_origin, c_h):
-    """`free_distance` for many points (M,3) -> (M,)."""
+    """`free_distance` for many points (M,3) -> (M,), every object tested (the reference
+    of `free_distances_near`)."""
     out = np.empty(points.shape[0])
     for m in range(points.shape[0]):
         out[m] = free_distance(points[m, 0], points[m, 1], points[m, 2], typ, pos, quat, scale,
                                alive, radius, g_off, g_vals, g_shape, g_origin, g_h, c_vals,
                                c_origin, c_h)
+    return out
+
+
+@njit(cache=True)
+def _object_distance(px, py, pz, b, best, typ, pos, quat, scale, radius, g_off, g_vals,
+                     g_shape, g_origin, g_h):
+    """min(best, distance from the point to object b's surface), as `free_distance`."""
+    rx = px - pos[b, 0]
+    ry = py - pos[b, 1]
+    rz = pz - pos[b, 2]
+    dc = np.sqrt(rx * rx + ry * ry + rz * rz)
+    rb = radius[typ[b]] * scale[b]
+    if dc - rb >= best:
+        return best
+    R = quat_to_rot(quat[b])
+    sb = scale[b]
+    qx = (R[0, 0] * rx + R[1, 0] * ry + R[2, 0] * rz) / sb
+    qy = (R[0, 1] * rx + R[1, 1] * ry + R[2, 1] * rz) / sb
+    qz = (R[0, 2] * rx + R[1, 2] * ry + R[2, 2] * rz) / sb
+    d, _, _, _ = sample_type_grid(g_vals, g_off, g_shape, g_origin, g_h, typ[b], qx, qy, qz)
+    d = max(-d * sb, dc - rb)
+    return min(d, best)
+
+
+@njit(cache=True)
+def _cell_distances(px, py, pz, c, best, grid, typ, pos, quat, scale, alive, radius, g_off,
+                    g_vals, g_shape, g_origin, g_h):
+    """min(best, distance to each alive object in cell c); unlinks removed objects met."""
+    _, _, _, head, nxt, _, _ = grid
+    b = head[c]
+    while b >= 0:
+        nb = nxt[b]
+        if not alive[b]:
+            cellgrid.unlink(grid, b)
+        else:
+            best = _object_distance(px, py, pz, b, best, typ, pos, quat, scale, radius, g_off,
+                                    g_vals, g_shape, g_origin, g_h)
+        b = nb
+    return best
+
+
+@njit(cache=True)
+def free_distances_near(points, grid, typ, pos, quat, scale, alive, radius, g_off, g_vals,
+                        g_shape, g_origin, g_h, c_vals, c_origin, c_h):
+    """`free_distances` through the cell grid (`cellgrid`): for each point (M,3), cells in
+    shells of growing Chebyshev distance r from its cell, until no object centre beyond
+    shell r (at least (r - 1) h away) can come nearer than the best distance so far. Equal
+    to `free_distances` (a minimum does not depend on the order of its terms)."""
+    origin, hs, dims, _, _, _, _ = grid
+    h = hs[0]
+    r_max = radius.max()
+    nx_, ny_, nz_ = c_vals.shape
+    c_flat = c_vals.ravel()
+    out = np.empty(points.shape[0])
+    n_shells = max(dims[0], max(dims[1], dims[2]))
+    for m in range(points.shape[0]):
+        px = points[m, 0]
+        py = points[m, 1]
+        pz = points[m, 2]
+        best, _, _, _ = trilinear(c_flat, 0, nx_, ny_, nz_, c_origin[0], c_origin[1],
+                                  c_origin[2], c_h, px, py, pz)
+        ci = min(max(int(np.floor((px - origin[0]) / h)), 0), dims[0] - 1)
+        cj = min(max(int(np.floor((py - origin[1]) / h)), 0), dims[1] - 1)
+        ck = min(max(int(np.floor((pz - origin[2]) / h)), 0), dims[2] - 1)
+        for r in range(n_shells):
+            if (r - 1) * h - r_max >= best:
+                break
+            for i in range(max(ci - r, 0), min(ci + r + 1, dims[0])):
+                edge_i = i == ci - r or i == ci + r
+                for j in range(max(cj - r, 0), min(cj + r + 1, dims[1])):
+                    if edge_i or j == cj - r or j == cj + r:
+                        for k in range(max(ck - r, 0), min(ck + r + 1, dims[2])):
+                            best = _cell_distances(px, py, pz, (i * dims[1] + j) * dims[2] + k,
+                                                   best, grid, typ, pos, quat, scale, alive,
+                                                   radius, g_off, g_vals, g_shape, g_origin,
+                                                   g_h)
+                    else:  # inside the shell's faces in i and j: only its two k faces
+                        for k in (ck - r, ck + r):
+                            if 0 <= k < dims[2]:
+                                best = _cell_distances(px, py, pz,
+                                                       (i * dims[1] + j) * dims[2] + k, best,
+                                                       grid, typ, pos, quat, scale, alive,
+                                                       radius, g_off, g_vals, g_shape,
+                                                       g_origin, g_h)
+        out[m] = best
     return out

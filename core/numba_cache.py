@@ -16,9 +16,9 @@ SLOW_WARM_UP = 2.0
 
 def _placement_kernels() -> list:
     """The numba dispatchers a pack's warm-up compiles (`Solver.warm_up`)."""
-    from . import kernels
+    from . import cellgrid, kernels
 
-    return [kernels.resolve, kernels.free_distances]
+    return [kernels.resolve, kernels.free_distances_near, cellgrid.insert_range]
 
 
 def _has_code(dispatcher) -> bool | None:

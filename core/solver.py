@@ -14,6 +14,7 @@ import numba
 import numpy as np
 
 from . import kernels
+from .cellgrid import CellGrid, insert_range
 from .container import Container
 from .objects import ObjectType, point_clusters
 from .options import PhysicsOptions
@@ -138,8 +139,13 @@ class Solver:
         self.tuner = tuner
         self.calls = 0
         self.iterations = 0
-        self._fc = np.zeros((kernels.CONTACT_CHUNKS, 0, 4))
-        self._tqc = np.zeros((kernels.CONTACT_CHUNKS, 0, 3))
+        self._work = kernels.resolve_scratch(0)
+        # broad phase: cell lists over the container's grid box (objects pushed past it
+        # sit in the border cells)
+        g = container.grid
+        self.cells = CellGrid(g.origin, g.origin + g.spacing * (np.array(g.values.shape) - 1),
+                              float(table.radius.max()) if len(table.radius) else 0.0,
+                              params.clearance)
 
     def resolve(self, focus: np.ndarray, max_iter: int, rollback: bool = True) -> bool:
         """Resolve overlaps around `focus` (object indices); False if still overlapping."""
@@ -150,10 +156,11 @@ class Solver:
         if threads != before:
             numba.set_num_threads(threads)
         start = time.perf_counter()
+        focus = np.asarray(focus, np.int64)
         try:
             ok, its, tests = kernels.resolve(
-                np.asarray(focus, np.int64), self.s.view(), self.t.arrays(),
-                self.container_arrays(), self._scratch(),
+                focus, self.s.view(), self.t.arrays(),
+                self.container_arrays(), self._scratch(), self.cells.sync(self.s, focus),
                 (p.clearance, p.tol, p.k_obj, p.k_wall, p.k_rot, p.damping, p.wall_margin),
                 int(max_iter), rollback, p.parallel_min)
         finally:
@@ -165,14 +172,13 @@ class Solver:
         self.iterations += int(its)
         return bool(ok)
 
-    def _scratch(self) -> tuple[np.ndarray, np.ndarray]:
-        """The parallel contact tests' zeroed force and torque rows, one set per chunk, for
-        every object the state can hold (resolve leaves them zero)."""
+    def _scratch(self) -> tuple:
+        """`resolve`'s working arrays (`kernels.resolve_scratch`) for every object the state
+        can hold, kept between calls (resolve leaves them as it found them)."""
         cap = len(self.s.typ)
-        if self._fc.shape[1] < cap:
-            self._fc = np.zeros((kernels.CONTACT_CHUNKS, cap, 4))
-            self._tqc = np.zeros((kernels.CONTACT_CHUNKS, cap, 3))
-        return self._fc, self._tqc
+        if len(self._work[2]) < cap:
+            self._work = kernels.resolve_scratch(cap)
+        return self._work
 
     def warm_up(self) -> None:
         """Compile (or load from numba's cache) the kernels the phases call, on empty input,
@@ -180,6 +186,9 @@ class Solver:
         install)."""
         self.resolve(np.zeros(0, np.int64), 1, rollback=True)
         self.free_distances(np.zeros((1, 3)))
+        # the cell lists link new objects from Python: compile that too (an empty range)
+        insert_range(self.cells.sync(self.s, np.zeros(0, np.int64)), self.s.pos,
+                     self.s.alive, 0, 0)
 
     def container_arrays(self) -> tuple:
         """The container's grid and its min pyramid, as the kernels take them:
@@ -198,6 +207,8 @@ class Solver:
         """Distance from each point (M,3) to the nearest object or the wall (M,)."""
         typ, pos, quat, scale, alive, _, _ = self.s.view()
         t, c = self.t, self.c.grid
-        return kernels.free_distances(
-            np.ascontiguousarray(points, np.float64), typ, pos, quat, scale, alive, t.radius,
-            t.g_off, t.g_vals, t.g_shape, t.g_origin, t.g_h, c.values, c.origin, c.spacing)
+        grid = self.cells.sync(self.s, np.zeros(0, np.int64))
+        return kernels.free_distances_near(
+            np.ascontiguousarray(points, np.float64), grid, typ, pos, quat, scale, alive,
+            t.radius, t.g_off, t.g_vals, t.g_shape, t.g_origin, t.g_h, c.values, c.origin,
+            c.spacing)

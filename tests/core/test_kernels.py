@@ -16,7 +16,7 @@ import pytest
 import trimesh
 from testdata import mesh_path
 
-from jampacked.core import kernels, solver
+from jampacked.core import cellgrid, kernels, solver
 from jampacked.core.container import Container, build_container
 from jampacked.core.distance import DistanceGrid, distance_grid, min_pyramid
 from jampacked.core.objects import build_type, point_clusters
@@ -967,3 +967,130 @@ def test_grow_takes_the_requested_growth_steps(table, container, steps, calls):
     sv = solver.Solver(container, table, state, solver.SolverParams())
     assert grow(sv, 0, 0.5, 20, Stop(None, None), steps)
     assert state.scale[0] == 1.0 and sv.calls == calls
+
+
+# ---------------------------------------------------------------- broad phase (cell lists)
+
+
+def _cells_consistent(sv) -> None:
+    """Every alive object is listed once, in the cell of its centre."""
+    origin, h, dims, head, nxt, _, cell = sv.cells.arrays
+    seen = np.zeros(sv.s.n, int)
+    for c in range(len(head)):
+        b = head[c]
+        while b >= 0:
+            assert cell[b] == c
+            seen[b] += 1
+            b = nxt[b]
+    for b in np.flatnonzero(sv.s.alive[: sv.s.n]):
+        p = sv.s.pos[b]
+        assert cell[b] == cellgrid.cell_index(origin, h[0], dims, p[0], p[1], p[2])
+        assert seen[b] == 1
+
+
+def test_near_pairs_through_cells_match_a_scan_of_every_object(table, container):
+    rng = np.random.default_rng(120)
+    n = 400
+    typ = rng.integers(0, 2, n)
+    pos = rng.uniform(-16, 16, (n, 3))  # some past the container's grid box
+    scale = rng.uniform(0.05, 1.0, n)
+    state = make_state(typ, pos, random_quats(rng, n), scale, rng.uniform(0, 0.2, n))
+    state.alive[rng.choice(n, 40, replace=False)] = 0
+    sv = solver.Solver(container, table, state, solver.SolverParams(clearance=0.1))
+    grid = sv.cells.sync(state, np.zeros(0, np.int64))
+    assert np.prod(grid[2]) > 27  # more cells than one neighbourhood
+    t, p, _, s, alive, margin, _ = state.view()
+    active = (rng.random(n) < 0.3).astype(np.uint8)
+    total = 0
+    for a in range(n):
+        want = (np.empty(n, np.int64), np.empty(n, np.int64))
+        got = (np.empty(n, np.int64), np.empty(n, np.int64))
+        k_ref = kernels._near_pairs(a, 0, *want, t, p, s, alive, active, margin, table.radius,
+                                    0.1)
+        k = cellgrid.near_pairs(a, 0, *got, t, p, s, alive, active, margin, table.radius, 0.1,
+                                grid)
+        assert k == k_ref
+        np.testing.assert_array_equal(got[1][:k], want[1][:k])
+        assert (got[0][:k] == a).all()
+        total += k
+    assert total > n  # the scene has contacts to find
+    # a full pair buffer is reported, not overrun
+    full = (np.empty(0, np.int64), np.empty(0, np.int64))
+    busy = int(np.argmax([kernels._near_pairs(a, 0, np.empty(n, np.int64),
+                                              np.empty(n, np.int64), t, p, s, alive,
+                                              np.zeros(n, np.uint8), margin, table.radius, 0.1)
+                          for a in range(n)]))
+    assert cellgrid.near_pairs(busy, 0, *full, t, p, s, alive, np.zeros(n, np.uint8), margin,
+                               table.radius, 0.1, grid) == -1
+
+
+def test_free_distances_through_cells_equal_every_object(table, container):
+    rng = np.random.default_rng(121)
+    n = 300
+    typ = rng.integers(0, 2, n)
+    pos = rng.uniform(-14, 14, (n, 3))
+    state = make_state(typ, pos, random_quats(rng, n), rng.uniform(0.2, 1.0, n))
+    state.alive[::7] = 0
+    sv = solver.Solver(container, table, state, solver.SolverParams())
+    points = np.concatenate([rng.uniform(-20, 20, (500, 3)),  # some outside the box
+                             pos[:50] + rng.normal(size=(50, 3))])
+    got = sv.free_distances(points)
+    t, p, q, s, alive, _, _ = state.view()
+    g = container.grid
+    ref = kernels.free_distances(points, t, p, q, s, alive, table.radius, table.g_off,
+                                 table.g_vals, table.g_shape, table.g_origin, table.g_h,
+                                 g.values, g.origin, g.spacing)
+    np.testing.assert_array_equal(got, ref)
+    # an empty state: the container's distance alone
+    empty = solver.Solver(container, table, solver.PackState(), solver.SolverParams())
+    np.testing.assert_array_equal(
+        empty.free_distances(points),
+        kernels.sample_grid_many(g.values, g.origin, g.spacing, points))
+    _cells_consistent(sv)  # the removed objects met were unlinked, none other
+
+
+def test_resolve_through_cells_matches_one_cell_and_keeps_them(table, container):
+    rng = np.random.default_rng(122)
+    n = 60
+    typ = rng.integers(0, 2, n)
+    pos = rng.uniform(-12, 12, (n, 3))
+    quat = random_quats(rng, n)
+    runs = []
+    for one_cell in (False, True):
+        sv = _solver_for(table, container, typ, pos.copy(), quat.copy())
+        if one_cell:  # cells wider than the container: every object is a candidate
+            sv.cells.max_radius = 100.0
+        ok = sv.resolve(np.arange(n), max_iter=200, rollback=False)
+        assert (np.prod(sv.cells.arrays[2]) == 1) == one_cell
+        _cells_consistent(sv)
+        runs.append((ok, sv.iterations, _snapshot(sv.s)))
+    assert runs[0][:2] == runs[1][:2]
+    for x, y in zip(runs[0][2], runs[1][2], strict=True):
+        np.testing.assert_array_equal(x, y)
+
+
+def test_resolve_leaves_its_working_arrays_as_it_found_them(table, container):
+    typ, pos, quat = _crowd(123, n=12)
+    sv = _solver_for(table, container, typ, pos * 0.3, quat)
+    assert not sv.resolve(np.arange(12), max_iter=3, rollback=True)  # fails mid-contact
+    _cells_consistent(sv)
+    work = sv._work
+    for k in (0, 1, 2, 7, 8, 9, 10, 11, 12):  # Fc, Tqc, moved, F, Tq, pens, active, hit
+        assert not work[k].any(), k
+    # the same call on fresh arrays and cells gives the same result
+    again = _solver_for(table, container, typ, pos * 0.3, quat)
+    assert not again.resolve(np.arange(12), max_iter=3, rollback=True)
+    for x, y in zip(_snapshot(sv.s), _snapshot(again.s), strict=True):
+        np.testing.assert_array_equal(x, y)
+
+
+def test_cells_widen_for_a_wider_margin(table, container):
+    typ, pos, quat = _crowd(124, n=5)
+    sv = _solver_for(table, container, typ, pos, quat)
+    sv.free_distances(np.zeros((1, 3)))
+    h = sv.cells.arrays[1][0]
+    sv.s.margin[2] = 3.0  # repair widens a failing object's margin, then resolves it
+    sv.resolve(np.array([2]), max_iter=5)
+    assert sv.cells.arrays[1][0] >= 2 * (table.radius.max() + 3.0) + 0.01
+    assert sv.cells.arrays[1][0] > h
+    _cells_consistent(sv)
