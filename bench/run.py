@@ -28,7 +28,9 @@ from scenes import (  # noqa: E402
     MESHES,
     RESULTS,
     SCENES,
+    clearance_row,
     fresh_cache_env,
+    physical_cost,
     run_in_child,
     save_figure,
     write_json,
@@ -38,6 +40,25 @@ from scenes import (  # noqa: E402
 PARTS = ("scenes", "fidelity", "growth", "peer", "stability", "profile", "paper")
 #: scenes with bars run three seeds, the others one
 BAR_SEEDS = [1, 2, 3]
+
+
+def add_clearance(s: dict, meshes: Path = MESHES) -> None:
+    """A clearance scene's summary gets its physical cost and the density it lost against
+    its scene without ("without"), read from bench/results (None when not run yet)."""
+    import json
+
+    spec = SCENES[s["scene"]]
+    c = spec["kwargs"]["clearance"]
+    cost = s.get("clearance", {}).get("physical_cost")
+    per_type = s.get("clearance", {}).get("physical_cost_per_type")
+    if cost is None:
+        got = physical_cost(spec["types"], spec["kwargs"].get("type_scale", 1.0), c,
+                            meshes=meshes)
+        cost, per_type = got["scene"], got["per_type"]
+    f = RESULTS / f"{spec['without']}.json"
+    without = json.loads(f.read_text())["median_density"] if f.exists() else None
+    s["clearance"] = {**clearance_row(c, cost, s["median_density"], without),
+                      "without": spec["without"], "physical_cost_per_type": per_type}
 
 
 def summarise(scene: str, cold: dict | None, warm: list[dict]) -> dict:
@@ -100,6 +121,8 @@ def run_scenes(names: list[str], seeds: list[int] | None, cold: bool, meshes: Pa
             warm = [run_in_child(*args, s, spec["kwargs"], env=env, meshes=meshes)
                     for s in use]
             s = summarise(scene, first, warm)
+            if "without" in spec:
+                add_clearance(s, meshes)
             write_json(RESULTS / f"{scene}.json", s)
             print(f"{scene}: {s['median_count']:.0f} objects, density "
                   f"{s['median_density']:.1%}, {s['median_seconds']:.1f} s warm (cold "
@@ -166,11 +189,15 @@ def write_table(summaries: list[dict], path: Path) -> None:
         "placement the solver produced; certification then moved or removed objects until "
         "every check passed. The phase times are the kept attempt's; the warm time also "
         "covers the attempts not kept (`core/placement.py`). A scene marked * was last run "
-        "before placement ran in attempts (its runs record none).", "",
+        "before placement ran in attempts (its runs record none). The clearance column (issue 19): "
+        "the clearance's physical cost (each type dilated by half the clearance, "
+        "`core/dilation.py`; 1 - the types' volume over their dilated volume, mixed by the "
+        "target shares) beside the density lost against the same scene without the "
+        "clearance; the bar is that density x (1 - cost) - 1 point.", "",
         "| scene | seeds | objects | certified density | TVD | NNI | phase 1 / 2 / extra / "
         "certify (s) | warm time (s) | cold time (s) | before cert.: overlap, outside | moved, "
-        "removed | bars met |",
-        "|---|---|---|---|---|---|---|---|---|---|---|---|"]
+        "removed | clearance: physical cost, density lost | bars met |",
+        "|---|---|---|---|---|---|---|---|---|---|---|---|---|"]
     for s in summaries:
         ph = s["median_phase_seconds"]
         met = {None: "no bars", True: "yes", False: "no"}[s["meets_bars"]]
@@ -184,7 +211,7 @@ def write_table(summaries: list[dict], path: Path) -> None:
             f"{'-' if s['cold_seconds'] is None else format(s['cold_seconds'], '.1f')} | "
             f"{s['worst_overlap_before_certification']:.1e}, "
             f"{s['worst_outside_before_certification']:.1e} | {s['moved']:.0f}, "
-            f"{s['removed']:.0f} | {met} |")
+            f"{s['removed']:.0f} | {_clearance_cell(s)} | {met} |")
     lines += ["", "Bars: " + "; ".join(
         f"{s['scene']}: " + ", ".join(f"{k} {v}" for k, v in s["bars"].items())
         for s in summaries if s.get("bars")), "",
@@ -208,6 +235,18 @@ def write_table(summaries: list[dict], path: Path) -> None:
     write_text(path, "\n".join(lines))
 
 
+def _clearance_cell(s: dict) -> str:
+    """The scene table's clearance column: c, the physical cost, the density lost against
+    the scene without it, and whether issue 19's bar holds."""
+    c = s.get("clearance")
+    if not c:
+        return "-"
+    lost = "without not run" if c["density_lost"] is None else (
+        f"lost {c['density_lost']:.1%} (bar {c['target']:.1%}: "
+        f"{'met' if c['meets_target'] else 'not met'})")
+    return f"{c['clearance']:g} mm: cost {c['physical_cost']:.1%}, {lost}"
+
+
 def main(argv: list[str] | None = None) -> int:
     ap = argparse.ArgumentParser(description=__doc__,
                                  formatter_class=argparse.RawDescriptionHelpFormatter)
@@ -229,6 +268,10 @@ def main(argv: list[str] | None = None) -> int:
         if part in parts:
             _run_part(part, a.meshes)
     summaries = load_summaries()
+    for s in summaries:  # the scene without may have been re-run since
+        if "without" in SCENES[s["scene"]]:
+            add_clearance(s, a.meshes)
+            write_json(RESULTS / f"{s['scene']}.json", s)
     if summaries:
         chart(summaries, RESULTS / "speed_density.png")
         write_table(summaries, RESULTS / "README.md")

@@ -44,6 +44,10 @@ class CertifyReport:
     min_wall_gap: float | None
     bad_pairs: list[tuple[int, int]] = field(default_factory=list)
     bad_wall: list[int] = field(default_factory=list)
+    # with clearance > 0: how much each failing gap falls short of the clearance, by pair
+    # (as in bad_pairs) and by object through the wall (0 where the objects overlap)
+    pair_shortfall: dict[tuple[int, int], float] = field(default_factory=dict)
+    wall_shortfall: dict[int, float] = field(default_factory=dict)
     pairs_checked: int = 0
     walls_checked: int = 0
 
@@ -120,7 +124,9 @@ class Certifier:
                     gap = oi.min_gap(oj, 2.0 * clearance)
                     rep.min_pair_gap = gap if rep.min_pair_gap is None else min(
                         rep.min_pair_gap, gap)
-                    bad = bad or gap < clearance * (1 - 1e-6)
+                    if gap < clearance * (1 - 1e-6):
+                        bad = True
+                        rep.pair_shortfall[(int(i), int(j))] = clearance - gap
                 if bad:
                     rep.bad_pairs.append((int(i), int(j)))
         # --- wall
@@ -141,7 +147,9 @@ class Certifier:
                 gap = oi.min_gap(self.outside, 2.0 * clearance)
                 rep.min_wall_gap = gap if rep.min_wall_gap is None else min(
                     rep.min_wall_gap, gap)
-                bad = bad or gap < clearance * (1 - 1e-6)
+                if gap < clearance * (1 - 1e-6):
+                    bad = True
+                    rep.wall_shortfall[int(i)] = clearance - gap
             if bad:
                 rep.bad_wall.append(int(i))
         rep.certified = not rep.bad_pairs and not rep.bad_wall

@@ -213,7 +213,6 @@ def phase2(solver: Solver, shares: np.ndarray, spacing: float, rng: np.random.Ge
     order = np.argsort(-d, kind="stable")
     pts = pts[order]
     by_size = [int(t) for t in np.argsort(-f) if shares[t] > 0]  # zero share: never placed
-    clear = solver.p.clearance
     misses = 0
     n = solver.s.n
     full = np.flatnonzero((solver.s.alive[:n] == 1) & (solver.s.scale[:n] >= 1.0))
@@ -248,8 +247,9 @@ def phase2(solver: Solver, shares: np.ndarray, spacing: float, rng: np.random.Ge
                                          replace=False))
         for t in tries:
             q = random_quaternions(rng, 1)[0]
-            # steps below the free radius are collision free: start growing there
-            room = (dist - clear - 2 * margin[t]) / table.radius[t]
+            # steps below the free radius are collision free: start growing there (dist
+            # is already less the clearance: `Solver.free_distances`)
+            room = (dist - 2 * margin[t]) / table.radius[t]
             start = float(np.clip(room, START_SCALE, 1.0))
             k = solver.s.add(t, p, q, start, float(margin[t]))
             st.inserted += 1

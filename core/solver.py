@@ -204,11 +204,15 @@ class Solver:
                                         p.clearance, p.tol, p.wall_margin)
 
     def free_distances(self, points: np.ndarray) -> np.ndarray:
-        """Distance from each point (M,3) to the nearest object or the wall (M,)."""
+        """The room at each point (M,3): its distance to the nearest object or the wall,
+        less the clearance (M,): an object there must keep the clearance from both, so it
+        is what the phases compare an object's size with (a hole judged by the bare distance
+        took growth attempts that could not succeed: docs/notes-core.md)."""
         typ, pos, quat, scale, alive, _, _ = self.s.view()
         t, c = self.t, self.c.grid
         grid = self.cells.sync(self.s, np.zeros(0, np.int64))
-        return kernels.free_distances_near(
+        d = kernels.free_distances_near(
             np.ascontiguousarray(points, np.float64), grid, typ, pos, quat, scale, alive,
             t.radius, t.g_off, t.g_vals, t.g_shape, t.g_origin, t.g_h, c.values, c.origin,
             c.spacing)
+        return d - self.p.clearance if self.p.clearance > 0 else d

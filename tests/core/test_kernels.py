@@ -449,6 +449,9 @@ def test_free_distances_match_reference(table, container):
         single = call(kernels.free_distance, env, px=points[m, 0], py=points[m, 1],
                       pz=points[m, 2])
         assert single == got[m]
+    # with a clearance the room is the distance less the clearance (to objects and wall)
+    sv_c = solver.Solver(container, table, state, solver.SolverParams(clearance=0.3))
+    np.testing.assert_allclose(sv_c.free_distances(points), ref - 0.3, rtol=0, atol=1e-9)
 
 
 # ---------------------------------------------------------------- contacts

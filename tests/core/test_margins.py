@@ -56,15 +56,15 @@ def test_smooth_types_keep_the_small_margin_a_sharp_one_gives_all_the_large():
     assert m.objects == pytest.approx([0.05 * sphere.grid.spacing, 0.05 * cube.grid.spacing])
     # inside a box the grid never sees more room than there is (its planes are exact)
     assert m.wall_error <= 1e-9 and m.wall == pytest.approx(0.05 * cont.grid.spacing)
-    # with a clearance the exact gap check has no tolerance: the larger margins throughout
+    # with a clearance the same choice by grid error (the repair pushes short gaps apart)
     m = contact_margins([sphere], cont.grid, cont.vertices, cont.faces, 0.025, 0.05, 0.05, 0.1,
                         clearance=0.5)
-    assert m.object_cells == [0.05] and m.wall_cells == 0.1
+    assert m.object_cells == [0.025] and m.wall_cells == 0.05
     # ... plus half the gap the surface points hide at that clearance
     gap = sampling_gap(sphere.grid, sphere.vertices, sphere.faces, sphere.surface_points,
                        sphere.equivalent_radius, 0.5)
     assert m.sampling_gaps == pytest.approx([gap]) and gap > 0
-    assert m.objects == pytest.approx([0.05 * sphere.grid.spacing + 0.5 * gap])
+    assert m.objects == pytest.approx([0.025 * sphere.grid.spacing + 0.5 * gap])
     assert m.report().sampling_gaps == m.sampling_gaps
 
 

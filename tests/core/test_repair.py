@@ -6,6 +6,7 @@ from __future__ import annotations
 from dataclasses import replace
 
 import numpy as np
+import pytest
 from testdata import mesh_path
 
 from jampacked.core.api import pack
@@ -37,3 +38,58 @@ def test_with_a_budget_the_repair_keeps_its_time_cap():
                     attempts=replace(base.attempts, max_attempts=1))
     p = _pack(options=spent, time_budget=60.0)
     assert p.report.repair.timed_out and p.certificate["certified"]
+
+
+def _jammed_pair(c: float, gap: float, slack: float):
+    """Two balls (radius 5, as icospheres) side by side along x in a box with `slack` room
+    along x beyond a clearance c to each other and to the walls, placed `gap` apart
+    (container units); returns (solver, certifier)."""
+    import trimesh
+
+    from jampacked.core.certify import Certifier
+    from jampacked.core.container import build_container
+    from jampacked.core.objects import build_type
+    from jampacked.core.solver import PackState, Solver, SolverParams, TypeTable
+
+    ball = trimesh.creation.icosphere(subdivisions=3, radius=5.0)
+    typ = build_type("ball", ball.vertices, ball.faces, path=None, sha256=None, share=1.0,
+                     fidelity="medium", use_cache=False)
+    r = float(np.linalg.norm(typ.vertices, axis=1).max())
+    size = np.array([4 * r + 3 * c + slack, 6 * r, 6 * r])  # tight along x only
+    box = trimesh.creation.box(size)
+    cont = build_container(np.asarray(box.vertices), np.asarray(box.faces), box.volume,
+                           1.0)
+    state = PackState()
+    x = r + 0.5 * gap
+    for sign in (-1.0, 1.0):
+        state.add(0, np.array([sign * x, 0.0, 0.0]), np.array([1.0, 0.0, 0.0, 0.0]), 1.0,
+                  0.0)
+    solver = Solver(cont, TypeTable([typ]), state, SolverParams(clearance=c, tol=1e-9))
+    cert = Certifier(cont, [typ.vertices], [typ.faces], np.array([typ.volume]),
+                     np.array([typ.max_edge]))
+    return solver, cert
+
+
+def test_a_gap_short_of_the_clearance_is_pushed_apart_by_its_shortfall():
+    """Two balls 0.003 closer than the clearance, with 0.035 of room left along the row:
+    growing their margins by the shortfall fits; the fixed step (1% of the radius, to the
+    other ball and the wall) did not, and one ball was removed."""
+    from jampacked.core.options import RepairOptions
+    from jampacked.core.repair import certify_and_repair
+
+    c = 0.2
+    solver, cert = _jammed_pair(c, c - 0.003, 0.035)
+    first = cert.certify(solver.s.typ[:2], _matrices(solver), c)
+    assert first.pair_shortfall and list(first.pair_shortfall.values())[0] == pytest.approx(
+        0.003, abs=1e-4)
+    final, stats = certify_and_repair(solver, cert, c, RepairOptions(), lambda: False,
+                                      timed=False)
+    assert final["certified"] and stats.removed == 0 and stats.moved >= 1
+    assert solver.s.alive[:2].all()
+
+
+def _matrices(solver):
+    from jampacked.core.rotations import placement_matrices
+
+    s = solver.s
+    return placement_matrices(s.quat[: s.n], s.pos[: s.n], s.scale[: s.n])
