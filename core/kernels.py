@@ -786,25 +786,9 @@ def free_distance(px, py, pz, typ, pos, quat, scale, alive, radius, g_off, g_val
     best, _, _, _ = trilinear(c_vals.ravel(), 0, nx_, ny_, nz_, c_origin[0], c_origin[1],
                               c_origin[2], c_h, px, py, pz)
     for b in range(typ.shape[0]):
-        if not alive[b]:
-            continue
-        rx = px - pos[b, 0]
-        ry = py - pos[b, 1]
-        rz = pz - pos[b, 2]
-        dc = np.sqrt(rx * rx + ry * ry + rz * rz)
-        rb = radius[typ[b]] * scale[b]
-        if dc - rb >= best:
-            continue
-        R = quat_to_rot(quat[b])
-        sb = scale[b]
-        qx = (R[0, 0] * rx + R[1, 0] * ry + R[2, 0] * rz) / sb
-        qy = (R[0, 1] * rx + R[1, 1] * ry + R[2, 1] * rz) / sb
-        qz = (R[0, 2] * rx + R[1, 2] * ry + R[2, 2] * rz) / sb
-        d, _, _, _ = sample_type_grid(g_vals, g_off, g_shape, g_origin, g_h, typ[b], qx, qy, qz)
-        d = -d * sb
-        d = max(d, dc - rb)
-        if d < best:
-            best = d
+        if alive[b]:
+            best = _object_distance(px, py, pz, b, best, typ, pos, quat, scale, radius, g_off,
+                                    g_vals, g_shape, g_origin, g_h)
     return best
 
 
