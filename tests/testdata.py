@@ -4,7 +4,10 @@ tests/conftest.py."""
 
 from __future__ import annotations
 
+import importlib.util
+import sys
 from pathlib import Path
+from types import ModuleType
 
 TESTS = Path(__file__).resolve().parent
 REPO = TESTS.parent
@@ -27,3 +30,17 @@ def mesh_paths(pattern: str) -> list[str]:
     if not found:
         raise FileNotFoundError(f"no test mesh matches {pattern!r} in {MESHES}")
     return found
+
+
+def bench_module(stem: str, siblings: bool = False) -> ModuleType:
+    """bench/<stem>.py imported once as ``jampacked_bench_<stem>`` (bench/ is no package);
+    with `siblings`, bench/ goes on sys.path first, for a script that imports its siblings."""
+    name = f"jampacked_bench_{stem}"
+    if name not in sys.modules:
+        if siblings:
+            sys.path.insert(0, str(REPO / "bench"))
+        spec = importlib.util.spec_from_file_location(name, REPO / "bench" / f"{stem}.py")
+        module = importlib.util.module_from_spec(spec)
+        sys.modules[name] = module
+        spec.loader.exec_module(module)
+    return sys.modules[name]

@@ -3,21 +3,12 @@ with the scene without the clearance."""
 
 from __future__ import annotations
 
-import importlib.util
-import sys
-
 import pytest
-from testdata import MESHES, REPO
+from testdata import MESHES, bench_module
 
 
 def _scenes():
-    name = "jampacked_bench_scenes"
-    if name not in sys.modules:
-        spec = importlib.util.spec_from_file_location(name, REPO / "bench" / "scenes.py")
-        module = importlib.util.module_from_spec(spec)
-        sys.modules[name] = module
-        spec.loader.exec_module(module)
-    return sys.modules[name]
+    return bench_module("scenes")
 
 
 def test_clearance_row_compares_with_the_scene_without():

@@ -3,14 +3,12 @@ whose answer is known, and its flat-wall reference."""
 
 from __future__ import annotations
 
-import importlib.util
 import itertools
-import sys
 
 import numpy as np
 import pytest
 import trimesh
-from testdata import REPO
+from testdata import bench_module
 
 from jampacked.core.meshes import load_mesh
 from jampacked.core.packing import Packing, TypeRecord
@@ -18,15 +16,7 @@ from jampacked.core.packing_json import save_packing
 
 
 def _load():
-    name = "jampacked_bench_density_profile"
-    if name not in sys.modules:
-        sys.path.insert(0, str(REPO / "bench"))  # it imports its sibling scenes.py
-        spec = importlib.util.spec_from_file_location(name,
-                                                      REPO / "bench" / "density_profile.py")
-        module = importlib.util.module_from_spec(spec)
-        sys.modules[name] = module
-        spec.loader.exec_module(module)
-    return sys.modules[name]
+    return bench_module("density_profile", siblings=True)
 
 
 dp = _load()

@@ -4,24 +4,16 @@ where bpy is installed and is skipped elsewhere."""
 
 from __future__ import annotations
 
-import importlib.util
 import os
-import sys
 import tempfile
 
 import numpy as np
 import pytest
-from testdata import REPO
+from testdata import bench_module
 
 
 def _load():
-    name = "jampacked_bench_peer_bullet"
-    if name not in sys.modules:
-        spec = importlib.util.spec_from_file_location(name, REPO / "bench" / "peer_bullet.py")
-        module = importlib.util.module_from_spec(spec)
-        sys.modules[name] = module
-        spec.loader.exec_module(module)
-    return sys.modules[name]
+    return bench_module("peer_bullet")
 
 
 pb = _load()
