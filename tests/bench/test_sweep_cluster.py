@@ -1,13 +1,15 @@
 """bench/run.py's scene sweep on a real Dask LocalCluster (two worker processes): the same
-records as one after another, apart from times and where each ran; without a cluster
-nothing of Dask is started."""
+records as one after another, apart from times and where each ran, with a worker killed
+midway; without a cluster nothing of Dask is started."""
 
 from __future__ import annotations
 
 import json
 import os
+import threading
 
 import distributed
+from dask_workers import kill_a_busy_worker, task_starts, transitions
 from testdata import MESHES, bench_module
 
 #: a tiny scene (about six objects, seconds per run), no bars: warm runs only
@@ -65,14 +67,24 @@ def test_the_scene_sweep_on_a_cluster_writes_the_records_of_one_after_another(
                                   dashboard_address=None) as cluster, \
             distributed.Client(cluster) as client:
         client.wait_for_workers(2, timeout=120)
-        run.run_scenes(["tiny"], [1, 2, 3], True, MESHES, run.Runs(client))
+        runs = run.Runs(client)
+        since = transitions(client)
+        sweep = threading.Thread(target=run.run_scenes,
+                                 args=(["tiny"], [1, 2, 3], True, MESHES, runs))
+        sweep.start()
+        killed = kill_a_busy_worker(client)  # its run is run again elsewhere
+        sweep.join(timeout=300)
+        assert killed is not None and not sweep.is_alive()
         workers = set(client.nthreads())
+        starts = task_starts(client, "bench-run-", since)
+    assert len(starts) == 3 and max(starts.values()) >= 2  # the dead worker's run, again
+    assert killed not in workers
     there = json.loads((there_dir / "tiny.json").read_text())
     assert _differences(there, here) == []
-    assert [r["seed"] for r in there["runs"]] == [1, 2, 3]
+    assert [r["seed"] for r in there["runs"]] == [1, 2, 3]  # each once, in order
     for r in there["runs"]:
         assert r["cluster"]["scheduler"] == cluster.scheduler_address
         assert (r["cluster"]["workers"], r["cluster"]["threads"]) == (2, 2)
-        assert r["cluster"]["worker"] in workers
+        assert r["cluster"]["worker"] != killed
     assert here["runs"][0]["metrics"]["count"] > 0
 

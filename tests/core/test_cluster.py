@@ -3,15 +3,13 @@ as one after another here, and no scene lost or doubled when a worker dies."""
 
 from __future__ import annotations
 
-import contextlib
 import dataclasses
-import os
 import threading
-import time
 
 import distributed
 import numpy as np
 import pytest
+from dask_workers import kill_a_busy_worker, task_starts, transitions
 from testdata import mesh_path
 
 from jampacked.core.api import pack
@@ -92,46 +90,21 @@ def test_bad_attempts_are_refused(bad):
         pack(BOX, POLY, attempts=bad)
 
 
-def _kill_a_busy_worker(client, wait: float = 120.0) -> str | None:
-    """Kill (os._exit) the first worker seen running a task, once the task has started
-    there; its address, or None if none was busy within `wait` seconds."""
-    t0 = time.monotonic()
-    while time.monotonic() - t0 < wait:
-        busy = [w for w, keys in client.processing().items() if keys]
-        if busy:
-            time.sleep(0.3)  # the task has started there
-            with contextlib.suppress(Exception):
-                client.run(os._exit, 1, workers=[busy[0]])
-            return busy[0]
-        time.sleep(0.05)
-    return None
-
-
-def _starts(prefix: str, since: int, dask_scheduler=None) -> dict[str, int]:
-    """On the scheduler: how many times each task whose key starts with `prefix` went to a
-    worker, counting its transitions after the first `since`."""
-    out: dict[str, int] = {}
-    for key, _start, finish, *_ in list(dask_scheduler.transition_log)[since:]:
-        if str(key).startswith(prefix) and finish == "processing":
-            out[str(key)] = out.get(str(key), 0) + 1
-    return out
-
-
 def test_attempts_with_a_worker_killed_midway_give_the_packing_of_one_after_another(client):
     here = pack(BOX, POLY, seed=4, fidelity="low", attempts=4)
     densities = [a.density for a in here.report.attempts]
     assert densities.index(max(densities)) == 3 and densities.count(max(densities)) == 1
-    since = client.run_on_scheduler(lambda dask_scheduler: len(dask_scheduler.transition_log))
+    since = transitions(client)
     got: list = []
     runner = threading.Thread(target=lambda: got.append(
         pack(BOX, POLY, seed=4, fidelity="low", attempts=4, client=client)))
     runner.start()
-    killed = _kill_a_busy_worker(client)
+    killed = kill_a_busy_worker(client)
     runner.join(timeout=300)
     assert killed is not None and not runner.is_alive()
     assert killed not in client.scheduler_info()["workers"]
     # the dead worker's attempts went to a worker again
-    starts = client.run_on_scheduler(_starts, "attempt-", since)
+    starts = task_starts(client, "attempt-", since)
     assert len(starts) == 4 and max(starts.values()) >= 2
     [there] = got
     # every attempt once, in index order, with the densities of one after another, and
@@ -154,7 +127,7 @@ def test_a_batch_with_a_worker_killed_midway_has_every_packing_once(client, tmp_
     runner = threading.Thread(target=lambda: results.extend(run_batch(
         scenes, tmp_path, client, progress=lambda d, t, m: writes.append(m))))
     runner.start()
-    killed = _kill_a_busy_worker(client)
+    killed = kill_a_busy_worker(client)
     runner.join(timeout=300)
     assert killed is not None and not runner.is_alive()
     assert killed not in client.scheduler_info()["workers"]  # it died (the nanny restarts one)
