@@ -1,6 +1,6 @@
-"""bench/run.py's scene sweep on a real Dask LocalCluster (two worker processes): the same
-records as one after another, apart from times and where each ran, with a worker killed
-midway; without a cluster nothing of Dask is started."""
+"""bench/run.py's scene sweep and bench/fidelity_sweep.py's runs on a real Dask LocalCluster
+(two worker processes): the same records as one after another, apart from times and where
+each ran, also with a worker killed midway; without a cluster nothing of Dask is started."""
 
 from __future__ import annotations
 
@@ -18,7 +18,8 @@ TINY = {"container": "box:22x20x21",
         "kwargs": {"fidelity": "low"}, "reference": "test"}
 #: what differs from run to run or machine to machine
 VARYING = {"wall_seconds", "cpu_seconds", "timings", "seconds", "density_trace",
-           "peak_rss_mb", "threads", "cluster", "median_seconds", "median_phase_seconds"}
+           "peak_rss_mb", "threads", "cluster", "median_seconds", "median_phase_seconds",
+           "phase_seconds"}
 #: an attempt's times (seconds) per phase
 ATTEMPT_TIMES = {"phase1", "phase2", "extra"}
 
@@ -88,3 +89,22 @@ def test_the_scene_sweep_on_a_cluster_writes_the_records_of_one_after_another(
         assert r["cluster"]["worker"] != killed
     assert here["runs"][0]["metrics"]["count"] > 0
 
+
+
+def test_the_fidelity_sweep_on_a_cluster_makes_the_rows_of_one_after_another(monkeypatch):
+    fid = bench_module("fidelity_sweep", siblings=True)
+    monkeypatch.setitem(fid.SCENES, "tiny", TINY)
+    env = dict(os.environ)
+    with monkeypatch.context() as m:
+        m.setattr(distributed, "LocalCluster", _no_cluster)
+        m.setattr(distributed, "Client", _no_cluster)
+        here = fid.sweep("tiny", [1, 2], env, MESHES, ["low", "medium"])
+    with distributed.LocalCluster(n_workers=2, processes=True, threads_per_worker=1,
+                                  dashboard_address=None) as cluster, \
+            distributed.Client(cluster) as client:
+        client.wait_for_workers(2, timeout=120)
+        there = fid.sweep("tiny", [1, 2], env, MESHES, ["low", "medium"], fid.Runs(client))
+    assert [r["config"] for r in there] == ["low", "medium"]
+    assert _differences(there, here) == []
+    assert {r["cluster"]["scheduler"] for row in there for r in row["runs"]} == \
+        {cluster.scheduler_address}
