@@ -16,11 +16,17 @@ violation before certification, objects certification moved or removed. Writes
 bench/results/fidelity.json, fidelity.png (density against time with the best envelope,
 auto marked; time against the worst pre-certification overlap) and fidelity.md. Each run
 is its own process with warm caches (one throw-away run compiles numba first).
+
+With --workers K or --scheduler ADDRESS each scene's runs go to Dask workers side by side
+(each still its own process). Runs side by side on one machine share its cores, so their
+times compare only with runs made with the same worker count on the same machines: each
+run's record says where it ran ("cluster").
 """
 
 from __future__ import annotations
 
 import argparse
+import contextlib
 import statistics
 import sys
 import tempfile
@@ -34,12 +40,16 @@ from scenes import (  # noqa: E402
     MESHES,
     RESULTS,
     SCENES,
+    Runs,
     fresh_cache_env,
     run_in_child,
     save_figure,
     write_json,
     write_text,
 )
+
+from jampacked.cli.args import UsageError  # noqa: E402
+from jampacked.cli.cluster_args import add_cluster_arguments, cluster_client  # noqa: E402
 
 #: name -> (fidelity argument, PackOptions.from_flat keys)
 CONFIGS: dict[str, tuple[str, dict]] = {
@@ -74,15 +84,24 @@ def _scene(name: str) -> tuple[dict, list[str]]:
 
 
 def sweep(scene: str, seeds: list[int], env: dict, meshes: Path,
-          only: list[str] | None = None) -> list[dict]:
+          only: list[str] | None = None, where: Runs | None = None) -> list[dict]:
+    """One row per configuration (its runs over `seeds`); on a cluster (`where`) every
+    configuration's runs of the scene are submitted at once, the rows made in order."""
+    where = where or Runs()
     spec, configs = _scene(scene)
     configs = [c for c in configs if not only or c in only]
-    rows = []
-    for name in configs:
+
+    def start(name: str) -> list:
         fidelity, over = CONFIGS[name]
-        runs = [run_in_child(spec["container"], spec["types"], s,
-                             {**spec["kwargs"], "fidelity": fidelity}, over,
-                             env=env, meshes=meshes) for s in seeds]
+        return [where.start(spec["container"], spec["types"], s,
+                            {**spec["kwargs"], "fidelity": fidelity}, over, env=env,
+                            meshes=meshes) for s in seeds]
+
+    started = [start(name) for name in configs] if where.client is not None else None
+    rows = []
+    for k, name in enumerate(configs):
+        fidelity, over = CONFIGS[name]
+        runs = [where.record(r) for r in (started[k] if started else start(name))]
         med = statistics.median
         row = {
             "scene": scene, "config": name, "fidelity": fidelity, "overrides": over,
@@ -257,7 +276,8 @@ def summarise(rows: list[dict]) -> dict:
 
 
 def main(argv: list[str] | None = None) -> int:
-    ap = argparse.ArgumentParser(description=__doc__.splitlines()[0])
+    ap = argparse.ArgumentParser(description=__doc__,
+                                 formatter_class=argparse.RawDescriptionHelpFormatter)
     ap.add_argument("--scene", action="append", choices=[*SCENES, "scans"])
     ap.add_argument("--seeds", type=int, nargs="+", default=[1])
     ap.add_argument("--config", action="append", choices=list(CONFIGS),
@@ -265,6 +285,7 @@ def main(argv: list[str] | None = None) -> int:
                          "results (repeatable)")
     ap.add_argument("--meshes", type=Path, default=MESHES)
     ap.add_argument("--report-only", action="store_true")
+    add_cluster_arguments(ap, "the configurations' runs", reads_files=True)
     a = ap.parse_args(argv)
     out = RESULTS / "fidelity.json"
     if a.report_only:
@@ -273,12 +294,16 @@ def main(argv: list[str] | None = None) -> int:
         rows = json.loads(out.read_text())["rows"]
     else:
         rows = []
-        with tempfile.TemporaryDirectory() as cache:
+        with tempfile.TemporaryDirectory() as cache, contextlib.ExitStack() as stack:
+            try:
+                where = Runs(cluster_client(a, stack))
+            except UsageError as exc:
+                ap.error(str(exc))
             env = fresh_cache_env(cache)
             run_in_child("box:30x30x30", SCENES["polyhedra-80"]["types"], 0,  # compile numba
                          {"time_budget": 1.0}, env=env, meshes=a.meshes)
             for scene in a.scene or DEFAULT_SCENES:
-                rows += sweep(scene, a.seeds, env, a.meshes, a.config)
+                rows += sweep(scene, a.seeds, env, a.meshes, a.config, where)
         if a.config and out.exists():
             import json
 

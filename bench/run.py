@@ -12,11 +12,21 @@ bench/growth.py), peer (Blender rigid bodies, bench/peer_bullet.py, needs bpy), 
 bench/density_profile.py), paper (tables beside the paper's figures, bench/paper.py; reads the
 other results). Each run is its own process. Timings are wall-clock seconds on this
 machine (2 cores, noisy): compare medians and ratios from one run only.
+
+    python bench/run.py --part scenes --workers 2          # warm runs side by side
+    python bench/run.py --part scenes --scheduler tcp://10.0.0.5:8786
+
+--workers K / --scheduler ADDRESS: the scenes part's warm runs and the fidelity part's runs
+(each still its own process) go to Dask workers; the cold runs stay here, one after
+another. Runs side by side on one machine share its cores, so their times compare only
+with runs made with the same worker count on the same machines: each run's record says
+where it ran ("cluster").
 """
 
 from __future__ import annotations
 
 import argparse
+import contextlib
 import statistics
 import sys
 import tempfile
@@ -28,6 +38,7 @@ from scenes import (  # noqa: E402
     MESHES,
     RESULTS,
     SCENES,
+    Runs,
     clearance_row,
     fresh_cache_env,
     physical_cost,
@@ -36,6 +47,9 @@ from scenes import (  # noqa: E402
     write_json,
     write_text,
 )
+
+from jampacked.cli.args import UsageError  # noqa: E402
+from jampacked.cli.cluster_args import add_cluster_arguments, cluster_client  # noqa: E402
 
 PARTS = ("scenes", "fidelity", "growth", "peer", "stability", "profile", "paper")
 #: scenes with bars run three seeds, the others one
@@ -96,11 +110,19 @@ def summarise(scene: str, cold: dict | None, warm: list[dict]) -> dict:
     return s
 
 
-def run_scenes(names: list[str], seeds: list[int] | None, cold: bool, meshes: Path) -> None:
+def run_scenes(names: list[str], seeds: list[int] | None, cold: bool, meshes: Path,
+               runs: Runs | None = None) -> None:
+    """Each scene's cold run (scenes with bars) and warm runs (its seeds), summarised into
+    bench/results/<scene>.json. With `runs` on a cluster, the cold runs and the caches are
+    prepared here first, then every warm run goes to the workers at once; each scene's file
+    is written, in order, when its runs are back."""
+    runs = runs or Runs()
     compiled = False
     with tempfile.TemporaryDirectory() as cache:
         env = fresh_cache_env(cache)
-        for scene in names:
+
+        def prepare(scene: str) -> dict | None:
+            nonlocal compiled
             spec = SCENES[scene]
             args = (spec["container"], spec["types"])
             # the cold run (numba compiling, approximations built) for the scenes with bars,
@@ -117,18 +139,35 @@ def run_scenes(names: list[str], seeds: list[int] | None, cold: bool, meshes: Pa
             if first is not None:  # and build this scene's approximations there
                 run_in_child(*args, 0, {**spec["kwargs"], "time_budget": 1.0}, env=env,
                              meshes=meshes)
+            return first
+
+        def start(scene: str) -> list:
+            spec = SCENES[scene]
             use = seeds or (BAR_SEEDS if spec.get("bars") else [1])
-            warm = [run_in_child(*args, s, spec["kwargs"], env=env, meshes=meshes)
-                    for s in use]
-            s = summarise(scene, first, warm)
-            if "without" in spec:
-                add_clearance(s, meshes)
-            write_json(RESULTS / f"{scene}.json", s)
-            print(f"{scene}: {s['median_count']:.0f} objects, density "
-                  f"{s['median_density']:.1%}, {s['median_seconds']:.1f} s warm (cold "
-                  f"{s['cold_seconds'] or 0:.1f} s), TVD {s['median_tvd']:.3f}, NNI "
-                  f"{s['median_nni']:.2f}, certified {s['all_certified']}, bars met: "
-                  f"{s['meets_bars']}", flush=True)
+            return [runs.start(spec["container"], spec["types"], s, spec["kwargs"], env=env,
+                               meshes=meshes) for s in use]
+
+        if runs.client is None:
+            for scene in names:
+                first = prepare(scene)
+                _write_scene(scene, first, [runs.record(r) for r in start(scene)], meshes)
+        else:
+            firsts = [prepare(scene) for scene in names]
+            started = [start(scene) for scene in names]
+            for scene, first, rs in zip(names, firsts, started, strict=True):
+                _write_scene(scene, first, [runs.record(r) for r in rs], meshes)
+
+
+def _write_scene(scene: str, first: dict | None, warm: list[dict], meshes: Path) -> None:
+    s = summarise(scene, first, warm)
+    if "without" in SCENES[scene]:
+        add_clearance(s, meshes)
+    write_json(RESULTS / f"{scene}.json", s)
+    print(f"{scene}: {s['median_count']:.0f} objects, density "
+          f"{s['median_density']:.1%}, {s['median_seconds']:.1f} s warm (cold "
+          f"{s['cold_seconds'] or 0:.1f} s), TVD {s['median_tvd']:.3f}, NNI "
+          f"{s['median_nni']:.2f}, certified {s['all_certified']}, bars met: "
+          f"{s['meets_bars']}", flush=True)
 
 
 def load_summaries() -> list[dict]:
@@ -259,14 +298,25 @@ def main(argv: list[str] | None = None) -> int:
     ap.add_argument("--no-cold", action="store_true", help="skip the cold-start runs")
     ap.add_argument("--report-only", action="store_true",
                     help="redraw the charts and tables from bench/results, run nothing")
+    add_cluster_arguments(ap, "the scenes part's warm runs and the fidelity part's runs",
+                          reads_files=True)
     a = ap.parse_args(argv)
     RESULTS.mkdir(parents=True, exist_ok=True)
     parts = [] if a.report_only else a.part
-    if "scenes" in parts:
-        run_scenes(a.scene or list(SCENES), a.seeds, not a.no_cold, a.meshes)
+    with contextlib.ExitStack() as stack:
+        try:
+            client = cluster_client(a, stack, needed="scenes" in parts)
+        except UsageError as exc:
+            ap.error(str(exc))
+        if "scenes" in parts:
+            run_scenes(a.scene or list(SCENES), a.seeds, not a.no_cold, a.meshes,
+                       Runs(client))
+    # the fidelity sweep starts (or joins) its own cluster
+    dask = ([] if a.workers is None else ["--workers", str(a.workers)]) + (
+        [] if a.scheduler is None else ["--scheduler", a.scheduler])
     for part in ("fidelity", "growth", "peer", "stability", "profile"):
         if part in parts:
-            _run_part(part, a.meshes)
+            _run_part(part, a.meshes, dask if part == "fidelity" else [])
     summaries = load_summaries()
     for s in summaries:  # the scene without may have been re-run since
         if "without" in SCENES[s["scene"]]:
@@ -281,7 +331,7 @@ def main(argv: list[str] | None = None) -> int:
     return 0
 
 
-def _run_part(part: str, meshes: Path) -> None:
+def _run_part(part: str, meshes: Path, dask: list[str]) -> None:
     """Each part is its own script (and its own --help); run it as a child process."""
     import subprocess
 
@@ -296,6 +346,7 @@ def _run_part(part: str, meshes: Path) -> None:
                   "Python 3.11, as the test extra does)", flush=True)
             return
     extra = [] if part == "peer" else ["--meshes", str(meshes)]  # peer: the bundled scene
+    extra += dask
     subprocess.run([sys.executable, str(Path(__file__).with_name(script)), *extra],
                    check=True)
 

@@ -17,6 +17,7 @@ import subprocess
 import sys
 import tempfile
 import time
+import uuid
 from dataclasses import asdict
 from pathlib import Path
 
@@ -193,6 +194,60 @@ def run_in_child(container: str, types: list[str], seed: int, kwargs: dict,
         return json.loads(out.read_text())
     finally:
         out.unlink(missing_ok=True)
+
+
+class Runs:
+    """Where a sweep's runs go, each `run_in_child` (a fresh process, own numba state and
+    timings): one after another here (no client: `start` runs it at once), or side by side on
+    a Dask cluster's workers (`start` submits a task that starts the child process on a
+    worker; `record` waits for it). Dask re-runs a lost worker's task elsewhere and a future
+    gives one result, so no run is lost or doubled; the caller writes every result.
+
+    Each record gets "cluster": None one after another, else the scheduler's address, its
+    worker processes and threads (runs side by side) when the sweep started, and the worker
+    that ran it. On a remote cluster the checkout and the meshes must be at the same paths."""
+
+    def __init__(self, client=None):
+        self.client = client
+        self.cluster = None
+        if client is not None:
+            import cloudpickle
+
+            # bench/ is no package the workers can import: send this module's code along
+            cloudpickle.register_pickle_by_value(sys.modules[__name__])
+            threads = client.nthreads()
+            self.cluster = {"scheduler": client.scheduler.address, "workers": len(threads),
+                            "threads": sum(threads.values())}
+
+    def start(self, container: str, types: list[str], seed: int, kwargs: dict,
+              params: dict | None = None, *, env: dict, meshes: Path = MESHES):
+        """One run: its record (one after another) or its future (on the cluster)."""
+        if self.client is None:
+            return {**run_in_child(container, types, seed, kwargs, params, env=env,
+                                   meshes=meshes), "cluster": None}
+        # only what this sweep sets (the caches' folders); the rest is the worker's own
+        changed = {k: v for k, v in env.items() if os.environ.get(k) != v}
+        return self.client.submit(_run_on_worker, container, types, seed, kwargs, params,
+                                  changed, str(meshes), pure=False,
+                                  key=f"bench-run-{seed}-{uuid.uuid4().hex}")
+
+    def record(self, started) -> dict:
+        """The record of a run `start` returned."""
+        if self.client is None:
+            return started
+        rec = started.result()
+        started.release()
+        return {**rec, "cluster": {**self.cluster, **rec["cluster"]}}
+
+
+def _run_on_worker(container: str, types: list[str], seed: int, kwargs: dict,
+                   params: dict | None, env: dict, meshes: str) -> dict:
+    """A Dask task: `run_in_child` on this worker, with `env` over the worker's environment."""
+    from distributed import get_worker
+
+    rec = run_in_child(container, types, seed, kwargs, params, env=dict(os.environ, **env),
+                       meshes=Path(meshes))
+    return {**rec, "cluster": {"worker": get_worker().address}}
 
 
 def fresh_cache_env(folder: str) -> dict:

@@ -3,15 +3,13 @@ as one after another here, and no scene lost or doubled when a worker dies."""
 
 from __future__ import annotations
 
-import contextlib
 import dataclasses
-import os
 import threading
-import time
 
 import distributed
 import numpy as np
 import pytest
+from dask_workers import kill_a_busy_worker, task_starts, transitions
 from testdata import mesh_path
 
 from jampacked.core.api import pack
@@ -92,6 +90,30 @@ def test_bad_attempts_are_refused(bad):
         pack(BOX, POLY, attempts=bad)
 
 
+def test_attempts_with_a_worker_killed_midway_give_the_packing_of_one_after_another(client):
+    here = pack(BOX, POLY, seed=4, fidelity="low", attempts=4)
+    densities = [a.density for a in here.report.attempts]
+    assert densities.index(max(densities)) == 3 and densities.count(max(densities)) == 1
+    since = transitions(client)
+    got: list = []
+    runner = threading.Thread(target=lambda: got.append(
+        pack(BOX, POLY, seed=4, fidelity="low", attempts=4, client=client)))
+    runner.start()
+    killed = kill_a_busy_worker(client)
+    runner.join(timeout=300)
+    assert killed is not None and not runner.is_alive()
+    assert killed not in client.scheduler_info()["workers"]
+    # the dead worker's attempts went to a worker again
+    starts = task_starts(client, "attempt-", since)
+    assert len(starts) == 4 and max(starts.values()) >= 2
+    [there] = got
+    # every attempt once, in index order, with the densities of one after another, and
+    # the densest (the last) kept
+    assert [a.density for a in there.report.attempts] == densities
+    _same_placements(here, there)
+    assert there.certificate["certified"] is True
+
+
 def _scenes() -> list[SceneSpec]:
     return [SceneSpec(id=f"s{box[4:6]}-{seed}", container=box, types=tuple(POLY), seed=seed,
                       fidelity="low")
@@ -105,16 +127,7 @@ def test_a_batch_with_a_worker_killed_midway_has_every_packing_once(client, tmp_
     runner = threading.Thread(target=lambda: results.extend(run_batch(
         scenes, tmp_path, client, progress=lambda d, t, m: writes.append(m))))
     runner.start()
-    killed = None
-    t0 = time.monotonic()
-    while killed is None and time.monotonic() - t0 < 120:
-        busy = [w for w, keys in client.processing().items() if keys]
-        if busy:
-            time.sleep(0.3)  # the scene has started there
-            killed = busy[0]
-            with contextlib.suppress(Exception):
-                client.run(os._exit, 1, workers=[killed])
-        time.sleep(0.05)
+    killed = kill_a_busy_worker(client)
     runner.join(timeout=300)
     assert killed is not None and not runner.is_alive()
     assert killed not in client.scheduler_info()["workers"]  # it died (the nanny restarts one)
