@@ -235,7 +235,15 @@ def budgeted():
                 options=PackOptions(cavity=CavityPassOptions(patience=4)))
 
 
-def test_extra_passes_repeat_while_they_add_objects_and_time_is_left(budgeted):
+@pytest.fixture(scope="module")
+def unbudgeted():
+    """The budgeted pack's twin without a budget, with up to 8 rounds of cavity passes
+    allowed (the default, said explicitly): one attempt, one round."""
+    return pack(BOX, POLY, seed=2, fidelity="low",
+                options=PackOptions(cavity=CavityPassOptions(patience=4, rounds=8)))
+
+
+def test_extra_passes_repeat_while_they_add_objects_and_time_is_left(budgeted, unbudgeted):
     """With a time budget the extra cavity passes run again on new lattices as long as a
     round adds objects; without one they run once (so an unbudgeted pack ends)."""
     p = budgeted
@@ -248,9 +256,9 @@ def test_extra_passes_repeat_while_they_add_objects_and_time_is_left(budgeted):
     ended = (sum(e.grown for e in last) == 0 or p.report.stopped == "deadline"
              or len(rounds) == 8)
     assert ended
-    q = pack(BOX, POLY, seed=2, fidelity="low",
-             options=PackOptions(cavity=CavityPassOptions(rounds=8)))
-    assert {e.round for e in q.report.extra_passes} == {0}
+    # rounds that end early would leave time for more (above), yet without a budget the
+    # passes run once though 8 rounds are allowed
+    assert {e.round for e in unbudgeted.report.extra_passes} == {0}
 
 
 @pytest.mark.parametrize("tolerance", [0.0, 0.05])
@@ -305,9 +313,8 @@ def test_a_full_small_scene_stops_its_attempts_before_the_budget():
     assert p.certificate["certified"]
 
 
-def test_one_attempt_without_a_budget_or_when_attempts_are_capped():
-    p = pack(BOX, POLY, seed=2, fidelity="low",
-             options=PackOptions(cavity=CavityPassOptions(patience=4)))
+def test_one_attempt_without_a_budget_or_when_attempts_are_capped(unbudgeted):
+    p = unbudgeted
     assert len(p.report.attempts) == 1 and "other_attempts" not in p.timings
     q = pack(BOX, POLY, seed=2, fidelity="low", time_budget=8.0,
              options=PackOptions(cavity=CavityPassOptions(patience=4),
