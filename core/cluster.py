@@ -192,6 +192,10 @@ def cluster_threads(client) -> int:
     return max(1, sum(client.nthreads().values()))
 
 
+#: how long connecting to a scheduler address may take before it is reported unreachable
+CONNECT_TIMEOUT = "10s"
+
+
 @contextlib.contextmanager
 def client_for(target=None, *, workers: int | None = None) -> Iterator:
     """A distributed.Client for what the user gave: a Client (used as is, left open), a
@@ -207,7 +211,7 @@ def client_for(target=None, *, workers: int | None = None) -> Iterator:
         return
     if isinstance(target, str):
         try:
-            client = Client(target, timeout="10s")
+            client = Client(target, timeout=CONNECT_TIMEOUT)
         except OSError as exc:
             raise InputError(f"cannot reach the Dask scheduler at {target}: {exc}. Start one "
                              "(dask scheduler) or check the address.") from None

@@ -86,6 +86,9 @@ def cube_object(bpy, name: str, faces=CUBE_FACES, **transform):
 
 #: a box scale for the scene fixture's container that takes more than 60 s to fill
 BIG_BOX = (15.0, 14.0, 16.0)
+#: a time budget for a pack that must still run while a test acts on it (cancel, a second
+#: Pack): attempts follow one another until it is spent
+LONG_BUDGET = 60.0
 
 
 def scene_state(bpy) -> dict:

@@ -14,6 +14,7 @@ pytest.importorskip("bpy")
 from addon_helpers import (  # noqa: E402
     BIG_BOX,
     CUBE_FACES,
+    LONG_BUDGET,
     Event,
     cube_object,
     drive,
@@ -98,6 +99,7 @@ def test_mix_tolerance_reaches_the_engine(bpy, addon, scene):
 
 
 def test_modal_path_and_second_pack_blocked(bpy, addon, scene):
+    scene.settings.time_budget = LONG_BUDGET  # still running while a second Pack is tried
     run = runner(addon)
     assert run.begin(bpy.context)
     try:
@@ -122,6 +124,7 @@ def test_modal_path_and_second_pack_blocked(bpy, addon, scene):
 def test_blender_stays_responsive_while_packing(bpy, addon, scene):
     """The main thread (Blender's UI) gets its turns while the engine runs in the thread."""
     scene.box.scale = BIG_BOX
+    scene.settings.time_budget = LONG_BUDGET
     run = runner(addon)
     assert run.begin(bpy.context)
     gaps = []
@@ -142,6 +145,7 @@ def test_blender_stays_responsive_while_packing(bpy, addon, scene):
 
 def test_escape_cancels_and_changes_nothing(bpy, addon, scene):
     scene.box.scale = BIG_BOX
+    scene.settings.time_budget = LONG_BUDGET
     before = scene_state(bpy)
     run = runner(addon)
     assert run.begin(bpy.context)
@@ -154,6 +158,7 @@ def test_escape_cancels_and_changes_nothing(bpy, addon, scene):
 
 def test_cancel_button_and_finish_now(bpy, addon, scene):
     scene.box.scale = BIG_BOX
+    scene.settings.time_budget = LONG_BUDGET
     before = scene_state(bpy)
     run = runner(addon)
     assert run.begin(bpy.context)
@@ -177,6 +182,7 @@ def test_cancel_button_and_finish_now(bpy, addon, scene):
 def test_cancel_in_blocking_mode(bpy, addon, scene):
     """bpy.ops in background mode runs the same steps in a loop; the cancel flag stops it."""
     scene.box.scale = BIG_BOX
+    scene.settings.time_budget = LONG_BUDGET
     before = scene_state(bpy)
     timer = threading.Timer(1.0, lambda: addon.worker.active_job().cancel())
     timer.start()
@@ -245,6 +251,7 @@ def test_ctrl_c_in_a_blocking_pack_frees_the_job(bpy, addon, scene, monkeypatch)
     """Ctrl-C lands in the main thread while a blocking Pack waits for its thread: the job
     is cancelled, the slot freed and the scene unchanged, so the next Pack runs."""
     scene.box.scale = BIG_BOX
+    scene.settings.time_budget = LONG_BUDGET
     before = scene_state(bpy)
     monkeypatch.setattr(addon.worker.Job, "wait", _interrupt)
     with pytest.raises((KeyboardInterrupt, RuntimeError)):
@@ -381,6 +388,7 @@ def test_the_first_pack_shows_the_compile_step_before_its_budget(bpy, addon, sce
         progress(0.4, message)
         assert release.wait(60)
 
+    scene.settings.time_budget = 3.0  # a budget, whose clock must wait for the compile
     monkeypatch.setattr(addon.worker, "_warm_up", addon.worker.WarmUp(slow_compile).start())
     layout = _Layout()
     deadline = time.monotonic() + 10

@@ -145,7 +145,12 @@ def test_pack_attempts_on_local_workers_match_attempts_here(tmp_path):
     np.testing.assert_array_equal(here.type_index, there.type_index)
 
 
-def test_an_unreachable_scheduler_is_a_clear_error(folder):
+def test_an_unreachable_scheduler_is_a_clear_error(folder, monkeypatch):
+    from jampacked.core import cluster
+
+    # nothing listens there: the connection is refused at once and retried until the
+    # timeout (the product's 10 s), which only makes the test wait
+    monkeypatch.setattr(cluster, "CONNECT_TIMEOUT", "1s")
     rc, _, err = run(["batch", str(write(folder, GOOD)), "-o", str(folder / "out"), "-q",
                       "--scheduler", "tcp://127.0.0.1:1"])
     assert rc == 1 and "cannot reach the Dask scheduler at tcp://127.0.0.1:1" in err

@@ -225,11 +225,28 @@ def test_fresh_install_compiles_before_the_time_budget_starts(tmp_path):
     assert float(out[2]) > 2.0 and float(out[3]) < 2.0 + 1.5, out
 
 
-def test_extra_passes_repeat_while_they_add_objects_and_time_is_left():
+@pytest.fixture(scope="module")
+def budgeted():
+    """One pack with a 20 s budget whose attempts end early (patience 4: round 0 ends early),
+    so the time left goes to further cavity rounds and attempts; shared by the tests that
+    read its rounds and its attempts (a budgeted pack takes the whole budget)."""
+    # a budget several attempts long also on a busy machine (an attempt takes 2-4 s idle)
+    return pack(BOX, POLY, seed=2, fidelity="low", time_budget=20.0,
+                options=PackOptions(cavity=CavityPassOptions(patience=4)))
+
+
+@pytest.fixture(scope="module")
+def unbudgeted():
+    """The budgeted pack's twin without a budget, with up to 8 rounds of cavity passes
+    allowed (the default, said explicitly): one attempt, one round."""
+    return pack(BOX, POLY, seed=2, fidelity="low",
+                options=PackOptions(cavity=CavityPassOptions(patience=4, rounds=8)))
+
+
+def test_extra_passes_repeat_while_they_add_objects_and_time_is_left(budgeted, unbudgeted):
     """With a time budget the extra cavity passes run again on new lattices as long as a
     round adds objects; without one they run once (so an unbudgeted pack ends)."""
-    p = pack(BOX, POLY, seed=2, fidelity="low", time_budget=20.0,
-             options=PackOptions(cavity=CavityPassOptions(patience=4)))  # round 0 ends early
+    p = budgeted
     extra = p.report.extra_passes
     rounds = sorted({e.round for e in extra})
     assert rounds == list(range(len(rounds))) and len(rounds) >= 2
@@ -239,9 +256,9 @@ def test_extra_passes_repeat_while_they_add_objects_and_time_is_left():
     ended = (sum(e.grown for e in last) == 0 or p.report.stopped == "deadline"
              or len(rounds) == 8)
     assert ended
-    q = pack(BOX, POLY, seed=2, fidelity="low",
-             options=PackOptions(cavity=CavityPassOptions(rounds=8)))
-    assert {e.round for e in q.report.extra_passes} == {0}
+    # rounds that end early would leave time for more (above), yet without a budget the
+    # passes run once though 8 rounds are allowed
+    assert {e.round for e in unbudgeted.report.extra_passes} == {0}
 
 
 @pytest.mark.parametrize("tolerance", [0.0, 0.05])
@@ -259,13 +276,11 @@ def test_extra_passes_keep_the_mix_within_the_tolerance(tolerance):
     assert after["tvd"] <= bound + 1e-9
 
 
-def test_time_left_after_an_attempt_goes_to_new_attempts_and_the_densest_is_kept():
+def test_time_left_after_an_attempt_goes_to_new_attempts_and_the_densest_is_kept(budgeted):
     """With a budget, an attempt that ends early (its cavity rounds stop adding objects) is
     followed by new attempts from scratch while the time left is at least the shortest
     attempt; the packing is the densest attempt's, and every attempt is recorded."""
-    # a budget several attempts long also on a busy machine (an attempt takes 2-4 s idle)
-    p = pack(BOX, POLY, seed=2, fidelity="low", time_budget=20.0,
-             options=PackOptions(cavity=CavityPassOptions(patience=4)))
+    p = budgeted
     attempts = p.report.attempts
     assert len(attempts) >= 2, attempts
     kept = p.metrics["after_extra"]["density"]
@@ -298,9 +313,8 @@ def test_a_full_small_scene_stops_its_attempts_before_the_budget():
     assert p.certificate["certified"]
 
 
-def test_one_attempt_without_a_budget_or_when_attempts_are_capped():
-    p = pack(BOX, POLY, seed=2, fidelity="low",
-             options=PackOptions(cavity=CavityPassOptions(patience=4)))
+def test_one_attempt_without_a_budget_or_when_attempts_are_capped(unbudgeted):
+    p = unbudgeted
     assert len(p.report.attempts) == 1 and "other_attempts" not in p.timings
     q = pack(BOX, POLY, seed=2, fidelity="low", time_budget=8.0,
              options=PackOptions(cavity=CavityPassOptions(patience=4),
@@ -397,14 +411,14 @@ def test_paths_tuples_and_numpy_values_are_accepted():
              time_budget=1.0, container_size=np.float32(34.0), type_scale=np.float64(1.0))
     assert p.n > 0 and p.seed == 3
 
-def test_snapshots_show_the_placement_as_it_grows_and_change_nothing():
+def test_snapshots_show_the_placement_as_it_grows_and_change_nothing(small):
     """pack(snapshot=...) sees the alive objects (centres inside the box, radii up to the
     types' bounding radii, valid types) a few times a second; the packing is the same as
     without it."""
     seen = []
     p = pack(BOX, POLY, [0.5, 0.5], seed=3, fidelity="low",
              snapshot=lambda pos, r, t: seen.append((time.perf_counter(), pos, r, t)))
-    q = pack(BOX, POLY, [0.5, 0.5], seed=3, fidelity="low")
+    q = small  # the same pack without snapshots
     np.testing.assert_array_equal(p.translations, q.translations)
     assert len(seen) >= 2
     assert max(len(t) for _, _, _, t in seen) >= p.n // 2

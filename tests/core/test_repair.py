@@ -16,8 +16,8 @@ FRUIT = [str(mesh_path(f"fruit/ycb_lowpoly/{n}.obj")) for n in ("017_orange", "0
 
 
 def _pack(**kwargs):
-    # low fidelity at this size leaves many overlaps for the repair (about 50 bad pairs)
-    return pack("box:24x24x24", FRUIT, seed=1, type_scale=100.0, fidelity="low", **kwargs)
+    # low fidelity at this size leaves overlaps for the repair (19 bad pairs, 3 rounds)
+    return pack("box:20x20x20", FRUIT, seed=1, type_scale=100.0, fidelity="low", **kwargs)
 
 
 def test_without_a_budget_the_repair_ignores_its_time_cap():
