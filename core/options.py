@@ -71,6 +71,11 @@ class CavityPassOptions:
     # fewer solver calls per try
     growth_steps: int = 12
     iterations: int = 80  # solver iterations per growth step
+    # a type is not tried in a hole where it would start below this scale (its free radius
+    # over its bounding radius): such tries mostly fail, each after pushing the whole
+    # packing through its growth steps. 0.4 helped a thin container with a clearance and
+    # cost density elsewhere (docs/notes-core.md), so it is off unless asked for
+    min_start: float = 0.0
 
 
 @dataclass(frozen=True)

@@ -180,7 +180,7 @@ def phase2(solver: Solver, shares: np.ndarray, spacing: float, rng: np.random.Ge
            stop: Stop, *, iters: int = 80, margin: np.ndarray, retries: int = 2,
            threshold: float | None = None, fit_factor: float = 1.0,
            patience: int | None = None, max_tvd: float = 0.03,
-           growth_steps: int = GROWTH_STEPS,
+           growth_steps: int = GROWTH_STEPS, min_start: float = 0.0,
            progress: Callable[[float, str], None] | None = None) -> PhaseStats:
     """Fill cavities: at lattice points far enough from every object and the wall, insert
     the largest type whose equivalent radius f(V) is below that distance and grow it; on
@@ -191,7 +191,8 @@ def phase2(solver: Solver, shares: np.ndarray, spacing: float, rng: np.random.Ge
     tried first is the fitting one the mix lacks most, not the largest, and no type is tried
     that would push the type mix error above `max_tvd`. With `patience`, the pass ends after
     that many candidate points in a row where nothing could be added. Objects grow in steps
-    of 1/growth_steps.
+    of 1/growth_steps. A type is not tried where its free radius is below `min_start` times
+    its bounding radius (it would start smaller than that).
     """
     t0 = time.perf_counter()
     st = PhaseStats()
@@ -250,6 +251,8 @@ def phase2(solver: Solver, shares: np.ndarray, spacing: float, rng: np.random.Ge
             # steps below the free radius are collision free: start growing there (dist
             # is already less the clearance: `Solver.free_distances`)
             room = (dist - 2 * margin[t]) / table.radius[t]
+            if min_start > 0 and room < min_start:
+                continue
             start = float(np.clip(room, START_SCALE, 1.0))
             k = solver.s.add(t, p, q, start, float(margin[t]))
             st.inserted += 1

@@ -104,7 +104,7 @@ def place_once(solver: Solver, q: np.ndarray, s1: float, f_min: float,
             st = phase2(
                 solver, q, s1 * ph.phase2_spacing * factor, rng, stop,
                 iters=cav.iterations, margin=margin, retries=cav.retries,
-                growth_steps=cav.growth_steps,
+                growth_steps=cav.growth_steps, min_start=cav.min_start,
                 threshold=factor * f_min, fit_factor=factor, patience=cav.patience,
                 max_tvd=cav.max_tvd,
                 progress=lambda f, m, lo=lo: report(lo + 0.1 * f / (n_extra * rounds), m))
