@@ -191,8 +191,8 @@ def phase2(solver: Solver, shares: np.ndarray, spacing: float, rng: np.random.Ge
     tried first is the fitting one the mix lacks most, not the largest, and no type is tried
     that would push the type mix error above `max_tvd`. With `patience`, the pass ends after
     that many candidate points in a row where nothing could be added. Objects grow in steps
-    of 1/growth_steps. A type is not tried where its free radius is below `min_start` times
-    its bounding radius (it would start smaller than that).
+    of 1/growth_steps. A type is not tried where it would start below `min_start` of its
+    size (the scale its room allows: free radius less two margins, over bounding radius).
     """
     t0 = time.perf_counter()
     st = PhaseStats()
