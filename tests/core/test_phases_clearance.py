@@ -13,15 +13,21 @@ from jampacked.core.objects import build_type
 from jampacked.core.solver import PackState, Solver, SolverParams, TypeTable
 
 
-def test_cavity_object_starts_at_the_scale_its_room_allows(monkeypatch):
-    """One ball in a box too small for it at full size: the cavity pass inserts it at the
-    box's centre and starts growing it at (distance to the wall - clearance - 2 margins)
-    / bounding radius, the clearance counted once."""
+def _ball_and_box():
+    """A ball of radius 5 (an icosphere) and an 8 mm box, too small for it at full size."""
     ball = trimesh.creation.icosphere(subdivisions=3, radius=5.0)
     typ = build_type("ball", ball.vertices, ball.faces, path=None, sha256=None, share=1.0,
                      fidelity="medium", use_cache=False)
     box = trimesh.creation.box((8.0, 8.0, 8.0))
-    cont = build_container(np.asarray(box.vertices), np.asarray(box.faces), box.volume, 0.5)
+    return typ, build_container(np.asarray(box.vertices), np.asarray(box.faces), box.volume,
+                                0.5)
+
+
+def test_cavity_object_starts_at_the_scale_its_room_allows(monkeypatch):
+    """One ball in a box too small for it at full size: the cavity pass inserts it at the
+    box's centre and starts growing it at (distance to the wall - clearance - 2 margins)
+    / bounding radius, the clearance counted once."""
+    typ, cont = _ball_and_box()
     c, m = 0.3, 0.01
     solver = Solver(cont, TypeTable([typ]), PackState(), SolverParams(clearance=c))
     starts, added = [], []
@@ -52,11 +58,7 @@ def test_cavity_object_starts_at_the_scale_its_room_allows(monkeypatch):
 def test_no_try_where_the_object_would_start_below_min_start(monkeypatch):
     """The same ball and box: the ball would start at s0 of its size; a cavity pass with
     min_start just below s0 tries it there, one just above does not."""
-    ball = trimesh.creation.icosphere(subdivisions=3, radius=5.0)
-    typ = build_type("ball", ball.vertices, ball.faces, path=None, sha256=None, share=1.0,
-                     fidelity="medium", use_cache=False)
-    box = trimesh.creation.box((8.0, 8.0, 8.0))
-    cont = build_container(np.asarray(box.vertices), np.asarray(box.faces), box.volume, 0.5)
+    typ, cont = _ball_and_box()
     starts = []
 
     def fake_grow(solver, k, start, iters, stop, steps=phases.GROWTH_STEPS):
