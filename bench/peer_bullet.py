@@ -56,6 +56,9 @@ from pathlib import Path
 
 import numpy as np
 
+from jampacked.core.options import CavityPassOptions
+from jampacked.core.repair import offenders_kept
+
 ROOT = Path(__file__).resolve().parents[1]
 RESULTS = ROOT / "bench" / "results"
 DEFAULT_SCENE_DIR = ROOT / "core" / "data" / "default_scene"
@@ -259,21 +262,6 @@ def outside_fractions(geom: Geometry, certifier, typ: np.ndarray,
     return out
 
 
-def offenders_kept(typ: np.ndarray, volumes: np.ndarray, bad_pairs: Sequence[tuple[int, int]],
-                   bad_wall: Sequence[int]) -> np.ndarray:
-    """Mask of objects kept after removing offenders the way pack() does
-    (core/api.py `_remove_offenders`): the smaller object of each failing pair (the second
-    one on a tie) unless one of the pair is already gone, then each object through the wall.
-    """
-    alive = np.ones(len(typ), bool)
-    for i, j in bad_pairs:
-        if alive[i] and alive[j]:
-            alive[j if volumes[typ[j]] <= volumes[typ[i]] else i] = False
-    for i in bad_wall:
-        alive[i] = False
-    return alive
-
-
 def _fractions_above(values: Sequence[float], cuts: Sequence[float]) -> dict:
     return {f">{c:g}": int(sum(v > c for v in values)) for c in cuts}
 
@@ -313,12 +301,13 @@ def certify_placements(geom: Geometry, certifier, typ: np.ndarray, matrices: np.
         ob = certifier.types[typ[b]].transform(matrices[b, :3, :4].tolist())
         pair_ratios.append(float((oa ^ ob).volume() / min(vols[typ[a]], vols[typ[b]])))
     wall_ratios = [float(outside[idx[i]]) for i in rep.bad_wall]
-    kept = idx[offenders_kept(typ[idx], vols, rep.bad_pairs, rep.bad_wall)]
+    mix = (geom.shares, CavityPassOptions().max_tvd)  # as pack() removes them
+    kept = idx[offenders_kept(typ[idx], vols, rep.bad_pairs, rep.bad_wall, *mix)]
     while True:  # removal only removes violations; re-check until certified, as pack() does
         final = certifier.certify(typ[kept], matrices[kept], 0.0, tol)
         if final.certified:
             break
-        kept = kept[offenders_kept(typ[kept], vols, final.bad_pairs, final.bad_wall)]
+        kept = kept[offenders_kept(typ[kept], vols, final.bad_pairs, final.bad_wall, *mix)]
     raw = compute_metrics(typ[idx], centres[idx], vols, geom.shares, geom.container_volume)
     cert = compute_metrics(typ[kept], centres[kept], vols, geom.shares, geom.container_volume)
     cuts = (1e-4, 1e-3, 1e-2, 1e-1)

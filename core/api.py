@@ -147,7 +147,8 @@ def pack(container: MeshSource, types: Sequence[MeshSource],
     t_place = time.perf_counter()
 
     report(0.9, "certifying on the real meshes")
-    cert, repair = _certify(run.best.solver, approx, inputs.clearance, inputs.options, stop)
+    cert, repair = _certify(run.best.solver, approx, q, inputs.clearance, inputs.options,
+                            stop)
     t_cert = time.perf_counter()
 
     timings = {"load": t_load - t_start, "approximate": t_approx - t_load,
@@ -434,10 +435,10 @@ def _place(scene: _Scene, approx: _Approximation, q: np.ndarray, seed: int,
     return _Placed(best, attempts, margins, tuner, s1, t_compile)
 
 
-def _certify(solver: Solver, approx: _Approximation, clearance: float, options: PackOptions,
-             stop: Stop) -> tuple[dict, RepairStats]:
+def _certify(solver: Solver, approx: _Approximation, q: np.ndarray, clearance: float,
+             options: PackOptions, stop: Stop) -> tuple[dict, RepairStats]:
     """Certify on the real meshes and repair (never skipped, also after cancel); objects
-    not grown to full size are dropped first."""
+    not grown to full size are dropped first. q: (T,) target shares, summing to 1."""
     state = solver.s
     state.alive[: state.n] &= (state.scale[: state.n] >= 1.0).astype(np.uint8)
     objtypes = approx.types
@@ -447,7 +448,7 @@ def _certify(solver: Solver, approx: _Approximation, clearance: float, options: 
     return certify_and_repair(
         solver, certifier, clearance, options.repair,
         lambda: bool(stop.should_cancel is not None and stop.should_cancel()),
-        timed=stop.deadline is not None)
+        timed=stop.deadline is not None, shares=q, max_tvd=options.cavity.max_tvd)
 
 
 def _assemble(container: MeshSource, scene: _Scene, approx: _Approximation, run: _Placed,

@@ -10,11 +10,12 @@ depend on how busy the machine is: the same inputs and seed give the same packin
 from __future__ import annotations
 
 import time
-from collections.abc import Callable
+from collections.abc import Callable, Sequence
 
 import numpy as np
 
 from .certify import DEFAULT_TOL, Certifier, CertifyReport
+from .metrics import tvd_of_counts
 from .options import RepairOptions
 from .report import RepairStats
 from .rotations import placement_matrices
@@ -45,12 +46,14 @@ def shortfalls(rep: CertifyReport, idx: np.ndarray) -> dict[int, float]:
 
 def certify_and_repair(solver: Solver, certifier: Certifier, clearance: float,
                        options: RepairOptions, cancelled: Callable[[], bool], *,
-                       timed: bool = True) -> tuple[dict, RepairStats]:
+                       timed: bool = True, shares: np.ndarray | None = None,
+                       max_tvd: float = 0.0) -> tuple[dict, RepairStats]:
     """Certify the solver's alive objects; push failing objects apart for up to
     `options.rounds` rounds and, when `timed` (the run has a time budget),
     `options.seconds` from the first push (a first certification of detailed meshes can
-    take longer than that); remove what still fails. Mutates the solver's state. Returns (the
-    final certificate as a dict, repair statistics)."""
+    take longer than that); remove what still fails, minding the type mix (`shares`, (T,)
+    summing to 1, and `max_tvd`: see `offenders_kept`). Mutates the solver's state. Returns
+    (the final certificate as a dict, repair statistics)."""
     s = solver.s
     stats = RepairStats()
     deadline = None  # from the first push: certifying is not push-apart work
@@ -68,7 +71,7 @@ def certify_and_repair(solver: Solver, certifier: Certifier, clearance: float,
         if len(bad) == 0:
             break
         if rnd == options.rounds or stats.timed_out:
-            stats.removed += remove_offenders(solver, idx, rep)
+            stats.removed += remove_offenders(solver, idx, rep, shares, max_tvd)
             break
         stats.rounds += 1
         before_pos = s.pos[: s.n].copy()
@@ -99,23 +102,59 @@ def certify_and_repair(solver: Solver, certifier: Certifier, clearance: float,
         final = certifier.certify(s.typ[idx], mats, clearance, DEFAULT_TOL)
         if final.certified:
             return final.as_dict(), stats
-        stats.removed += remove_offenders(solver, idx, final)
+        stats.removed += remove_offenders(solver, idx, final, shares, max_tvd)
 
 
-def remove_offenders(solver: Solver, idx: np.ndarray, rep: CertifyReport) -> int:
-    """Remove the smaller object of each failing pair and each object through the wall;
-    idx maps the report's object indices to the solver's. Returns how many were removed."""
+def remove_offenders(solver: Solver, idx: np.ndarray, rep: CertifyReport,
+                     shares: np.ndarray | None = None, max_tvd: float = 0.0) -> int:
+    """Remove what `offenders_kept` drops from the alive objects; idx maps the report's
+    object indices to the solver's. Returns how many were removed."""
     s = solver.s
-    removed = 0
-    for i, j in rep.bad_pairs:
-        a, b = idx[i], idx[j]
-        if s.alive[a] and s.alive[b]:
-            va = solver.t.volume[s.typ[a]]
-            vb = solver.t.volume[s.typ[b]]
-            s.alive[b if vb <= va else a] = 0
-            removed += 1
-    for i in rep.bad_wall:
-        if s.alive[idx[i]]:
-            s.alive[idx[i]] = 0
-            removed += 1
-    return removed
+    alive = s.alive[idx].astype(bool)
+    keep = offenders_kept(s.typ[idx], solver.t.volume, rep.bad_pairs, rep.bad_wall, shares,
+                          max_tvd, alive=alive)
+    gone = idx[alive & ~keep]
+    s.alive[gone] = 0
+    return len(gone)
+
+
+def offenders_kept(typ: np.ndarray, volumes: np.ndarray,
+                   bad_pairs: Sequence[tuple[int, int]], bad_wall: Sequence[int],
+                   shares: np.ndarray | None = None, max_tvd: float = 0.0, *,
+                   alive: np.ndarray | None = None) -> np.ndarray:
+    """Mask of the objects (N,) kept when a certificate's offenders are removed.
+
+    Each object through the wall goes first (that also settles its pairs); then, of each
+    failing pair whose objects are both still kept, the smaller goes (the second on a tie),
+    unless that leaves the type mix's TVD (by count, against `shares`) above `max_tvd` and
+    removing the other leaves it lower. Always removing the smaller object removes the
+    smallest type again and again, and the TVD ended above 0.05 (docs/notes-core.md).
+    typ: (N,) type of each object; volumes: (T,) each type's volume; alive: (N,) bool,
+    objects already gone (default: none).
+    """
+    keep = np.ones(len(typ), bool) if alive is None else alive.astype(bool).copy()
+    counts = np.bincount(typ[keep], minlength=len(volumes)).astype(np.int64)
+
+    def drop(k: int) -> None:
+        keep[k] = False
+        counts[typ[k]] -= 1
+
+    def tvd_without(k: int) -> float:
+        counts[typ[k]] -= 1
+        out = tvd_of_counts(counts, shares)
+        counts[typ[k]] += 1
+        return out
+
+    for i in bad_wall:
+        if keep[i]:
+            drop(i)
+    for i, j in bad_pairs:
+        if not (keep[i] and keep[j]):
+            continue
+        small, big = (j, i) if volumes[typ[j]] <= volumes[typ[i]] else (i, j)
+        if shares is not None and typ[small] != typ[big]:
+            t_small = tvd_without(small)
+            if t_small > max_tvd and tvd_without(big) < t_small:
+                small = big
+        drop(small)
+    return keep

@@ -119,3 +119,63 @@ def test_the_time_cap_counts_from_the_first_push_not_from_the_first_certificatio
                                       lambda: False, timed=True)
     assert final["certified"] and not stats.timed_out
     assert stats.removed == 0 and stats.moved >= 1 and solver.s.alive[:2].all()
+
+
+def _overlapping_pairs(n: int):
+    """n pairs, each a small ball (radius 3) sunk 1 unit into a big one (radius 5), in a
+    row along x in a box with room around them; returns (solver, certifier)."""
+    import trimesh
+
+    from jampacked.core.certify import Certifier
+    from jampacked.core.container import build_container
+    from jampacked.core.objects import build_type
+    from jampacked.core.solver import PackState, Solver, SolverParams, TypeTable
+
+    types = [build_type(f"ball{r}", b.vertices, b.faces, path=None, sha256=None, share=0.5,
+                        fidelity="medium", use_cache=False)
+             for r, b in ((3.0, trimesh.creation.icosphere(subdivisions=3, radius=3.0)),
+                          (5.0, trimesh.creation.icosphere(subdivisions=3, radius=5.0)))]
+    box = trimesh.creation.box(extents=(20.0 * n + 10.0, 30.0, 30.0))
+    cont = build_container(np.asarray(box.vertices), np.asarray(box.faces), box.volume, 1.0)
+    state = PackState()
+    for k in range(n):
+        x = -10.0 * n + 5.0 + 20.0 * k
+        for t, dx in ((0, -3.5), (1, 3.5)):
+            state.add(t, np.array([x + dx, 0.0, 0.0]), np.array([1.0, 0.0, 0.0, 0.0]), 1.0,
+                      0.0)
+    solver = Solver(cont, TypeTable(types), state, SolverParams(tol=1e-9))
+    cert = Certifier(cont, [t.vertices for t in types], [t.faces for t in types],
+                     np.array([t.volume for t in types]), np.array([t.max_edge for t in types]))
+    return solver, cert
+
+
+def test_removing_offenders_keeps_the_type_mix():
+    """Ten pairs that fail and are not pushed apart (no rounds): removing the smaller of each
+    removed every small ball (TVD 0.5); minding the mix removes both types alike."""
+    from jampacked.core.metrics import tvd
+    from jampacked.core.options import RepairOptions
+    from jampacked.core.repair import certify_and_repair
+
+    solver, cert = _overlapping_pairs(10)
+    final, stats = certify_and_repair(solver, cert, 0.0, RepairOptions(rounds=0),
+                                      lambda: False, timed=False,
+                                      shares=np.array([0.5, 0.5]), max_tvd=0.04)
+    s = solver.s
+    kept = s.typ[s.alive_indices()]
+    assert final["certified"] and stats.removed == 10
+    assert np.bincount(kept, minlength=2).tolist() == [5, 5]
+    assert tvd(kept, np.array([0.5, 0.5])) == 0.0
+
+
+def test_offenders_through_the_wall_go_first_and_settle_their_pairs():
+    from jampacked.core.repair import offenders_kept
+
+    typ = np.array([0, 1, 0, 1])
+    vols = np.array([1.0, 2.0])
+    # object 1 is through the wall and overlaps 0: removing it settles the pair too
+    assert offenders_kept(typ, vols, [(0, 1)], [1]).tolist() == [True, False, True, True]
+    # without shares the smaller goes; with them, the one that keeps the mix within max_tvd
+    assert offenders_kept(typ, vols, [(0, 1), (2, 3)], []).tolist() == [
+        False, True, False, True]
+    keep = offenders_kept(typ, vols, [(0, 1), (2, 3)], [], np.array([0.5, 0.5]), 0.04)
+    assert keep.tolist() == [False, True, True, False]
