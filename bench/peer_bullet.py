@@ -56,8 +56,9 @@ from pathlib import Path
 
 import numpy as np
 
+from jampacked.core.metrics import tvd
 from jampacked.core.options import CavityPassOptions
-from jampacked.core.repair import offenders_kept
+from jampacked.core.repair import removals
 
 ROOT = Path(__file__).resolve().parents[1]
 RESULTS = ROOT / "bench" / "results"
@@ -301,13 +302,15 @@ def certify_placements(geom: Geometry, certifier, typ: np.ndarray, matrices: np.
         ob = certifier.types[typ[b]].transform(matrices[b, :3, :4].tolist())
         pair_ratios.append(float((oa ^ ob).volume() / min(vols[typ[a]], vols[typ[b]])))
     wall_ratios = [float(outside[idx[i]]) for i in rep.bad_wall]
-    mix = (geom.shares, CavityPassOptions().max_tvd)  # as pack() removes them
-    kept = idx[offenders_kept(typ[idx], vols, rep.bad_pairs, rep.bad_wall, *mix)]
+    # removed as pack() removes them: minding the mix, not below its tolerance or the mix
+    # the placement had
+    mix = (geom.shares, max(CavityPassOptions().max_tvd, tvd(typ[idx], geom.shares)))
+    kept = idx[removals(typ[idx], vols, rep.bad_pairs, rep.bad_wall, *mix)[0]]
     while True:  # removal only removes violations; re-check until certified, as pack() does
         final = certifier.certify(typ[kept], matrices[kept], 0.0, tol)
         if final.certified:
             break
-        kept = kept[offenders_kept(typ[kept], vols, final.bad_pairs, final.bad_wall, *mix)]
+        kept = kept[removals(typ[kept], vols, final.bad_pairs, final.bad_wall, *mix)[0]]
     raw = compute_metrics(typ[idx], centres[idx], vols, geom.shares, geom.container_volume)
     cert = compute_metrics(typ[kept], centres[kept], vols, geom.shares, geom.container_volume)
     cuts = (1e-4, 1e-3, 1e-2, 1e-1)

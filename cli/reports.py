@@ -147,7 +147,9 @@ def print_summary(packing: Packing, console: Console, title: str | None = None) 
                                " objects near the wall")
     if s.repair is not None:
         summary.add_row("repair", f"{s.repair.rounds} rounds, {s.repair.moved} moved, "
-                                  f"{s.repair.removed} removed")
+                                  f"{s.repair.removed} removed"
+                                  + (f" ({s.repair.for_mix} of them for the type mix)"
+                                     if s.repair.for_mix else ""))
     if len(s.attempts) > 1:
         for i, a in enumerate(s.attempts):
             summary.add_row(f"attempt {i + 1}", f"{a.count} objects, {_pct(a.density)}"

@@ -52,10 +52,14 @@ def certify_and_repair(solver: Solver, certifier: Certifier, clearance: float,
     `options.rounds` rounds and, when `timed` (the run has a time budget),
     `options.seconds` from the first push (a first certification of detailed meshes can
     take longer than that); remove what still fails, minding the type mix (`shares`, (T,)
-    summing to 1, and `max_tvd`: see `offenders_kept`). Mutates the solver's state. Returns
-    (the final certificate as a dict, repair statistics)."""
+    summing to 1): the removals do not leave the mix's TVD above `max_tvd` or the
+    placement's own, whichever is larger (`offenders_kept`, `mix_trim`). Mutates the
+    solver's state. Returns (the final certificate as a dict, repair statistics)."""
     s = solver.s
     stats = RepairStats()
+    # removals may not leave the mix worse than this (the tolerance, or the placement's mix)
+    target = 0.0 if shares is None else max(max_tvd, tvd_of_counts(
+        np.bincount(s.typ[s.alive_indices()], minlength=len(shares)), shares))
     deadline = None  # from the first push: certifying is not push-apart work
     subset = None
     moved_ever: set[int] = set()
@@ -71,7 +75,7 @@ def certify_and_repair(solver: Solver, certifier: Certifier, clearance: float,
         if len(bad) == 0:
             break
         if rnd == options.rounds or stats.timed_out:
-            stats.removed += remove_offenders(solver, idx, rep, shares, max_tvd)
+            _removed(stats, remove_offenders(solver, idx, rep, shares, target))
             break
         stats.rounds += 1
         before_pos = s.pos[: s.n].copy()
@@ -102,20 +106,42 @@ def certify_and_repair(solver: Solver, certifier: Certifier, clearance: float,
         final = certifier.certify(s.typ[idx], mats, clearance, DEFAULT_TOL)
         if final.certified:
             return final.as_dict(), stats
-        stats.removed += remove_offenders(solver, idx, final, shares, max_tvd)
+        _removed(stats, remove_offenders(solver, idx, final, shares, target))
+
+
+def _removed(stats: RepairStats, counts: tuple[int, int]) -> None:
+    stats.removed += counts[0] + counts[1]
+    stats.for_mix += counts[1]
 
 
 def remove_offenders(solver: Solver, idx: np.ndarray, rep: CertifyReport,
-                     shares: np.ndarray | None = None, max_tvd: float = 0.0) -> int:
-    """Remove what `offenders_kept` drops from the alive objects; idx maps the report's
-    object indices to the solver's. Returns how many were removed."""
+                     shares: np.ndarray | None = None, max_tvd: float = 0.0
+                     ) -> tuple[int, int]:
+    """Remove what `removals` drops from the alive objects; idx maps the report's object
+    indices to the solver's. Removing never makes a certified packing fail, and the caller
+    certifies again. Returns (offenders removed, objects removed for the mix)."""
     s = solver.s
     alive = s.alive[idx].astype(bool)
-    keep = offenders_kept(s.typ[idx], solver.t.volume, rep.bad_pairs, rep.bad_wall, shares,
-                          max_tvd, alive=alive)
-    gone = idx[alive & ~keep]
-    s.alive[gone] = 0
-    return len(gone)
+    keep, for_mix = removals(s.typ[idx], solver.t.volume, rep.bad_pairs, rep.bad_wall,
+                             shares, max_tvd, alive=alive)
+    s.alive[idx[alive & ~keep]] = 0
+    return int((alive & ~keep).sum()) - for_mix, for_mix
+
+
+def removals(typ: np.ndarray, volumes: np.ndarray, bad_pairs: Sequence[tuple[int, int]],
+             bad_wall: Sequence[int], shares: np.ndarray | None = None, max_tvd: float = 0.0,
+             *, alive: np.ndarray | None = None) -> tuple[np.ndarray, int]:
+    """The objects (N,) kept when a certificate's offenders are removed (`offenders_kept`)
+    and then, with `shares`, those `mix_trim` picks to bring the mix's TVD back to
+    `max_tvd`; and how many of the removed went for the mix."""
+    keep = offenders_kept(typ, volumes, bad_pairs, bad_wall, shares, max_tvd, alive=alive)
+    before = np.ones(len(typ), bool) if alive is None else alive.astype(bool)
+    if shares is None or not (before & ~keep).any():
+        return keep, 0
+    left = np.flatnonzero(keep)
+    trim = left[mix_trim(typ[left], volumes, shares, max_tvd)]
+    keep[trim] = False
+    return keep, len(trim)
 
 
 def offenders_kept(typ: np.ndarray, volumes: np.ndarray,
@@ -158,3 +184,32 @@ def offenders_kept(typ: np.ndarray, volumes: np.ndarray,
                 small = big
         drop(small)
     return keep
+
+
+def mix_trim(typ: np.ndarray, volumes: np.ndarray, shares: np.ndarray,
+             target: float) -> np.ndarray:
+    """Which objects (indices into typ (N,)) to remove so that the type mix's TVD (by count,
+    against `shares` (T,)) comes down to `target`: one at a time, of the type whose removal
+    lowers it most (the smaller type on a tie), the last such object, while a removal still
+    lowers it. Removing the repair's offenders can leave the mix worse than the placement
+    did, whatever their choice (objects through the wall must go)."""
+    counts = np.bincount(typ, minlength=len(volumes)).astype(np.int64)
+    order = [list(np.flatnonzero(typ == t)) for t in range(len(volumes))]
+    now = tvd_of_counts(counts, shares)
+    out: list[int] = []
+    while now > target + 1e-12:
+        best, best_t = now, -1
+        for t in np.argsort(volumes, kind="stable"):
+            if counts[t] == 0:
+                continue
+            counts[t] -= 1
+            after = tvd_of_counts(counts, shares)
+            counts[t] += 1
+            if after < best - 1e-12:
+                best, best_t = after, int(t)
+        if best_t < 0:
+            break
+        out.append(int(order[best_t].pop()))
+        counts[best_t] -= 1
+        now = best
+    return np.array(sorted(out), np.int64)

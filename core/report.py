@@ -71,12 +71,14 @@ class MarginReport:
 
 @dataclass
 class RepairStats:
-    """Certify-and-repair (`core/repair.py`): push-apart rounds, objects moved and removed,
-    the certificate before any repair, and whether the push-apart time cap was reached."""
+    """Certify-and-repair (`core/repair.py`): push-apart rounds, objects moved and removed
+    (`for_mix` of them to bring the type mix back within the tolerance), the certificate
+    before any repair, and whether the push-apart time cap was reached."""
 
     rounds: int = 0
     moved: int = 0
     removed: int = 0
+    for_mix: int = 0
     first: dict | None = None
     timed_out: bool = False
 

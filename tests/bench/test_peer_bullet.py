@@ -84,13 +84,13 @@ def test_counting_clean_placement(box_scene):
     assert c["certified_density"] == c["raw_density"]
 
 
-def test_offenders_kept_matches_pack():
+def test_removals_match_pack():
     vols = np.array([1.0, 2.0])
     typ = np.array([0, 1, 0])
     # the smaller of a pair goes; a pair whose member is already gone removes nothing more
-    keep = pb.offenders_kept(typ, vols, [(0, 1), (0, 2)], [])
+    keep, _ = pb.removals(typ, vols, [(0, 1), (0, 2)], [])
     assert keep.tolist() == [False, True, True]
-    assert pb.offenders_kept(typ, vols, [], [1]).tolist() == [True, False, True]
+    assert pb.removals(typ, vols, [], [1])[0].tolist() == [True, False, True]
 
 
 def test_winding_numbers():

@@ -121,9 +121,10 @@ def test_the_time_cap_counts_from_the_first_push_not_from_the_first_certificatio
     assert stats.removed == 0 and stats.moved >= 1 and solver.s.alive[:2].all()
 
 
-def _overlapping_pairs(n: int):
-    """n pairs, each a small ball (radius 3) sunk 1 unit into a big one (radius 5), in a
-    row along x in a box with room around them; returns (solver, certifier)."""
+def _balls(placed, extents):
+    """Small balls (type 0, radius 3) and big ones (type 1, radius 5) at `placed`, a list of
+    (type, x, y) (z = 0), in a box of `extents` centred on the origin; returns (solver,
+    certifier)."""
     import trimesh
 
     from jampacked.core.certify import Certifier
@@ -131,22 +132,27 @@ def _overlapping_pairs(n: int):
     from jampacked.core.objects import build_type
     from jampacked.core.solver import PackState, Solver, SolverParams, TypeTable
 
-    types = [build_type(f"ball{r}", b.vertices, b.faces, path=None, sha256=None, share=0.5,
+    types = [build_type(f"ball{r:g}", b.vertices, b.faces, path=None, sha256=None, share=0.5,
                         fidelity="medium", use_cache=False)
              for r, b in ((3.0, trimesh.creation.icosphere(subdivisions=3, radius=3.0)),
                           (5.0, trimesh.creation.icosphere(subdivisions=3, radius=5.0)))]
-    box = trimesh.creation.box(extents=(20.0 * n + 10.0, 30.0, 30.0))
+    box = trimesh.creation.box(extents=extents)
     cont = build_container(np.asarray(box.vertices), np.asarray(box.faces), box.volume, 1.0)
     state = PackState()
-    for k in range(n):
-        x = -10.0 * n + 5.0 + 20.0 * k
-        for t, dx in ((0, -3.5), (1, 3.5)):
-            state.add(t, np.array([x + dx, 0.0, 0.0]), np.array([1.0, 0.0, 0.0, 0.0]), 1.0,
-                      0.0)
+    for t, x, y in placed:
+        state.add(t, np.array([x, y, 0.0]), np.array([1.0, 0.0, 0.0, 0.0]), 1.0, 0.0)
     solver = Solver(cont, TypeTable(types), state, SolverParams(tol=1e-9))
     cert = Certifier(cont, [t.vertices for t in types], [t.faces for t in types],
                      np.array([t.volume for t in types]), np.array([t.max_edge for t in types]))
     return solver, cert
+
+
+def _overlapping_pairs(n: int):
+    """n pairs, each a small ball sunk 1 unit into a big one, in a row along x in a box with
+    room around them."""
+    x = [-10.0 * n + 5.0 + 20.0 * k for k in range(n)]
+    return _balls([(t, xk + dx, 0.0) for xk in x for t, dx in ((0, -3.5), (1, 3.5))],
+                  (20.0 * n + 10.0, 30.0, 30.0))
 
 
 def test_removing_offenders_keeps_the_type_mix():
@@ -162,7 +168,7 @@ def test_removing_offenders_keeps_the_type_mix():
                                       shares=np.array([0.5, 0.5]), max_tvd=0.04)
     s = solver.s
     kept = s.typ[s.alive_indices()]
-    assert final["certified"] and stats.removed == 10
+    assert final["certified"] and stats.removed == 10 and stats.for_mix == 0
     assert np.bincount(kept, minlength=2).tolist() == [5, 5]
     assert tvd(kept, np.array([0.5, 0.5])) == 0.0
 
@@ -179,3 +185,38 @@ def test_offenders_through_the_wall_go_first_and_settle_their_pairs():
         False, True, False, True]
     keep = offenders_kept(typ, vols, [(0, 1), (2, 3)], [], np.array([0.5, 0.5]), 0.04)
     assert keep.tolist() == [False, True, True, False]
+
+
+def test_when_the_wall_takes_one_type_the_mix_is_trimmed_back_to_the_tolerance():
+    """Three of six small balls stick out of the wall and must go: 3 small to 6 big is a TVD
+    of 0.17, so big balls are removed too until the mix is back within the tolerance."""
+    from jampacked.core.metrics import tvd
+    from jampacked.core.options import RepairOptions
+    from jampacked.core.repair import certify_and_repair
+
+    placed = [(t, -110.0 + 20.0 * k, 0.0) for k, t in enumerate([0, 1] * 6)]
+    placed = [(t, x, 14.0 if t == 0 and x < 0 else y) for t, x, y in placed]  # through y=15
+    solver, cert = _balls(placed, (250.0, 30.0, 30.0))
+    final, stats = certify_and_repair(solver, cert, 0.0, RepairOptions(rounds=0),
+                                      lambda: False, timed=False,
+                                      shares=np.array([0.5, 0.5]), max_tvd=0.04)
+    kept = solver.s.typ[solver.s.alive_indices()]
+    assert final["certified"] and (stats.removed, stats.for_mix) == (6, 3)
+    assert tvd(kept, np.array([0.5, 0.5])) <= 0.04
+    # without the shares nothing but the offenders goes
+    solver, cert = _balls(placed, (250.0, 30.0, 30.0))
+    final, stats = certify_and_repair(solver, cert, 0.0, RepairOptions(rounds=0),
+                                      lambda: False, timed=False)
+    assert final["certified"] and (stats.removed, stats.for_mix) == (3, 0)
+
+
+def test_mix_trim_removes_the_type_in_excess_last_first_until_the_target():
+    from jampacked.core.repair import mix_trim
+
+    typ = np.array([0] * 10 + [1] * 6)
+    # 10:6 is a TVD of 0.125; 7:6 is 0.038
+    assert mix_trim(typ, np.array([1.0, 2.0]), np.array([0.5, 0.5]), 0.04).tolist() == [
+        7, 8, 9]
+    assert mix_trim(typ, np.array([1.0, 2.0]), np.array([0.5, 0.5]), 0.2).tolist() == []
+    # one type: nothing to trim whatever the target
+    assert mix_trim(np.zeros(5, int), np.array([1.0]), np.array([1.0]), 0.0).tolist() == []
