@@ -14,7 +14,7 @@ COMPILE_MESSAGE = "compiling the engine (first run only, about half a minute)"
 SLOW_WARM_UP = 2.0
 
 
-def _placement_kernels() -> list:
+def placement_kernels() -> list:
     """The numba dispatchers a pack's warm-up compiles (`Solver.warm_up`)."""
     from . import cellgrid, kernels
 
@@ -32,20 +32,29 @@ def _has_code(dispatcher) -> bool | None:
         return None
 
 
-def cache_is_cold() -> bool | None:
-    """True when the placement kernels have no machine code in memory or in numba's cache
-    (first run, a new numba, a changed source): their first call compiles them. None when
-    that cannot be told. Cheap: reads numba's index files, compiles nothing."""
-    known = [_has_code(d) for d in _placement_kernels()]
+def cold_kernels() -> list[str] | None:
+    """The names of the placement kernels with no machine code in memory or in numba's
+    cache (their first call compiles them); None when that cannot be told. Cheap: reads
+    numba's index files, compiles nothing."""
+    kernels = placement_kernels()
+    known = [_has_code(d) for d in kernels]
     if any(k is None for k in known):
         return None
-    return not all(known)
+    return [d.__name__ for d, k in zip(kernels, known, strict=True) if not k]
+
+
+def cache_is_cold() -> bool | None:
+    """True when a placement kernel has no machine code in memory or in numba's cache
+    (first run, a new numba, a changed source): its first call compiles it. None when
+    that cannot be told."""
+    cold = cold_kernels()
+    return None if cold is None else bool(cold)
 
 
 def cache_loads_and_compiles() -> tuple[int, int]:
     """How often this process loaded the placement kernels from numba's on-disk cache, and
     how often it compiled them (a cache miss): workers of a cluster should only load."""
-    stats = [d.stats for d in _placement_kernels()]
+    stats = [d.stats for d in placement_kernels()]
     return (sum(sum(s.cache_hits.values()) for s in stats),
             sum(sum(s.cache_misses.values()) for s in stats))
 

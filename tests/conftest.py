@@ -11,3 +11,20 @@ from testdata import MESHES, REPO
 
 def pytest_report_header(config) -> str:
     return f"test meshes: {MESHES.relative_to(REPO)} (sources and licences in its README.md)"
+
+
+#: marks the test that compiles the engine from an empty numba cache: it runs first, so on
+#: a fresh checkout its compile is the suite's only one (see tests/core/test_api.py)
+FIRST_RUN = "first_run"
+
+
+def pytest_configure(config) -> None:
+    config.addinivalue_line("markers", f"{FIRST_RUN}: runs before every other test (it "
+                                       "fills numba's empty cache on a fresh checkout)")
+
+
+def pytest_collection_modifyitems(config, items) -> None:
+    """Move the first_run tests to the front, keeping the order of the rest."""
+    first = [item for item in items if item.get_closest_marker(FIRST_RUN)]
+    rest = [item for item in items if not item.get_closest_marker(FIRST_RUN)]
+    items[:] = first + rest

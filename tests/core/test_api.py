@@ -204,20 +204,28 @@ def test_in_memory_container_round_trips_without_a_missing_file(tmp_path):
     assert back.container_path == name and verify_sources(back) == []
 
 
+@pytest.mark.first_run
 def test_fresh_install_compiles_before_the_time_budget_starts(tmp_path):
     """With an empty numba cache, compiling takes longer than a short budget; the budget
-    starts after the kernels are ready, so a first pack still places objects."""
+    starts after the kernels are ready, so a first pack still places objects.
+
+    The suite runs this test first: on a fresh checkout (CI) numba's own cache is empty,
+    and this compile fills it for every later test; where it holds any of the kernels, an
+    empty cache folder stands in for it."""
     import os
     import subprocess
     import sys
+
+    from jampacked.core.numba_cache import cold_kernels, placement_kernels
 
     code = ("from jampacked.core.api import pack\n"
             f"p = pack({BOX!r}, {POLY!r}, seed=1, fidelity='low', time_budget=2.0)\n"
             "t = p.timings\n"
             "print(p.n, p.certificate['certified'], t['compile'],\n"
             "      t['phase1'] + t['phase2'] + t['extra'])\n")
-    env = dict(os.environ, NUMBA_CACHE_DIR=str(tmp_path / "numba"),
-               JAMPACKED_CACHE=str(tmp_path / "cache"))
+    env = dict(os.environ, JAMPACKED_CACHE=str(tmp_path / "cache"))
+    if len(cold_kernels() or ()) < len(placement_kernels()):
+        env["NUMBA_CACHE_DIR"] = str(tmp_path / "numba")
     out = subprocess.run([sys.executable, "-c", code], env=env, capture_output=True,
                          text=True, timeout=600, check=True).stdout.split()
     assert int(out[0]) >= 5 and out[1] == "True"
