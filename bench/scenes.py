@@ -16,6 +16,7 @@ import resource
 import subprocess
 import sys
 import tempfile
+import threading
 import time
 import uuid
 from dataclasses import asdict
@@ -185,7 +186,7 @@ def run_in_child(container: str, types: list[str], seed: int, kwargs: dict,
                  meshes: Path = MESHES) -> dict:
     """`run_record` in a fresh Python process (own numba state); returns its record."""
     job = {"container": container, "types": types, "seed": seed, "kwargs": kwargs,
-           "params": params, "meshes": str(meshes)}
+           "params": params, "meshes": str(meshes), "parent": os.getpid()}
     with tempfile.NamedTemporaryFile(suffix=".json", delete=False) as f:
         out = Path(f.name)
     try:
@@ -276,8 +277,22 @@ def save_figure(fig, path: Path) -> None:
     os.replace(tmp, path)
 
 
+def exit_with_parent(parent: int, period: float = 0.5) -> None:
+    """End this process (exit status 3) once `parent`, the process that started it, is gone
+    (this one is then re-parented): a run whose sweep or Dask worker died would otherwise
+    run on beside its re-run and slow it."""
+    def watch() -> None:
+        while os.getppid() == parent:
+            time.sleep(period)
+        os._exit(3)
+
+    threading.Thread(target=watch, daemon=True, name="exit-with-parent").start()
+
+
 if __name__ == "__main__":  # child process of run_in_child
     job = json.loads(sys.argv[1])
+    if job.get("parent") is not None:
+        exit_with_parent(job["parent"])
     rec = run_record(job["container"], job["types"], job["seed"], job["kwargs"],
                      job["params"], Path(job["meshes"]))
     Path(sys.argv[2]).write_text(json.dumps(rec))
