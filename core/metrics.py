@@ -101,6 +101,17 @@ def tvd_of_counts(counts: np.ndarray, shares: np.ndarray) -> float:
     return 0.5 * float(np.abs(counts / n - shares).sum())
 
 
+def best_tvd(shares: np.ndarray, n: int) -> float:
+    """The smallest TVD any n objects can have against target shares (T,): counts rounded
+    by largest remainders."""
+    want = shares * n
+    counts = np.floor(want)
+    short = int(n - counts.sum())
+    if short > 0:
+        counts[np.argsort(-(want - counts), kind="stable")[:short]] += 1
+    return tvd_of_counts(counts, shares)
+
+
 def tvd(type_index: np.ndarray, target_shares: np.ndarray) -> float:
     """Total variation distance between achieved and target type shares.
 

@@ -14,7 +14,7 @@ import numpy as np
 
 from .container import interior_points
 from .kernels import sample_grid_many
-from .metrics import density, equivalent_radius, tvd_of_counts
+from .metrics import best_tvd, density, equivalent_radius, tvd_of_counts
 from .report import PhaseStats
 from .rotations import random_quaternions
 from .solver import Solver
@@ -35,17 +35,6 @@ def _counted_density(counts: np.ndarray, solver: Solver) -> float:
     """`_density` from the phase's (T,) counts of full-size objects per type: the progress
     messages' figure, at a cost that does not grow with the objects placed."""
     return float(counts @ solver.t.volume) / solver.c.volume
-
-
-def best_tvd(shares: np.ndarray, n: int) -> float:
-    """The smallest TVD any n objects can have against target shares (T,): counts rounded
-    by largest remainders."""
-    want = shares * n
-    counts = np.floor(want)
-    short = int(n - counts.sum())
-    if short > 0:
-        counts[np.argsort(-(want - counts), kind="stable")[:short]] += 1
-    return tvd_of_counts(counts, shares)
 
 
 def mix_cap(counts: np.ndarray, shares: np.ndarray, max_tvd: float) -> float:

@@ -15,7 +15,7 @@ from collections.abc import Callable, Sequence
 import numpy as np
 
 from .certify import DEFAULT_TOL, Certifier, CertifyReport
-from .metrics import tvd_of_counts
+from .metrics import best_tvd, tvd_of_counts
 from .options import RepairOptions
 from .report import RepairStats
 from .rotations import placement_matrices
@@ -133,13 +133,14 @@ def removals(typ: np.ndarray, volumes: np.ndarray, bad_pairs: Sequence[tuple[int
              *, alive: np.ndarray | None = None) -> tuple[np.ndarray, int]:
     """The objects (N,) kept when a certificate's offenders are removed (`offenders_kept`)
     and then, with `shares`, those `mix_trim` picks to bring the mix's TVD back to
-    `max_tvd`; and how many of the removed went for the mix."""
+    `max_tvd` (no more than the offenders); and how many of the removed went for the mix."""
     keep = offenders_kept(typ, volumes, bad_pairs, bad_wall, shares, max_tvd, alive=alive)
     before = np.ones(len(typ), bool) if alive is None else alive.astype(bool)
-    if shares is None or not (before & ~keep).any():
+    offenders = int((before & ~keep).sum())
+    if shares is None or offenders == 0:
         return keep, 0
     left = np.flatnonzero(keep)
-    trim = left[mix_trim(typ[left], volumes, shares, max_tvd)]
+    trim = left[mix_trim(typ[left], volumes, shares, max_tvd, most=offenders)]
     keep[trim] = False
     return keep, len(trim)
 
@@ -186,18 +187,27 @@ def offenders_kept(typ: np.ndarray, volumes: np.ndarray,
     return keep
 
 
-def mix_trim(typ: np.ndarray, volumes: np.ndarray, shares: np.ndarray,
-             target: float) -> np.ndarray:
+def mix_trim(typ: np.ndarray, volumes: np.ndarray, shares: np.ndarray, target: float,
+             most: int | None = None) -> np.ndarray:
     """Which objects (indices into typ (N,)) to remove so that the type mix's TVD (by count,
     against `shares` (T,)) comes down to `target`: one at a time, of the type whose removal
     lowers it most (the smaller type on a tie), the last such object, while a removal still
-    lowers it. Removing the repair's offenders can leave the mix worse than the placement
-    did, whatever their choice (objects through the wall must go)."""
+    lowers it and at most `most` of them. With few objects, where one object moves the TVD
+    by about 1/n, it stops within one object of the best mix n objects allow (as the cavity
+    passes' cap does). Removing the repair's offenders can leave the mix worse than the
+    placement did, whatever their choice (objects through the wall must go); the caller
+    caps the trim at as many objects as that removed, so that a mix the removals spoilt
+    badly costs no more than twice their objects."""
     counts = np.bincount(typ, minlength=len(volumes)).astype(np.int64)
     order = [list(np.flatnonzero(typ == t)) for t in range(len(volumes))]
     now = tvd_of_counts(counts, shares)
     out: list[int] = []
-    while now > target + 1e-12:
+
+    def allowed() -> float:
+        n = int(counts.sum())
+        return max(target, best_tvd(shares, n) + 1.0 / n) if n else target
+
+    while now > allowed() + 1e-12 and (most is None or len(out) < most):
         best, best_t = now, -1
         for t in np.argsort(volumes, kind="stable"):
             if counts[t] == 0:

@@ -13,7 +13,7 @@ from testdata import mesh_path
 
 from jampacked.core.api import pack
 from jampacked.core.errors import InputError, MeshError, PackingError
-from jampacked.core.metrics import compute_metrics
+from jampacked.core.metrics import best_tvd, compute_metrics
 from jampacked.core.options import (
     AttemptOptions,
     CavityPassOptions,
@@ -22,7 +22,6 @@ from jampacked.core.options import (
     RepairOptions,
 )
 from jampacked.core.packing_json import load_packing, save_packing
-from jampacked.core.phases import best_tvd
 from jampacked.core.placement import REPEATED, REPEATS_TO_STOP
 
 POLY = [str(mesh_path(f"polyhedra/convex5/polytope{i}.obj")) for i in (1, 3)]

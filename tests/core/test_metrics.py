@@ -155,8 +155,8 @@ def test_best_tvd_is_the_smallest_over_all_count_vectors():
     """best_tvd (the extra passes' floor on the mix cap) against brute force."""
     import itertools
 
+    from jampacked.core.metrics import best_tvd
     from jampacked.core.metrics import tvd_of_counts as _tvd
-    from jampacked.core.phases import best_tvd
 
     for shares in ([0.2] * 5, [0.5, 0.3, 0.2], [0.99, 0.01]):
         q = np.array(shares)

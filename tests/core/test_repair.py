@@ -188,35 +188,40 @@ def test_offenders_through_the_wall_go_first_and_settle_their_pairs():
 
 
 def test_when_the_wall_takes_one_type_the_mix_is_trimmed_back_to_the_tolerance():
-    """Three of six small balls stick out of the wall and must go: 3 small to 6 big is a TVD
-    of 0.17, so big balls are removed too until the mix is back within the tolerance."""
+    """12 of 40 small balls stick out of the wall and must go: 28 small to 40 big is a TVD
+    of 0.088, so 8 big balls are removed too, which brings it to 0.033 (<= 0.04)."""
     from jampacked.core.metrics import tvd
     from jampacked.core.options import RepairOptions
     from jampacked.core.repair import certify_and_repair
 
-    placed = [(t, -110.0 + 20.0 * k, 0.0) for k, t in enumerate([0, 1] * 6)]
-    placed = [(t, x, 14.0 if t == 0 and x < 0 else y) for t, x, y in placed]  # through y=15
-    solver, cert = _balls(placed, (250.0, 30.0, 30.0))
+    placed = [(t, -474.0 + 12.0 * k, 14.0 if t == 0 and k < 24 else 0.0)  # through y = 15
+              for k, t in enumerate([0, 1] * 40)]
+    solver, cert = _balls(placed, (970.0, 30.0, 30.0))
     final, stats = certify_and_repair(solver, cert, 0.0, RepairOptions(rounds=0),
                                       lambda: False, timed=False,
                                       shares=np.array([0.5, 0.5]), max_tvd=0.04)
     kept = solver.s.typ[solver.s.alive_indices()]
-    assert final["certified"] and (stats.removed, stats.for_mix) == (6, 3)
-    assert tvd(kept, np.array([0.5, 0.5])) <= 0.04
+    assert final["certified"] and (stats.removed, stats.for_mix) == (20, 8)
+    assert np.bincount(kept).tolist() == [28, 32]
+    assert tvd(kept, np.array([0.5, 0.5])) == pytest.approx(2 / 60)
     # without the shares nothing but the offenders goes
-    solver, cert = _balls(placed, (250.0, 30.0, 30.0))
+    solver, cert = _balls(placed, (970.0, 30.0, 30.0))
     final, stats = certify_and_repair(solver, cert, 0.0, RepairOptions(rounds=0),
                                       lambda: False, timed=False)
-    assert final["certified"] and (stats.removed, stats.for_mix) == (3, 0)
+    assert final["certified"] and (stats.removed, stats.for_mix) == (12, 0)
 
 
 def test_mix_trim_removes_the_type_in_excess_last_first_until_the_target():
     from jampacked.core.repair import mix_trim
 
-    typ = np.array([0] * 10 + [1] * 6)
-    # 10:6 is a TVD of 0.125; 7:6 is 0.038
-    assert mix_trim(typ, np.array([1.0, 2.0]), np.array([0.5, 0.5]), 0.04).tolist() == [
-        7, 8, 9]
-    assert mix_trim(typ, np.array([1.0, 2.0]), np.array([0.5, 0.5]), 0.2).tolist() == []
+    vols, half = np.array([1.0, 2.0]), np.array([0.5, 0.5])
+    typ = np.array([0] * 50 + [1] * 30)
+    # 50:30 is a TVD of 0.125; 35:30 is 0.038
+    assert mix_trim(typ, vols, half, 0.04).tolist() == list(range(35, 50))
+    assert mix_trim(typ, vols, half, 0.04, most=4).tolist() == [46, 47, 48, 49]
+    assert mix_trim(typ, vols, half, 0.2).tolist() == []
+    # few objects: within one object of the best mix is enough (9:1 would go down to 1:1)
+    typ = np.array([0] * 9 + [1])
+    assert len(mix_trim(typ, vols, np.array([0.5, 0.5]), 0.0)) < 8
     # one type: nothing to trim whatever the target
     assert mix_trim(np.zeros(5, int), np.array([1.0]), np.array([1.0]), 0.0).tolist() == []
