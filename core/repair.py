@@ -29,6 +29,11 @@ SHORTFALL_STEP = 1.0
 #: ... plus this fraction of the clearance, so a shortfall the solver reproduces exactly is
 #: still cleared
 SHORTFALL_EXTRA = 0.02
+#: the removals may leave the mix's TVD this far above the mix tolerance (or the
+#: placement's own TVD) before objects are removed for the mix alone: with the default
+#: tolerance (0.04) that is the 0.05 a packing keeps; trimming down to the tolerance cost
+#: the Armadillo 1-2 points (docs/notes-core.md)
+MIX_SLACK = 0.01
 
 
 def shortfalls(rep: CertifyReport, idx: np.ndarray) -> dict[int, float]:
@@ -52,9 +57,10 @@ def certify_and_repair(solver: Solver, certifier: Certifier, clearance: float,
     `options.rounds` rounds and, when `timed` (the run has a time budget),
     `options.seconds` from the first push (a first certification of detailed meshes can
     take longer than that); remove what still fails, minding the type mix (`shares`, (T,)
-    summing to 1): the removals do not leave the mix's TVD above `max_tvd` or the
-    placement's own, whichever is larger (`offenders_kept`, `mix_trim`). Mutates the
-    solver's state. Returns (the final certificate as a dict, repair statistics)."""
+    summing to 1): the removals do not leave the mix's TVD more than MIX_SLACK above
+    `max_tvd` or the placement's own, whichever is larger (`offenders_kept`, `mix_trim`).
+    Mutates the solver's state. Returns (the final certificate as a dict, repair
+    statistics)."""
     s = solver.s
     stats = RepairStats()
     # removals may not leave the mix worse than this (the tolerance, or the placement's mix)
@@ -117,30 +123,34 @@ def _removed(stats: RepairStats, counts: tuple[int, int]) -> None:
 def remove_offenders(solver: Solver, idx: np.ndarray, rep: CertifyReport,
                      shares: np.ndarray | None = None, max_tvd: float = 0.0
                      ) -> tuple[int, int]:
-    """Remove what `removals` drops from the alive objects; idx maps the report's object
-    indices to the solver's. Removing never makes a certified packing fail, and the caller
-    certifies again. Returns (offenders removed, objects removed for the mix)."""
+    """Remove what `removals` drops from the alive objects (trimming the mix down to
+    max_tvd + MIX_SLACK); idx maps the report's object indices to the solver's. Removing
+    never makes a certified packing fail, and the caller certifies again. Returns
+    (offenders removed, objects removed for the mix)."""
     s = solver.s
     alive = s.alive[idx].astype(bool)
     keep, for_mix = removals(s.typ[idx], solver.t.volume, rep.bad_pairs, rep.bad_wall,
-                             shares, max_tvd, alive=alive)
+                             shares, max_tvd, max_tvd + MIX_SLACK, alive=alive)
     s.alive[idx[alive & ~keep]] = 0
     return int((alive & ~keep).sum()) - for_mix, for_mix
 
 
 def removals(typ: np.ndarray, volumes: np.ndarray, bad_pairs: Sequence[tuple[int, int]],
              bad_wall: Sequence[int], shares: np.ndarray | None = None, max_tvd: float = 0.0,
-             *, alive: np.ndarray | None = None) -> tuple[np.ndarray, int]:
-    """The objects (N,) kept when a certificate's offenders are removed (`offenders_kept`)
-    and then, with `shares`, those `mix_trim` picks to bring the mix's TVD back to
-    `max_tvd` (no more than the offenders); and how many of the removed went for the mix."""
+             trim_to: float | None = None, *, alive: np.ndarray | None = None
+             ) -> tuple[np.ndarray, int]:
+    """The objects (N,) kept when a certificate's offenders are removed (`offenders_kept`,
+    whose pair choice minds `max_tvd`) and then, with `shares`, those `mix_trim` picks to
+    bring the mix's TVD back to `trim_to` (default max_tvd; no more objects than the
+    offenders); and how many of the removed went for the mix."""
     keep = offenders_kept(typ, volumes, bad_pairs, bad_wall, shares, max_tvd, alive=alive)
     before = np.ones(len(typ), bool) if alive is None else alive.astype(bool)
     offenders = int((before & ~keep).sum())
     if shares is None or offenders == 0:
         return keep, 0
     left = np.flatnonzero(keep)
-    trim = left[mix_trim(typ[left], volumes, shares, max_tvd, most=offenders)]
+    trim = left[mix_trim(typ[left], volumes, shares,
+                         max_tvd if trim_to is None else trim_to, most=offenders)]
     keep[trim] = False
     return keep, len(trim)
 
