@@ -17,7 +17,8 @@ the solver measures a gap from the other object to a type's surface points, and 
 those points the surface comes closer (with every vertex as a surface point no pair was
 too close; docs/notes-core.md). So with a clearance each type's margin also covers half
 that sampling gap (`sampling_gap`; a pair is tested from both sides, and the better side
-misses at most the mean of the two).
+misses at most the mean of the two). The wall is tested from the object's side only, so
+the wall margin holds the other half (of the largest type's gap).
 """
 
 from __future__ import annotations
@@ -110,7 +111,8 @@ def contact_margins(types: list, container_grid: DistanceGrid, container_vertice
     error, with a clearance as without: the sharp ones throughout with a clearance cost
     density and time, and the repair now pushes a gap that falls short apart by its
     shortfall (docs/notes-core.md). With a clearance each type's margin also holds half
-    its `sampling_gap` at that clearance (container units, recorded as sampling_gaps).
+    its `sampling_gap` at that clearance (container units, recorded as sampling_gaps), and
+    the wall's margin half the largest of them.
     """
     errors = [surface_error(t.grid, t.vertices, t.faces, solid=True) for t in types]
     all_smooth = all(e <= SMOOTH_ERROR for e in errors)
@@ -119,13 +121,15 @@ def contact_margins(types: list, container_grid: DistanceGrid, container_vertice
                                solid=False)
     wall_cells = wall_smooth if wall_error <= SMOOTH_ERROR else wall_sharp
     objects = np.array([c * t.grid.spacing for c, t in zip(cells, types, strict=True)])
+    wall = wall_cells * container_grid.spacing
     gaps = None
     if clearance > 0:
         probe = min(t.equivalent_radius for t in types)
         gaps = [sampling_gap(t.grid, t.vertices, t.faces, t.surface_points, probe, clearance)
                 for t in types]
         objects = objects + 0.5 * np.array(gaps)
+        wall += 0.5 * max(gaps)
     return Margins(
-        objects=objects, wall=wall_cells * container_grid.spacing, object_cells=cells,
+        objects=objects, wall=wall, object_cells=cells,
         wall_cells=wall_cells, object_errors=errors, wall_error=wall_error,
         sampling_gaps=gaps)

@@ -66,6 +66,8 @@ def test_smooth_types_keep_the_small_margin_a_sharp_one_gives_all_the_large():
     assert m.sampling_gaps == pytest.approx([gap]) and gap > 0
     assert m.objects == pytest.approx([0.025 * sphere.grid.spacing + 0.5 * gap])
     assert m.report().sampling_gaps == m.sampling_gaps
+    # the wall is tested from the object's side only: it keeps the other half
+    assert m.wall == pytest.approx(0.05 * cont.grid.spacing + 0.5 * gap)
 
 
 def test_sampling_gap_shrinks_as_surface_points_get_denser():
