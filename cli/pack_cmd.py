@@ -21,6 +21,7 @@ from jampacked.core.api import pack
 from jampacked.core.numba_cache import compile_hint
 from jampacked.core.options import CavityPassOptions, PackOptions
 from jampacked.core.packing import save_packing
+from jampacked.core.repair import MIX_SLACK
 
 PACK_EPILOG = """\
 shares:
@@ -101,7 +102,8 @@ def add_pack_parser(sub: argparse._SubParsersAction) -> None:
              "to 1) for the late passes to add an object to a small hole; the types a mix "
              "lacks late are often big ones that no longer fit, so a tight mix can leave "
              f"holes unfilled (default: {CavityPassOptions().max_tvd:g}; 0 keeps the mix as "
-             "close as the count allows)")
+             "close as the count allows). Objects certification removes leave the mix within "
+             f"{MIX_SLACK:g} of it (or of the placement's mix, if that is further off)")
     p.add_argument(
         "--seed", type=seed, default=0, metavar="N",
         help="random seed; the same inputs and seed give the same packing (default: 0)")
