@@ -14,7 +14,8 @@ def pytest_report_header(config) -> str:
 
 
 #: marks the test that compiles the engine from an empty numba cache: it runs first, so on
-#: a fresh checkout its compile is the suite's only one (see tests/core/test_api.py)
+#: a fresh checkout the placement kernels it compiles are loaded, not compiled again, by
+#: the rest of the suite (see tests/core/test_api.py)
 FIRST_RUN = "first_run"
 
 
