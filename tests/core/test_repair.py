@@ -40,34 +40,48 @@ def test_with_a_budget_the_repair_keeps_its_time_cap():
     assert p.report.repair.timed_out and p.certificate["certified"]
 
 
-def _jammed_pair(c: float, gap: float, slack: float):
-    """Two balls (radius 5, as icospheres) side by side along x in a box with `slack` room
-    along x beyond a clearance c to each other and to the walls, placed `gap` apart
-    (container units); returns (solver, certifier)."""
+def _ball_types(radii):
+    """One type per radius: a ball as an icosphere, equal shares."""
+    import trimesh
+
+    from jampacked.core.objects import build_type
+
+    return [build_type(f"ball{r:g}", b.vertices, b.faces, path=None, sha256=None,
+                       share=1.0 / len(radii), fidelity="medium", use_cache=False)
+            for r, b in ((r, trimesh.creation.icosphere(subdivisions=3, radius=r))
+                         for r in radii)]
+
+
+def _ball_scene(types, placed, extents, clearance: float = 0.0):
+    """`types` at `placed`, a list of (type, x, y) (z = 0, unrotated, full size), in a box of
+    `extents` centred on the origin; returns (solver, certifier)."""
     import trimesh
 
     from jampacked.core.certify import Certifier
     from jampacked.core.container import build_container
-    from jampacked.core.objects import build_type
     from jampacked.core.solver import PackState, Solver, SolverParams, TypeTable
 
-    ball = trimesh.creation.icosphere(subdivisions=3, radius=5.0)
-    typ = build_type("ball", ball.vertices, ball.faces, path=None, sha256=None, share=1.0,
-                     fidelity="medium", use_cache=False)
-    r = float(np.linalg.norm(typ.vertices, axis=1).max())
-    size = np.array([4 * r + 3 * c + slack, 6 * r, 6 * r])  # tight along x only
-    box = trimesh.creation.box(size)
-    cont = build_container(np.asarray(box.vertices), np.asarray(box.faces), box.volume,
-                           1.0)
+    box = trimesh.creation.box(extents=extents)
+    cont = build_container(np.asarray(box.vertices), np.asarray(box.faces), box.volume, 1.0)
     state = PackState()
-    x = r + 0.5 * gap
-    for sign in (-1.0, 1.0):
-        state.add(0, np.array([sign * x, 0.0, 0.0]), np.array([1.0, 0.0, 0.0, 0.0]), 1.0,
-                  0.0)
-    solver = Solver(cont, TypeTable([typ]), state, SolverParams(clearance=c, tol=1e-9))
-    cert = Certifier(cont, [typ.vertices], [typ.faces], np.array([typ.volume]),
-                     np.array([typ.max_edge]))
+    for t, x, y in placed:
+        state.add(t, np.array([x, y, 0.0]), np.array([1.0, 0.0, 0.0, 0.0]), 1.0, 0.0)
+    solver = Solver(cont, TypeTable(types), state,
+                    SolverParams(clearance=clearance, tol=1e-9))
+    cert = Certifier(cont, [t.vertices for t in types], [t.faces for t in types],
+                     np.array([t.volume for t in types]), np.array([t.max_edge for t in types]))
     return solver, cert
+
+
+def _jammed_pair(c: float, gap: float, slack: float):
+    """Two balls (radius 5, as icospheres) side by side along x in a box with `slack` room
+    along x beyond a clearance c to each other and to the walls, placed `gap` apart
+    (container units); returns (solver, certifier)."""
+    types = _ball_types((5.0,))
+    r = float(np.linalg.norm(types[0].vertices, axis=1).max())
+    size = (4 * r + 3 * c + slack, 6 * r, 6 * r)  # tight along x only
+    x = r + 0.5 * gap
+    return _ball_scene(types, [(0, -x, 0.0), (0, x, 0.0)], size, c)
 
 
 def test_a_gap_short_of_the_clearance_is_pushed_apart_by_its_shortfall():
@@ -123,28 +137,8 @@ def test_the_time_cap_counts_from_the_first_push_not_from_the_first_certificatio
 
 def _balls(placed, extents):
     """Small balls (type 0, radius 3) and big ones (type 1, radius 5) at `placed`, a list of
-    (type, x, y) (z = 0), in a box of `extents` centred on the origin; returns (solver,
-    certifier)."""
-    import trimesh
-
-    from jampacked.core.certify import Certifier
-    from jampacked.core.container import build_container
-    from jampacked.core.objects import build_type
-    from jampacked.core.solver import PackState, Solver, SolverParams, TypeTable
-
-    types = [build_type(f"ball{r:g}", b.vertices, b.faces, path=None, sha256=None, share=0.5,
-                        fidelity="medium", use_cache=False)
-             for r, b in ((3.0, trimesh.creation.icosphere(subdivisions=3, radius=3.0)),
-                          (5.0, trimesh.creation.icosphere(subdivisions=3, radius=5.0)))]
-    box = trimesh.creation.box(extents=extents)
-    cont = build_container(np.asarray(box.vertices), np.asarray(box.faces), box.volume, 1.0)
-    state = PackState()
-    for t, x, y in placed:
-        state.add(t, np.array([x, y, 0.0]), np.array([1.0, 0.0, 0.0, 0.0]), 1.0, 0.0)
-    solver = Solver(cont, TypeTable(types), state, SolverParams(tol=1e-9))
-    cert = Certifier(cont, [t.vertices for t in types], [t.faces for t in types],
-                     np.array([t.volume for t in types]), np.array([t.max_edge for t in types]))
-    return solver, cert
+    (type, x, y), in a box of `extents`; returns (solver, certifier)."""
+    return _ball_scene(_ball_types((3.0, 5.0)), placed, extents)
 
 
 def _overlapping_pairs(n: int):
