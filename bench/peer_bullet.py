@@ -56,9 +56,8 @@ from pathlib import Path
 
 import numpy as np
 
-from jampacked.core.metrics import tvd
 from jampacked.core.options import CavityPassOptions
-from jampacked.core.repair import MIX_SLACK, removals
+from jampacked.core.repair import mix_target, removals
 
 ROOT = Path(__file__).resolve().parents[1]
 RESULTS = ROOT / "bench" / "results"
@@ -304,8 +303,7 @@ def certify_placements(geom: Geometry, certifier, typ: np.ndarray, matrices: np.
     wall_ratios = [float(outside[idx[i]]) for i in rep.bad_wall]
     # removed as pack() removes them: minding the mix, not below its tolerance or the mix
     # the placement had
-    cap = max(CavityPassOptions().max_tvd, tvd(typ[idx], geom.shares))
-    mix = (geom.shares, cap, cap + MIX_SLACK)
+    mix = (geom.shares, mix_target(typ[idx], geom.shares, CavityPassOptions().max_tvd))
     kept = idx[removals(typ[idx], vols, rep.bad_pairs, rep.bad_wall, *mix)[0]]
     while True:  # removal only removes violations; re-check until certified, as pack() does
         final = certifier.certify(typ[kept], matrices[kept], 0.0, tol)

@@ -63,9 +63,7 @@ def certify_and_repair(solver: Solver, certifier: Certifier, clearance: float,
     statistics)."""
     s = solver.s
     stats = RepairStats()
-    # removals may not leave the mix worse than this (the tolerance, or the placement's mix)
-    target = 0.0 if shares is None else max(max_tvd, tvd_of_counts(
-        np.bincount(s.typ[s.alive_indices()], minlength=len(shares)), shares))
+    target = 0.0 if shares is None else mix_target(s.typ[s.alive_indices()], shares, max_tvd)
     deadline = None  # from the first push: certifying is not push-apart work
     subset = None
     moved_ever: set[int] = set()
@@ -115,6 +113,12 @@ def certify_and_repair(solver: Solver, certifier: Certifier, clearance: float,
         _removed(stats, remove_offenders(solver, idx, final, shares, target))
 
 
+def mix_target(typ: np.ndarray, shares: np.ndarray, max_tvd: float) -> float:
+    """The TVD the removals may not make worse (they may add MIX_SLACK to it): the mix
+    tolerance, or the placed objects' own TVD (typ (N,), shares (T,)) where that is larger."""
+    return max(max_tvd, tvd_of_counts(np.bincount(typ, minlength=len(shares)), shares))
+
+
 def _removed(stats: RepairStats, counts: tuple[int, int]) -> None:
     stats.removed += counts[0] + counts[1]
     stats.for_mix += counts[1]
@@ -123,34 +127,31 @@ def _removed(stats: RepairStats, counts: tuple[int, int]) -> None:
 def remove_offenders(solver: Solver, idx: np.ndarray, rep: CertifyReport,
                      shares: np.ndarray | None = None, max_tvd: float = 0.0
                      ) -> tuple[int, int]:
-    """Remove what `removals` drops from the alive objects (trimming the mix down to
-    max_tvd + MIX_SLACK); idx maps the report's object indices to the solver's. Removing
-    never makes a certified packing fail, and the caller certifies again. Returns
-    (offenders removed, objects removed for the mix)."""
+    """Remove what `removals` drops from the alive objects; idx maps the report's object
+    indices to the solver's. Removing never makes a certified packing fail, and the caller
+    certifies again. Returns (offenders removed, objects removed for the mix)."""
     s = solver.s
     alive = s.alive[idx].astype(bool)
     keep, for_mix = removals(s.typ[idx], solver.t.volume, rep.bad_pairs, rep.bad_wall,
-                             shares, max_tvd, max_tvd + MIX_SLACK, alive=alive)
+                             shares, max_tvd, alive=alive)
     s.alive[idx[alive & ~keep]] = 0
     return int((alive & ~keep).sum()) - for_mix, for_mix
 
 
 def removals(typ: np.ndarray, volumes: np.ndarray, bad_pairs: Sequence[tuple[int, int]],
              bad_wall: Sequence[int], shares: np.ndarray | None = None, max_tvd: float = 0.0,
-             trim_to: float | None = None, *, alive: np.ndarray | None = None
-             ) -> tuple[np.ndarray, int]:
+             *, alive: np.ndarray | None = None) -> tuple[np.ndarray, int]:
     """The objects (N,) kept when a certificate's offenders are removed (`offenders_kept`,
-    whose pair choice minds `max_tvd`) and then, with `shares`, those `mix_trim` picks to
-    bring the mix's TVD back to `trim_to` (default max_tvd; no more objects than the
-    offenders); and how many of the removed went for the mix."""
+    whose pair choice minds `max_tvd`: see `mix_target`) and then, with `shares`, those
+    `mix_trim` picks to bring the mix's TVD back to max_tvd + MIX_SLACK (no more objects
+    than the offenders); and how many of the removed went for the mix."""
     keep = offenders_kept(typ, volumes, bad_pairs, bad_wall, shares, max_tvd, alive=alive)
     before = np.ones(len(typ), bool) if alive is None else alive.astype(bool)
     offenders = int((before & ~keep).sum())
     if shares is None or offenders == 0:
         return keep, 0
     left = np.flatnonzero(keep)
-    trim = left[mix_trim(typ[left], volumes, shares,
-                         max_tvd if trim_to is None else trim_to, most=offenders)]
+    trim = left[mix_trim(typ[left], volumes, shares, max_tvd + MIX_SLACK, most=offenders)]
     keep[trim] = False
     return keep, len(trim)
 
@@ -176,12 +177,6 @@ def offenders_kept(typ: np.ndarray, volumes: np.ndarray,
         keep[k] = False
         counts[typ[k]] -= 1
 
-    def tvd_without(k: int) -> float:
-        counts[typ[k]] -= 1
-        out = tvd_of_counts(counts, shares)
-        counts[typ[k]] += 1
-        return out
-
     for i in bad_wall:
         if keep[i]:
             drop(i)
@@ -190,8 +185,8 @@ def offenders_kept(typ: np.ndarray, volumes: np.ndarray,
             continue
         small, big = (j, i) if volumes[typ[j]] <= volumes[typ[i]] else (i, j)
         if shares is not None and typ[small] != typ[big]:
-            t_small = tvd_without(small)
-            if t_small > max_tvd and tvd_without(big) < t_small:
+            t_small = _tvd_one_fewer(counts, shares, typ[small])
+            if t_small > max_tvd and _tvd_one_fewer(counts, shares, typ[big]) < t_small:
                 small = big
         drop(small)
     return keep
@@ -222,9 +217,7 @@ def mix_trim(typ: np.ndarray, volumes: np.ndarray, shares: np.ndarray, target: f
         for t in np.argsort(volumes, kind="stable"):
             if counts[t] == 0:
                 continue
-            counts[t] -= 1
-            after = tvd_of_counts(counts, shares)
-            counts[t] += 1
+            after = _tvd_one_fewer(counts, shares, t)
             if after < best - 1e-12:
                 best, best_t = after, int(t)
         if best_t < 0:
@@ -233,3 +226,10 @@ def mix_trim(typ: np.ndarray, volumes: np.ndarray, shares: np.ndarray, target: f
         counts[best_t] -= 1
         now = best
     return np.array(sorted(out), np.int64)
+
+
+def _tvd_one_fewer(counts: np.ndarray, shares: np.ndarray, t: int) -> float:
+    """The TVD of `counts` (T,) with one object of type t fewer."""
+    fewer = counts.copy()
+    fewer[t] -= 1
+    return tvd_of_counts(fewer, shares)
