@@ -6,7 +6,8 @@ c > 0, every pair's and every object-wall minimum gap is at least c. The report 
 worst values, not only a flag. Frames: container frame, container units.
 
 Which checks run: every pair whose axis-aligned bounds (grown by c) touch gets an exact
-boolean intersection (and a min_gap with c > 0). Every object gets the exact volume outside
+boolean intersection, or with c > 0 a min_gap first and the boolean only where the gap falls
+short (a gap of c > 0 proves the two apart). Every object gets the exact volume outside
 the container, except objects the container's distance grid proves deep inside: all its
 vertices at depth >= c + its longest edge + the grid's interpolation error (every surface
 point of a triangle lies within an edge length of a vertex, so the surface then cannot reach
@@ -25,8 +26,13 @@ from .kernels import sample_grid_many
 from .solids import outside_of, to_solid
 
 DEFAULT_TOL = 1e-4
+#: triangles of placed solids one certification keeps for its next checks
+KEPT_FACES = 2_000_000
 #: vertices placed at once when bounding and depth-testing objects
 CHUNK_VERTICES = 1 << 20
+#: min_gap's search distance over the clearance: gaps beyond it read as this much, and
+#: manifold3d's cost grows steeply with it (docs/notes-core.md)
+GAP_SEARCH = 1.25
 
 
 @dataclass
@@ -80,6 +86,7 @@ class Certifier:
         self.types = [to_solid(v, f, double=False)
                       for v, f in zip(type_vertices, type_faces, strict=True)]
         self.vertices = type_vertices
+        self.faces = np.array([len(f) for f in type_faces], np.int64)
         self.volumes = np.asarray(type_volumes, np.float64)
         self.max_edge = np.asarray(type_max_edge, np.float64)
 
@@ -94,11 +101,7 @@ class Certifier:
         vol = self.volumes[typ] if n else np.zeros(0)
         check = np.ones(n, bool) if subset is None else np.isin(np.arange(n), subset)
 
-        def solid(i: int):
-            # made where a check needs it and dropped after: a transformed manifold holds
-            # its own mesh once evaluated, and holding every object's would grow memory by
-            # a mesh per object
-            return self.types[typ[i]].transform(matrices[i, :3, :4].tolist())
+        solid = _PlacedSolids(self.types, self.faces, typ, matrices)
 
         rep = CertifyReport(True, tol, clearance, 0.0, None, 0.0, None,
                             None, None)
@@ -107,26 +110,28 @@ class Certifier:
             centre = (lo + hi) / 2
             half = (hi - lo) / 2
             reach = 2 * float(np.linalg.norm(half, axis=1).max()) + clearance
-            for i, j in cKDTree(centre).query_pairs(reach, output_type="ndarray"):
+            tree = cKDTree(centre)
+            for i, j in _near_first(tree, tree.query_pairs(reach, output_type="ndarray")):
                 if not (check[i] or check[j]):
                     continue
                 if np.any(lo[i] > hi[j] + clearance) or np.any(lo[j] > hi[i] + clearance):
                     continue
                 rep.pairs_checked += 1
                 oi, oj = solid(i), solid(j)
-                inter = (oi ^ oj).volume()
-                ratio = inter / min(vol[i], vol[j])
-                bad = ratio > tol
-                if ratio > rep.worst_overlap:
-                    rep.worst_overlap = ratio
-                    rep.worst_overlap_pair = (int(i), int(j))
+                bad = False
                 if clearance > 0:
-                    gap = oi.min_gap(oj, 2.0 * clearance)
+                    gap = oi.min_gap(oj, GAP_SEARCH * clearance)
                     rep.min_pair_gap = gap if rep.min_pair_gap is None else min(
                         rep.min_pair_gap, gap)
                     if gap < clearance * (1 - 1e-6):
                         bad = True
                         rep.pair_shortfall[(int(i), int(j))] = clearance - gap
+                if clearance <= 0 or bad:  # a gap of at least c > 0: no intersection
+                    ratio = (oi ^ oj).volume() / min(vol[i], vol[j])
+                    bad = bad or ratio > tol
+                    if ratio > rep.worst_overlap:
+                        rep.worst_overlap = ratio
+                        rep.worst_overlap_pair = (int(i), int(j))
                 if bad:
                     rep.bad_pairs.append((int(i), int(j)))
         # --- wall
@@ -137,19 +142,20 @@ class Certifier:
                 continue
             rep.walls_checked += 1
             oi = solid(i)
-            out = oi ^ self.outside
-            ratio = out.volume() / vol[i]
-            bad = ratio > tol
-            if ratio > rep.worst_outside:
-                rep.worst_outside = ratio
-                rep.worst_outside_object = int(i)
+            bad = False
             if clearance > 0:
-                gap = oi.min_gap(self.outside, 2.0 * clearance)
+                gap = oi.min_gap(self.outside, GAP_SEARCH * clearance)
                 rep.min_wall_gap = gap if rep.min_wall_gap is None else min(
                     rep.min_wall_gap, gap)
                 if gap < clearance * (1 - 1e-6):
                     bad = True
                     rep.wall_shortfall[int(i)] = clearance - gap
+            if clearance <= 0 or bad:
+                ratio = (oi ^ self.outside).volume() / vol[i]
+                bad = bad or ratio > tol
+                if ratio > rep.worst_outside:
+                    rep.worst_outside = ratio
+                    rep.worst_outside_object = int(i)
             if bad:
                 rep.bad_wall.append(int(i))
         rep.certified = not rep.bad_pairs and not rep.bad_wall
@@ -176,3 +182,37 @@ class Certifier:
                 d = sample_grid_many(g.values, g.origin, g.spacing, world.reshape(-1, 3))
                 depth[part] = d.reshape(len(part), -1).min(axis=1)
         return lo, hi, depth
+
+
+def _near_first(tree: cKDTree, pairs: np.ndarray) -> np.ndarray:
+    """The pairs (E, 2) in the k-d tree's leaf order of their objects, so that consecutive
+    checks share objects and a kept solid serves the next ones."""
+    rank = np.empty(len(tree.indices), np.int64)
+    rank[tree.indices] = np.arange(len(tree.indices))
+    r = np.sort(rank[pairs], axis=1) if len(pairs) else rank[pairs]
+    return pairs[np.lexsort((r[:, 1], r[:, 0]))] if len(pairs) else pairs
+
+
+class _PlacedSolids:
+    """Object i's solid in the container frame, made when a check needs it and kept while
+    the kept ones hold at most KEPT_FACES triangles, least recently used out first: making
+    (transforming) a solid costs several times a gap query with it, and holding every
+    object's would grow memory by a mesh per object."""
+
+    def __init__(self, types: list, faces: np.ndarray, typ: np.ndarray, matrices: np.ndarray):
+        self.types, self.faces, self.typ, self.matrices = types, faces, typ, matrices
+        self.kept: dict[int, object] = {}  # insertion order is use order
+        self.kept_faces = 0
+
+    def __call__(self, i: int):
+        i = int(i)
+        got = self.kept.pop(i, None)
+        if got is None:
+            got = self.types[self.typ[i]].transform(self.matrices[i, :3, :4].tolist())
+            self.kept_faces += int(self.faces[self.typ[i]])
+            while self.kept and self.kept_faces > KEPT_FACES:
+                old = next(iter(self.kept))
+                del self.kept[old]
+                self.kept_faces -= int(self.faces[self.typ[old]])
+        self.kept[i] = got
+        return got

@@ -72,3 +72,83 @@ def test_certify_finds_overlaps_and_objects_through_the_wall(certifier):
     # with a subset, only checks involving it run
     rep = certifier.certify(typ, m2, subset=np.array([5]))
     assert rep.bad_pairs == [] and rep.bad_wall == [5]
+
+
+def _reference(certifier, typ, m, clearance):
+    """Every pair and wall, each solid made afresh, every boolean run and min_gap searched to
+    twice the clearance (the checks before solids were kept and booleans skipped)."""
+    solids = [certifier.types[t].transform(m[i, :3, :4].tolist()) for i, t in enumerate(typ)]
+    vol = certifier.volumes[typ]
+    pairs, overlap, gaps = set(), 0.0, []
+    for i in range(len(typ)):
+        for j in range(i + 1, len(typ)):
+            ratio = (solids[i] ^ solids[j]).volume() / min(vol[i], vol[j])
+            gap = solids[i].min_gap(solids[j], 2 * clearance)
+            overlap = max(overlap, ratio)
+            gaps.append(gap)
+            if ratio > certify.DEFAULT_TOL or gap < clearance * (1 - 1e-6):
+                pairs.add((i, j))
+    walls = {i for i, s in enumerate(solids)
+             if (s ^ certifier.outside).volume() / vol[i] > certify.DEFAULT_TOL
+             or s.min_gap(certifier.outside, 2 * clearance) < clearance * (1 - 1e-6)}
+    return pairs, walls, overlap, min(gaps)
+
+
+def _clearance_scene():
+    """Separated objects, two at gaps just under and over the clearance, an overlapping pair
+    and one object through the wall (clearance 0.5)."""
+    rng = np.random.default_rng(11)
+    pos = np.array([[x, y, z] for x in (-9.0, 0.0, 9.0) for y in (-9.0, 0.0, 9.0)
+                    for z in (-8.0, 8.0)])
+    typ = np.arange(len(pos)) % 2
+    typ[[2, 3, 6, 7]] = 1  # icospheres: a gap along x is their centre distance less 2r
+    m = _matrices(rng, pos)
+    r = 1.5  # the icosphere's vertices
+    m[3, :3, 3] = m[2, :3, 3] + [2 * r + 0.3, 0.0, 0.0]  # 0.3 < 0.5: a gap short
+    m[7, :3, 3] = m[6, :3, 3] + [2 * r + 0.55, 0.0, 0.0]  # 0.55: kept
+    m[1, :3, 3] = m[0, :3, 3] + [0.5, 0.0, 0.0]  # overlapping
+    m[5, :3, 3] = [14.5, 0.0, 0.0]  # through the wall
+    return typ, m
+
+
+@pytest.mark.parametrize("kept_faces", [certify.KEPT_FACES, 0])  # solids kept, or remade
+def test_clearance_checks_match_the_every_boolean_reference(certifier, monkeypatch,
+                                                            kept_faces):
+    monkeypatch.setattr(certify, "KEPT_FACES", kept_faces)
+    typ, m = _clearance_scene()
+    pairs, walls, overlap, gap = _reference(certifier, typ, m, 0.5)
+    rep = certifier.certify(typ, m, clearance=0.5)
+    assert set(rep.bad_pairs) == pairs and set(rep.bad_wall) == walls
+    assert {(0, 1), (2, 3)} <= pairs and (6, 7) not in pairs and 5 in walls
+    # the booleans skipped were of pairs a gap proves apart: the worst overlap is the same
+    assert rep.worst_overlap == pytest.approx(overlap, rel=1e-9) and overlap > 0.1
+    assert rep.worst_outside > 0.1
+    assert rep.min_pair_gap == pytest.approx(gap, abs=1e-9)
+    assert 0.0 < rep.pair_shortfall[(2, 3)] <= 0.2 + 1e-9  # facets lie inside r
+
+
+def test_near_first_orders_every_pair_once():
+    rng = np.random.default_rng(3)
+    centre = rng.uniform(0, 50, (300, 3))
+    tree = certify.cKDTree(centre)
+    pairs = tree.query_pairs(6.0, output_type="ndarray")
+    got = certify._near_first(tree, pairs)
+    assert sorted(map(tuple, got)) == sorted(map(tuple, pairs))
+    assert certify._near_first(tree, pairs[:0]).shape == (0, 2)
+
+
+def test_placed_solids_stay_within_the_face_budget_and_match_fresh_ones(certifier,
+                                                                       monkeypatch):
+    faces = certifier.faces
+    monkeypatch.setattr(certify, "KEPT_FACES", int(3 * faces.max()))
+    rng = np.random.default_rng(5)
+    typ = rng.integers(0, 2, 12)
+    m = _matrices(rng, rng.uniform(-10, 10, (12, 3)))
+    solids = certify._PlacedSolids(certifier.types, faces, typ, m)
+    for i in rng.integers(0, 12, 60):
+        s = solids(i)
+        fresh = certifier.types[typ[i]].transform(m[i, :3, :4].tolist())
+        assert (s ^ fresh).volume() == pytest.approx(s.volume(), rel=1e-9)
+        assert solids.kept_faces == sum(faces[typ[k]] for k in solids.kept)
+        assert solids.kept_faces <= certify.KEPT_FACES and int(i) in solids.kept
+    assert 1 < len(solids.kept) <= 3
