@@ -27,7 +27,7 @@ from .solids import outside_of, to_solid
 
 DEFAULT_TOL = 1e-4
 #: triangles of placed solids one certification keeps for its next checks
-KEPT_FACES = 2_000_000
+KEPT_FACES = 500_000
 #: vertices placed at once when bounding and depth-testing objects
 CHUNK_VERTICES = 1 << 20
 #: min_gap's search distance over the clearance: gaps beyond it read as this much, and
