@@ -83,6 +83,8 @@ class Certifier:
         self.container = container
         # intersections with it are volume outside, and min_gap to it is the wall gap
         self.outside = outside_of(container.vertices, container.faces, double=False)
+        # an object wholly beyond this box misses `outside` too: it is outside entirely
+        self.outside_box = np.asarray(self.outside.bounding_box(), np.float64).reshape(2, 3)
         self.types = [to_solid(v, f, double=False)
                       for v, f in zip(type_vertices, type_faces, strict=True)]
         self.vertices = type_vertices
@@ -141,6 +143,13 @@ class Certifier:
             if depth[i] >= clearance + self.max_edge[typ[i]] + grid_err:
                 continue
             rep.walls_checked += 1
+            if np.any(hi[i] < self.outside_box[0]) or np.any(lo[i] > self.outside_box[1]):
+                rep.worst_outside = 1.0
+                rep.worst_outside_object = int(i)
+                rep.bad_wall.append(int(i))
+                if clearance > 0:
+                    rep.wall_shortfall[int(i)] = clearance
+                continue
             oi = solid(i)
             bad = False
             if clearance > 0:
@@ -187,10 +196,12 @@ class Certifier:
 def _near_first(tree: cKDTree, pairs: np.ndarray) -> np.ndarray:
     """The pairs (E, 2) in the k-d tree's leaf order of their objects, so that consecutive
     checks share objects and a kept solid serves the next ones."""
+    if len(pairs) == 0:
+        return pairs
     rank = np.empty(len(tree.indices), np.int64)
     rank[tree.indices] = np.arange(len(tree.indices))
-    r = np.sort(rank[pairs], axis=1) if len(pairs) else rank[pairs]
-    return pairs[np.lexsort((r[:, 1], r[:, 0]))] if len(pairs) else pairs
+    r = np.sort(rank[pairs], axis=1)
+    return pairs[np.lexsort((r[:, 1], r[:, 0]))]
 
 
 class _PlacedSolids:

@@ -152,3 +152,16 @@ def test_placed_solids_stay_within_the_face_budget_and_match_fresh_ones(certifie
         assert solids.kept_faces == sum(faces[typ[k]] for k in solids.kept)
         assert solids.kept_faces <= certify.KEPT_FACES and int(i) in solids.kept
     assert 1 < len(solids.kept) <= 3
+
+
+@pytest.mark.parametrize("clearance", [0.0, 0.5])
+def test_an_object_wholly_beyond_the_outside_solid_fails(certifier, clearance):
+    # the outside solid is a padded box minus the container: an object past the box misses
+    # it, so neither its boolean nor its gap sees the object as outside
+    rng = np.random.default_rng(9)
+    typ = np.array([0, 1])
+    m = _matrices(rng, np.array([[0.0, 0.0, 0.0], [200.0, 0.0, 0.0]]))
+    rep = certifier.certify(typ, m, clearance=clearance)
+    assert not rep.certified and rep.bad_wall == [1]
+    assert rep.worst_outside == 1.0 and rep.worst_outside_object == 1
+    assert rep.wall_shortfall == ({1: clearance} if clearance else {})
