@@ -206,9 +206,9 @@ def _near_first(tree: cKDTree, pairs: np.ndarray) -> np.ndarray:
 
 class _PlacedSolids:
     """Object i's solid in the container frame, made when a check needs it and kept while
-    the kept ones hold at most KEPT_FACES triangles, least recently used out first: making
-    (transforming) a solid costs several times a gap query with it, and holding every
-    object's would grow memory by a mesh per object."""
+    the kept ones hold at most KEPT_FACES triangles (the latest one always), least recently
+    used out first: making (transforming) a solid costs several times a gap query with it,
+    and holding every object's would grow memory by a mesh per object."""
 
     def __init__(self, types: list, faces: np.ndarray, typ: np.ndarray, matrices: np.ndarray):
         self.types, self.faces, self.typ, self.matrices = types, faces, typ, matrices
