@@ -88,7 +88,6 @@ class Certifier:
         self.types = [to_solid(v, f, double=False)
                       for v, f in zip(type_vertices, type_faces, strict=True)]
         self.vertices = type_vertices
-        self.faces = np.array([len(f) for f in type_faces], np.int64)
         self.volumes = np.asarray(type_volumes, np.float64)
         self.max_edge = np.asarray(type_max_edge, np.float64)
 
@@ -103,7 +102,7 @@ class Certifier:
         vol = self.volumes[typ] if n else np.zeros(0)
         check = np.ones(n, bool) if subset is None else np.isin(np.arange(n), subset)
 
-        solid = _PlacedSolids(self.types, self.faces, typ, matrices)
+        solid = _PlacedSolids(self.types, typ, matrices)
 
         rep = CertifyReport(True, tol, clearance, 0.0, None, 0.0, None,
                             None, None)
@@ -210,8 +209,9 @@ class _PlacedSolids:
     used out first: making (transforming) a solid costs several times a gap query with it,
     and holding every object's would grow memory by a mesh per object."""
 
-    def __init__(self, types: list, faces: np.ndarray, typ: np.ndarray, matrices: np.ndarray):
-        self.types, self.faces, self.typ, self.matrices = types, faces, typ, matrices
+    def __init__(self, types: list, typ: np.ndarray, matrices: np.ndarray):
+        self.types, self.typ, self.matrices = types, typ, matrices
+        self.faces = [s.num_tri() for s in types]
         self.kept: dict[int, object] = {}  # insertion order is use order
         self.kept_faces = 0
 
@@ -220,10 +220,10 @@ class _PlacedSolids:
         got = self.kept.pop(i, None)
         if got is None:
             got = self.types[self.typ[i]].transform(self.matrices[i, :3, :4].tolist())
-            self.kept_faces += int(self.faces[self.typ[i]])
+            self.kept_faces += self.faces[self.typ[i]]
             while self.kept and self.kept_faces > KEPT_FACES:
                 old = next(iter(self.kept))
                 del self.kept[old]
-                self.kept_faces -= int(self.faces[self.typ[old]])
+                self.kept_faces -= self.faces[self.typ[old]]
         self.kept[i] = got
         return got

@@ -139,12 +139,12 @@ def test_near_first_orders_every_pair_once():
 
 def test_placed_solids_stay_within_the_face_budget_and_match_fresh_ones(certifier,
                                                                        monkeypatch):
-    faces = certifier.faces
-    monkeypatch.setattr(certify, "KEPT_FACES", int(3 * faces.max()))
+    faces = [s.num_tri() for s in certifier.types]
+    monkeypatch.setattr(certify, "KEPT_FACES", 3 * max(faces))
     rng = np.random.default_rng(5)
     typ = rng.integers(0, 2, 12)
     m = _matrices(rng, rng.uniform(-10, 10, (12, 3)))
-    solids = certify._PlacedSolids(certifier.types, faces, typ, m)
+    solids = certify._PlacedSolids(certifier.types, typ, m)
     for i in rng.integers(0, 12, 60):
         s = solids(i)
         fresh = certifier.types[typ[i]].transform(m[i, :3, :4].tolist())
