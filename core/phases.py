@@ -38,7 +38,7 @@ def _counted_density(counts: np.ndarray, solver: Solver) -> float:
 
 
 def mix_cap(counts: np.ndarray, shares: np.ndarray, max_tvd: float) -> float:
-    """The largest TVD an extra-pass insertion may leave: max_tvd, or the current TVD (an
+    """The largest TVD a cavity insertion may leave: max_tvd, or the current TVD (an
     insertion may always improve the mix), or, with few objects, where one object moves
     the TVD by about 1/n, anything within one object of the best mix the next count allows.
     """
@@ -168,7 +168,7 @@ def phase1(solver: Solver, shares: np.ndarray, spacing: float, rng: np.random.Ge
 def phase2(solver: Solver, shares: np.ndarray, spacing: float, rng: np.random.Generator,
            stop: Stop, *, iters: int = 80, margin: np.ndarray, retries: int = 2,
            threshold: float | None = None, fit_factor: float = 1.0,
-           patience: int | None = None, max_tvd: float = 0.03,
+           patience: int | None = None, max_tvd: float = 0.04,
            growth_steps: int = GROWTH_STEPS, min_start: float = 0.0,
            progress: Callable[[float, str], None] | None = None) -> PhaseStats:
     """Fill cavities: at lattice points far enough from every object and the wall, insert
@@ -177,11 +177,12 @@ def phase2(solver: Solver, shares: np.ndarray, spacing: float, rng: np.random.Ge
     (f(Vbar) + f(Vmin)) / 2 unless `threshold` (container units) is given; a type fits
     where fit_factor * f(V) is below the distance (1 in the paper; < 1 lets an object start
     in a smaller hole and push its neighbours aside as it grows). With fit_factor < 1 the type
-    tried first is the fitting one the mix lacks most, not the largest, and no type is tried
-    that would push the type mix error above `max_tvd`. With `patience`, the pass ends after
-    that many candidate points in a row where nothing could be added. Objects grow in steps
-    of 1/growth_steps. A type is not tried where it would start below `min_start` of its
-    size (the scale its room allows: free radius less two margins, over bounding radius).
+    tried first is the fitting one the mix lacks most, not the largest. No type is tried
+    that would push the type mix error above `max_tvd` (`mix_cap`). With `patience`, the
+    pass ends after that many candidate points in a row where nothing could be added.
+    Objects grow in steps of 1/growth_steps. A type is not tried where it would start below
+    `min_start` of its size (the scale its room allows: free radius less two margins, over
+    bounding radius).
     """
     t0 = time.perf_counter()
     st = PhaseStats()
@@ -220,17 +221,18 @@ def phase2(solver: Solver, shares: np.ndarray, spacing: float, rng: np.random.Ge
         if not fits:
             continue
         misses += 1
+        # only types that keep the mix within max_tvd (or improve it): where the holes fit
+        # only a small type, filling each with it would leave the shares far behind
+        cap = mix_cap(counts, shares, max_tvd)
+        fits = [t for t in fits
+                if tvd_of_counts(counts + np.eye(len(shares))[t], shares) <= cap]
         if fit_factor < 1.0:
-            # extra passes: only types that keep the mix within max_tvd (or improve it),
-            # the one the mix lacks most first, larger first on ties
-            cap = mix_cap(counts, shares, max_tvd)
-            fits = [t for t in fits
-                    if tvd_of_counts(counts + np.eye(len(shares))[t], shares) <= cap]
+            # extra passes: the one the mix lacks most first, larger first on ties
             n_now = counts.sum() + 1.0
             need = sorted(fits, key=lambda t: (counts[t] - shares[t] * n_now, -f[t]))
             tries = need[: 1 + retries]
         else:
-            tries = [fits[0]]
+            tries = fits[:1]
             smaller = fits[1:]
             if smaller:
                 tries += list(rng.choice(smaller, size=min(retries, len(smaller)),

@@ -85,6 +85,7 @@ def place_once(solver: Solver, q: np.ndarray, s1: float, f_min: float,
     t1 = time.perf_counter()
     st2 = phase2(solver, q, s1 * ph.phase2_spacing, rng, stop,
                  iters=ph.phase2_iterations, margin=margin, retries=ph.phase2_retries,
+                 max_tvd=cav.max_tvd,
                  progress=lambda f, m: report(0.6 + 0.2 * f, m))
     after2 = snapshot_metrics(solver.s, vol, q, c_volume)
     t2 = time.perf_counter()

@@ -20,6 +20,8 @@ from testdata import MESHES, REPO, mesh_path
 from jampacked.core.api import pack
 from jampacked.core.errors import PackingError
 from jampacked.core.meshes import load_mesh, mesh_from_arrays
+from jampacked.core.metrics import best_tvd
+from jampacked.core.options import CavityPassOptions, PackOptions
 
 FRUIT = [str(mesh_path(f"fruit/ycb_lowpoly/{n}.obj")) for n in
          ("011_banana", "012_strawberry", "014_lemon", "015_peach", "017_orange")]
@@ -164,20 +166,48 @@ def test_one_type_fills_the_box():
     assert p.metrics["density"] > 0.25, p.metrics["density"]
 
 
+def _scaled_strawberry(ratio: float):
+    """The strawberry scaled so that the orange's equivalent radius is `ratio` times its."""
+    straw = load_mesh(STRAWBERRY)
+    k = (202.0e-6 / 48.0e-6) ** (1 / 3) / ratio  # f(orange) / f(strawberry) / ratio
+    return mesh_from_arrays(straw.vertices * k, straw.faces, name=f"strawberry/{ratio:g}")
+
+
+def _mix_bound(shares: np.ndarray, n: int, tolerance: float = 0.04) -> float:
+    """The TVD a packing of n objects may have: the tolerance, or with few objects one
+    object from the best mix n allows (`phases.mix_cap`)."""
+    return max(tolerance, best_tvd(shares, n) + 1.0 / n)
+
+
+def test_size_ratio_1_to_5_keeps_the_mix_through_the_cavity_fill():
+    """Equal shares of an orange (22 mm) and a strawberry a fifth of its size: the holes
+    between oranges fit only strawberries, and the paper's cavity fill (phase 2) put one in
+    each (TVD 0.28 in the stability map: 49 oranges, 174 strawberries). No insertion may
+    take the mix beyond the tolerance: phase 2 ends within it, and so does the packing."""
+    box = "box:50x50x50"
+    p = pack(box, [ORANGE, _scaled_strawberry(5.0)], type_scale=300.0, seed=1,
+             fidelity="low", options=PackOptions(cavity=CavityPassOptions(factors=())))
+    _assert_sane(p, box, min_objects=6)
+    shares = np.array([0.5, 0.5])
+    one, two = p.metrics["after_phase1"], p.metrics["after_phase2"]
+    assert two["count"] > one["count"]  # phase 2 filled holes: the check bites
+    assert two["tvd"] <= _mix_bound(shares, two["count"]) + 1e-9, two
+    assert p.metrics["tvd"] <= _mix_bound(shares, p.n) + 0.01, p.metrics
+
+
 def test_size_ratio_1_to_20_is_certified_with_both_types():
     """An orange (22 mm) and a strawberry scaled to a twentieth of its equivalent radius:
     the container grid is capped (220 cells across; a flat box keeps it small), the small
-    type still gets placed and certified. The type mix is not kept (the paper's phase 2
-    fills cavities with whatever fits: here the small type), so TVD is not asserted."""
-    straw = load_mesh(STRAWBERRY)
-    ratio = (202.0e-6 / 48.0e-6) ** (1 / 3) / 20.0  # f(orange) / f(strawberry) / 20
-    small = mesh_from_arrays(straw.vertices * ratio, straw.faces, name="strawberry/20")
+    type still gets placed and certified, and the mix stays within the tolerance (the
+    cavity fill once filled every hole with the small type)."""
+    small = _scaled_strawberry(20.0)
     box = "box:48x26x26"
     p = pack(box, [ORANGE, small], type_scale=300.0, seed=1, fidelity="low",
              time_budget=2.0)
     _assert_sane(p, box, min_objects=6)
     counts = np.bincount(p.type_index, minlength=2)
     assert counts.min() >= 2, counts
+    assert p.metrics["tvd"] <= _mix_bound(np.array([0.5, 0.5]), p.n) + 0.01, p.metrics
     v = [t.volume for t in p.types]
     assert 7000 < v[0] / v[1] < 9000  # 20^3 = 8000 by equivalent radius
 
