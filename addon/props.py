@@ -117,7 +117,7 @@ class JAMPACKED_PG_settings(bpy.types.PropertyGroup):
     mix_tolerance: FloatProperty(
         name="Mix Tolerance", default=0.04, min=0.0, max=1.0, precision=3, step=1,
         description="How far the type mix may drift from the shares (total variation "
-                    "distance) for the late passes to fill small holes: a tight mix can leave "
+                    "distance) for the cavity passes to fill small holes: a tight mix can leave "
                     "holes unfilled (0: the mix as close as the count allows)")
     time_budget: FloatProperty(
         name="Time Budget", default=60.0, min=0.0, soft_max=600.0, subtype='TIME_ABSOLUTE',

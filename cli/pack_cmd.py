@@ -99,7 +99,7 @@ def add_pack_parser(sub: argparse._SubParsersAction) -> None:
     p.add_argument(
         "--mix-tolerance", type=fraction, metavar="TVD",
         help="how far the type mix may drift from the shares (total variation distance, 0 "
-             "to 1) for the late passes to add an object to a small hole; the types a mix "
+             "to 1) for the cavity passes to add an object to a small hole; the types a mix "
              "lacks late are often big ones that no longer fit, so a tight mix can leave "
              f"holes unfilled (default: {CavityPassOptions().max_tvd:g}; 0 keeps the mix as "
              "close as the count allows). Objects certification removes leave the mix within "
