@@ -1,12 +1,14 @@
 """Growth: time and peak memory against the number of objects, per phase, on log-log axes.
 
-    python bench/growth.py [--counts 1000 3000 10000 30000 100000] [--method full|paper]
+    python bench/growth.py [--method full|paper] [--counts N ...] [--fit-from N]
 
 The scene: oranges and lemons (YCB low-poly, x100: 6-7 mm) in a cube whose side is chosen
 for about N objects, automatic fidelity, one attempt; above 1500 expected objects auto uses
 24 spheres per type instead of 64, which the chart labels. Each size is its own process with
 warm caches; its peak resident memory is recorded. Fits t = a * n^k per phase by least
-squares on the logs, over the runs with at least --fit-from objects.
+squares on the logs, over the runs with at least --fit-from objects. The default sizes and
+fit range are each method's (`DEFAULTS`): the whole method's extra passes grow as about
+n^1.7, so its 800-object cube already takes about 20 minutes here (docs/benchmarks.md).
 
 --method full (default): the whole method without a time budget, as a user runs it: phase 1,
 phase 2, the extra cavity passes and certification; writes bench/results/growth.json and
@@ -37,6 +39,9 @@ TYPE_SCALE = 100.0
 SIDE_60_COUNT = 646
 PHASES = {"full": ("approximate", "phase1", "phase2", "extra", "certify", "total"),
           "paper": ("approximate", "phase1", "phase2", "certify", "total")}
+#: per method: (default target counts, default --fit-from)
+DEFAULTS = {"full": ([100, 200, 400, 800], 100),
+            "paper": ([1000, 3000, 10000, 30000, 100000], 100)}
 COLORS = {"approximate": "tab:gray", "phase1": "tab:blue", "phase2": "tab:green",
           "extra": "tab:orange", "certify": "tab:purple", "total": "k"}
 
@@ -53,16 +58,22 @@ def fit(n: np.ndarray, t: np.ndarray) -> tuple[float, float] | None:
 def main(argv: list[str] | None = None) -> int:
     ap = argparse.ArgumentParser(description=__doc__.splitlines()[0])
     ap.add_argument("--counts", type=int, nargs="+",
-                    default=[1000, 3000, 10000, 30000, 100000])
+                    help="target object counts (default: full " +
+                         " ".join(map(str, DEFAULTS["full"][0])) + "; paper " +
+                         " ".join(map(str, DEFAULTS["paper"][0])) + ")")
     ap.add_argument("--method", choices=("full", "paper"), default="full")
     ap.add_argument("--cap", type=float, default=900.0,
                     help="paper method: placement time budget per run, seconds (default 900)")
-    ap.add_argument("--fit-from", type=int, default=1000,
-                    help="fit the runs with at least this many objects (default 1000)")
+    ap.add_argument("--fit-from", type=int,
+                    help="fit the runs with at least this many objects (default: full "
+                         f"{DEFAULTS['full'][1]}, paper {DEFAULTS['paper'][1]})")
     ap.add_argument("--seed", type=int, default=1)
     ap.add_argument("--meshes", type=Path, default=MESHES)
     ap.add_argument("--report-only", action="store_true")
     a = ap.parse_args(argv)
+    counts, fit_from = DEFAULTS[a.method]
+    a.counts = a.counts or counts
+    a.fit_from = fit_from if a.fit_from is None else a.fit_from
     stem = "growth" if a.method == "full" else "growth_paper"
     out = RESULTS / f"{stem}.json"
     if a.report_only:
