@@ -204,6 +204,7 @@ def phase2(solver: Solver, shares: np.ndarray, spacing: float, rng: np.random.Ge
     order = np.argsort(-d, kind="stable")
     pts = pts[order]
     by_size = [int(t) for t in np.argsort(-f) if shares[t] > 0]  # zero share: never placed
+    one_more = np.eye(len(shares))  # row t: one object of type t
     misses = 0
     n = solver.s.n
     full = np.flatnonzero((solver.s.alive[:n] == 1) & (solver.s.scale[:n] >= 1.0))
@@ -224,8 +225,7 @@ def phase2(solver: Solver, shares: np.ndarray, spacing: float, rng: np.random.Ge
         # only types that keep the mix within max_tvd (or improve it): where the holes fit
         # only a small type, filling each with it would leave the shares far behind
         cap = mix_cap(counts, shares, max_tvd)
-        fits = [t for t in fits
-                if tvd_of_counts(counts + np.eye(len(shares))[t], shares) <= cap]
+        fits = [t for t in fits if tvd_of_counts(counts + one_more[t], shares) <= cap]
         if fit_factor < 1.0:
             # extra passes: the one the mix lacks most first, larger first on ties
             n_now = counts.sum() + 1.0
