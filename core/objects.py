@@ -22,7 +22,7 @@ import numpy as np
 
 from .distance import DistanceGrid, distance_grid
 from .fidelity import PRESETS, Fidelity
-from .meshes import mesh_volume_centroid
+from .meshes import mesh_volume_centroid, sample_surface
 from .spheres import inner_spheres
 
 _CACHE_VERSION = "1"
@@ -83,9 +83,11 @@ def _farthest_points(points: np.ndarray, count: int, keep: int = 1) -> np.ndarra
     return points[np.asarray(chosen)]
 
 
-def surface_samples(vertices: np.ndarray, faces: np.ndarray, count: int) -> np.ndarray:
-    """Surface samples (P,3): all vertices plus spread points along long edges when the mesh
-    has at most `count` vertices, else `count` spread vertices (farthest point sampling)."""
+def surface_samples(vertices: np.ndarray, faces: np.ndarray, count: int,
+                    on_faces: bool = False) -> np.ndarray:
+    """Surface samples (P,3): all vertices plus spread points along long edges (and, with
+    `on_faces`, inside the faces) when the mesh has at most `count` vertices, else `count`
+    spread vertices (farthest point sampling)."""
     edges = np.sort(faces[:, [0, 1, 1, 2, 2, 0]].reshape(-1, 2), axis=1)
     edges = np.unique(edges, axis=0)
     a = vertices[edges[:, 0]]
@@ -104,6 +106,8 @@ def surface_samples(vertices: np.ndarray, faces: np.ndarray, count: int) -> np.n
     if sel.any():
         t = (np.arange(1, 16) / 16)[None, :, None]
         extra.append((a[sel][:, None, :] * (1 - t) + b[sel][:, None, :] * t).reshape(-1, 3))
+    if on_faces:
+        extra.append(sample_surface(vertices, faces, 8 * count))
     pts = np.concatenate([vertices] + extra) if extra else vertices
     if len(vertices) <= count:
         # every vertex is kept: corners are where inner spheres miss most
@@ -178,12 +182,17 @@ def build_type(name: str, vertices_file: np.ndarray, faces: np.ndarray, *, path:
     extent = float(np.ptp(v, axis=0).max())
     spacing = extent / cells
     reach = max(float(reach), 0.0)
-    key = _geometry_key(v, faces, (n_spheres, cells, n_points) + ((reach,) if reach else ()))
+    # "faces": entries made before the points covered the faces are not reused
+    key = _geometry_key(v, faces, (n_spheres, cells, n_points)
+                        + ((reach, "faces") if reach else ()))
     cached = _load_cached(key) if use_cache else None
     if cached is None:
         grid = distance_grid(v, faces, spacing, pad=2 * spacing + reach, band=3)
         centres, radii = inner_spheres(grid, n_spheres)
-        pts = surface_samples(v, faces, n_points)
+        # with a clearance, a neighbour held off the middle of a large face is far from
+        # every vertex and edge point, and the margin covering that gap took a large part
+        # of a low-poly type's room (docs/notes-core.md): the points cover the faces too
+        pts = surface_samples(v, faces, n_points, on_faces=reach > 0)
         if use_cache:
             _save_cached(key, grid, centres, radii, pts)
     else:

@@ -117,3 +117,35 @@ def test_a_clearance_gets_a_grid_that_reaches_it():
         d = sample_grid_many(t.grid.values, t.grid.origin, t.grid.spacing, out)
         errs.append(float(np.percentile(-d - true, 99)))  # how much further it reads
     assert errs[0] > 0.1 and errs[1] < 0.25 * errs[0]
+
+
+def test_with_a_clearance_surface_points_cover_large_faces():
+    """A low-poly type's points lie on its vertices and edges. With a clearance, a
+    neighbour held off the middle of a large face is far from all of them, and the margin
+    (half that gap) took a large part of a thin plate's room: with a clearance the points
+    cover the faces too; without one they stay on the edges (packings unchanged)."""
+    plate = _turned(trimesh.creation.box((11.0, 4.0, 14.0)))
+
+    def plate_type(reach: float):
+        return build_type("plate", plate.vertices, plate.faces, path=None, sha256=None,
+                          share=1.0, fidelity="medium", use_cache=False, reach=reach)
+
+    bare, clear = plate_type(0.0), plate_type(0.3)
+    v, f = bare.vertices, bare.faces
+    assert np.array_equal(bare.surface_points, surface_samples(v, f, 384))
+    edges = trimesh.Trimesh(v, f).edges_unique
+    a, b = v[edges[:, 0]], v[edges[:, 1]]
+
+    def off_edges(points: np.ndarray) -> np.ndarray:
+        """Each point's distance to the nearest edge of the plate."""
+        ab = b - a
+        t = np.clip(np.einsum("pej,ej->pe", points[:, None] - a, ab)
+                    / np.einsum("ej,ej->e", ab, ab), 0.0, 1.0)
+        near = a + t[..., None] * ab
+        return np.linalg.norm(points[:, None] - near, axis=2).min(axis=1)
+
+    assert off_edges(bare.surface_points).max() < 1e-9
+    assert np.median(off_edges(clear.surface_points)) > 0.3
+    gaps = [sampling_gap(t.grid, t.vertices, t.faces, t.surface_points, 2.0, 0.3)
+            for t in (bare, clear)]
+    assert gaps[0] > 1.0 and gaps[1] < 0.25 * gaps[0]
