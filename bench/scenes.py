@@ -99,6 +99,13 @@ SCENES: dict[str, dict] = {
         "without": "fruit-in-bunny",
         "reference": "issue 19: fruit-in-bunny with a 0.5 mm clearance",
     },
+    "polyhedra-80-c0.5": {
+        "container": "box:43.4338x41.8435x45.0059", "types": POLY,
+        "kwargs": {"time_budget": 55.0, "clearance": 0.5},
+        "without": "polyhedra-80",
+        "reference": "polyhedra-80 with a 0.5 mm clearance: low-poly objects with large "
+                     "flat faces",
+    },
     "large-2000": {
         "container": "containers/bunny.obj", "types": FRUIT,
         "kwargs": {"container_size": 200.0, "type_scale": 140.0, "time_budget": 420.0},
