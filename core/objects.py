@@ -106,7 +106,7 @@ def surface_samples(vertices: np.ndarray, faces: np.ndarray, count: int,
     if sel.any():
         t = (np.arange(1, 16) / 16)[None, :, None]
         extra.append((a[sel][:, None, :] * (1 - t) + b[sel][:, None, :] * t).reshape(-1, 3))
-    if on_faces:
+    if on_faces and len(vertices) <= count:
         extra.append(sample_surface(vertices, faces, 8 * count))
     pts = np.concatenate([vertices] + extra) if extra else vertices
     if len(vertices) <= count:
