@@ -429,19 +429,23 @@ def test_the_live_view_follows_the_pack_and_goes_on_every_exit(bpy, addon, scene
     assert run.begin(bpy.context)
     handle = view.handle
     assert handle is not None
-    counts = []
+    seen = []  # (objects, their summed radius) of each snapshot the view held
     deadline = time.monotonic() + 120
     result = {'RUNNING_MODAL'}
     while result == {'RUNNING_MODAL'} and time.monotonic() < deadline:
         result = run.modal(bpy.context, Event('TIMER'))
         if view.placed is not None:
-            counts.append(len(view.placed.types))
+            count = len(view.placed.types)
+            seen.append((count, float(view.placed.radii.sum())))
             lines = view.lines_by_type()
             assert sum(len(v) for v in lines.values()) == \
-                counts[-1] * 3 * addon.live_view.SEGMENTS * 2
+                count * 3 * addon.live_view.SEGMENTS * 2
         time.sleep(0.05)
     assert result == {'FINISHED'}
-    assert len(set(counts)) >= 2 and max(counts) > 0, counts  # it grew while we watched
+    # it changed while we watched: objects added or removed, or the placed ones grown (in
+    # phase 1 the lattice's objects are all there from the start and only grow, so a
+    # budget that ends there shows one count throughout)
+    assert len(set(seen)) >= 2 and max(n for n, _ in seen) > 0, seen
     assert view.handle is None and view.placed is None
     with pytest.raises(ValueError):  # Blender no longer has it
         bpy.types.SpaceView3D.draw_handler_remove(handle, 'WINDOW')
