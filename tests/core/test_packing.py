@@ -456,3 +456,22 @@ def test_version_1_params_map_to_the_typed_fields(saved):
     q = load_packing(out)
     assert q.inputs.options.cavity.factors == (0.8, 0.6, 0.5, 0.4)
     assert q.report.extra_passes[0].grown == 4 and q.report.extra_passes[0].factor == 0.8
+
+
+@pytest.mark.parametrize("where, value, match", [
+    (("rotation", 1), True, r"placements\[1\]\.rotation must be a list of 4 numbers"),
+    (("rotation",), [0, 0, 0, 0], r"placements\[1\]\.rotation must be a non-zero quaternion"),
+    (("scale",), "1.0", r"placements\[1\]\.scale must be a number"),
+    (("scale",), False, r"placements\[1\]\.scale must be a number"),
+    (("matrix", 0, 3), "2", r"placements\[1\]\.matrix must be a 4x4"),
+    (("translation",), {"x": 1}, r"placements\[1\]\.translation must be a list of 3"),
+    (("type",), 1.0, r"placements\[1\]\.type must be an integer"),
+])
+def test_a_bad_placement_is_named_among_good_ones(saved, where, value, match):
+    # the whole list is read in one pass; a bad value anywhere must still be named
+    out, doc = saved
+    obj = doc["placements"][1]
+    for key in where[:-1]:
+        obj = obj[key]
+    obj[where[-1]] = value
+    _bad(out, doc, match)
