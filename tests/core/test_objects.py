@@ -5,6 +5,7 @@ from __future__ import annotations
 import numpy as np
 import pytest
 import trimesh
+from scipy.spatial import cKDTree
 
 from jampacked.core.objects import build_type, surface_samples
 
@@ -53,3 +54,32 @@ def test_cache_round_trip_and_corrupt_file(box, tmp_path, monkeypatch):
     c = build_type("b", box.vertices, box.faces, path=None, sha256=None, share=1.0,
                    fidelity="low")
     assert np.array_equal(a.sphere_radii, c.sphere_radii)
+
+
+def _rounded_box(half: tuple[float, float, float], radius: float, directions: int):
+    """A box with rounded edges and corners (the hull of a ball at each corner), as a
+    bevelled die or a filleted part comes: vertices crowded into the corners, long thin
+    faces along the edges."""
+    i = np.arange(directions) + 0.5
+    phi, th = np.arccos(1 - 2 * i / directions), np.pi * (1 + 5 ** 0.5) * i
+    ball = radius * np.stack([np.cos(th) * np.sin(phi), np.sin(th) * np.sin(phi),
+                              np.cos(phi)], axis=1)
+    corners = np.array([[x, y, z] for x in (-1, 1) for y in (-1, 1) for z in (-1, 1)]) * half
+    return trimesh.convex.convex_hull((corners[:, None] + ball[None]).reshape(-1, 3))
+
+
+@pytest.mark.parametrize("directions", [240, 400])  # fewer and more vertices than points
+def test_surface_samples_cover_the_edges_of_a_bevelled_box(directions):
+    # its long rounded edges ran bare 10 mm between their corner caps, where a face pressed
+    # against them overlapped unseen; now every point of every edge lies near a sample
+    m = _rounded_box((10.0, 8.0, 5.0), 0.25, directions)
+    v, f = np.asarray(m.vertices), np.asarray(m.faces, np.int64)
+    count = 384
+    pts = surface_samples(v, f, count)
+    e = m.edges_unique
+    t = np.linspace(0.0, 1.0, 21)[None, :, None]
+    along = (v[e[:, 0]][:, None] * (1 - t) + v[e[:, 1]][:, None] * t).reshape(-1, 3)
+    far = cKDTree(pts).query(along)[0].max()
+    step = np.ptp(v, axis=0).max() / 16  # edge points lie at most this far apart
+    assert far <= np.sqrt(m.area / count) + step / 2
+    assert len(pts) < 3 * count
