@@ -122,10 +122,11 @@ def add_pack_parser(sub: argparse._SubParsersAction) -> None:
              "no limit; Ctrl-C also stops early)")
     p.add_argument(
         "--attempts", type=positive_int("--attempts"), metavar="N",
-        help="run exactly N attempts (each its own random stream from the seed and its "
-             "index) and keep the densest; the same N give the same packing on one machine "
-             "or a cluster (default: one attempt, or as many as fit the --time-budget; with "
-             "--workers/--scheduler: one per worker)")
+        help="run N attempts (each its own random stream from the seed and its index) and "
+             "keep the densest; the same N give the same packing on one machine or a "
+             "cluster. With a --time-budget, those that start before it ends (a warning "
+             "says when fewer ran) (default: one attempt, or as many as fit the "
+             "--time-budget; with --workers/--scheduler: one per worker)")
     add_cluster_arguments(p, "the attempts")
     p.add_argument(
         "-q", "--quiet", action="store_true",

@@ -39,6 +39,7 @@ from .placement import Attempt, Snapshots, place
 from .repair import certify_and_repair
 from .report import AttemptSummary, PackInputs, RepairStats, RunReport
 from .rotations import matrix_to_quat, quat_to_matrix
+from .run_warnings import run_warnings
 from .solver import PackState, Solver, SolverParams, TypeTable
 from .spheres import sphere_coverage
 from .threads import ThreadTuner
@@ -461,7 +462,7 @@ def _assemble(container: MeshSource, scene: _Scene, approx: _Approximation, run:
     clearance = inputs.clearance
     if len(idx) == 0 and not stop.reason:
         gap = f", the clearance {clearance:g}" if clearance else ""
-        depth = float(approx.container.grid.values.max())
+        depth = _measured_depth(scene, approx.container)  # the grid's nodes can miss it
         raise PackingError(
             f"no object could be placed: the container's deepest interior point is "
             f"{depth:.4g} units from its wall, the smallest type's equivalent radius is "
@@ -486,7 +487,11 @@ def _assemble(container: MeshSource, scene: _Scene, approx: _Approximation, run:
         extra_passes=run.best.extra_passes, attempts=run.attempts,
         margins=run.margins.report(), repair=repair,
         threads=None if run.tuner is None else run.tuner.report(),
-        warnings=[w for m in [scene.container, *scene.types] for w in m.warnings])
+        warnings=[w for m in [scene.container, *scene.types] for w in m.warnings]
+        + run_warnings([t.name for t in objtypes], q, np.bincount(typ, minlength=len(q)),
+                       float(metrics["tvd"]), inputs.options.cavity.max_tvd,
+                       run.best.phase1, inputs.time_budget, stop.reason or None,
+                       inputs.options.attempts.count, len(run.attempts)))
     return Packing(
         container_path=_source_name(container, scene.container),
         container_sha256=scene.container.sha256, frame_from_file=scene.frame_from_file,

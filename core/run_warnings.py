@@ -1,0 +1,56 @@
+"""What a finished packing should tell the user to act on, beyond its numbers: a type asked
+for and never placed, a type mix far from the shares, a time budget that ended before the
+first objects had grown, fewer attempts than asked. Pure: counts and reports in, sentences
+out (`RunReport.warnings`; the command line prints them)."""
+
+from __future__ import annotations
+
+from collections.abc import Sequence
+
+import numpy as np
+
+from .metrics import best_tvd
+from .report import PhaseStats
+
+#: how far above the mix tolerance (or the best TVD the count allows) a packing's TVD may be
+#: before the mix is reported off; the cavity passes keep it within the tolerance, and the
+#: repair's removals may add up to 0.01 (`core/repair.py` MIX_SLACK)
+MIX_WARN_SLACK = 0.01
+
+
+def run_warnings(names: Sequence[str], shares: np.ndarray, counts: np.ndarray, tvd: float,
+                 max_tvd: float, phase1: PhaseStats, time_budget: float | None,
+                 stopped: str | None, attempts_asked: int | None,
+                 attempts_run: int) -> list[str]:
+    """Warnings for a packing of counts (T,) objects per type against shares (T,) summing
+    to 1, whose TVD is `tvd` (the mix tolerance `max_tvd`); `phase1` is the kept attempt's
+    first phase; `stopped` the run's stop reason ("deadline", "cancelled" or None);
+    `attempts_asked` None when the count of attempts was left to the budget."""
+    out = []
+    missing = [i for i, (s, c) in enumerate(zip(shares, counts, strict=True))
+               if s > 0 and c == 0]
+    if counts.sum() > 0:
+        for i in missing:
+            out.append(
+                f"type {names[i]} (share {shares[i]:.0%}) was not placed at all: it may not "
+                "fit the container in any orientation, or only where the other types already "
+                "are. Scale the objects down (--type-scale), the container up "
+                "(--container-size), or remove the type.")
+    allowed = max(max_tvd, best_tvd(shares, int(counts.sum()))) + MIX_WARN_SLACK
+    if not missing and counts.sum() > 0 and tvd > allowed:
+        placed = ", ".join(f"{n} {c / counts.sum():.0%} (asked {s:.0%})"
+                           for n, c, s in zip(names, counts, shares, strict=True))
+        out.append(f"the type mix is off: TVD {tvd:.3f} against the tolerance {max_tvd:g}; "
+                   f"placed {placed}.")
+    if phase1.stopped == "deadline":
+        out.append(
+            f"the time budget ({time_budget:g} s) ended while the first objects were still "
+            f"growing: {phase1.grown} of {phase1.inserted} grew, and the cavity passes did not "
+            "run, so the container is far from full. Give a larger --time-budget, or none.")
+    if stopped == "deadline" and attempts_asked is not None \
+            and attempts_run < attempts_asked:
+        out.append(
+            f"{attempts_run} of the {attempts_asked} attempts asked for ran before the time "
+            "budget ended; the same attempts give the same packing only when all of them "
+            "run. Give a larger --time-budget, or none.")
+    return out

@@ -1,0 +1,56 @@
+"""What a finished packing warns about (`core/run_warnings.py`)."""
+
+from __future__ import annotations
+
+import numpy as np
+import trimesh
+
+from jampacked.core.api import pack
+from jampacked.core.report import PhaseStats
+from jampacked.core.run_warnings import run_warnings
+
+NAMES = ["apple", "plum"]
+HALF = np.array([0.5, 0.5])
+
+
+def _warn(counts, tvd=0.0, phase1=None, budget=None, stopped=None, asked=None, ran=1):
+    return run_warnings(NAMES, HALF, np.array(counts), tvd, 0.04, phase1 or PhaseStats(),
+                        budget, stopped, asked, ran)
+
+
+def test_a_full_run_with_the_mix_kept_warns_about_nothing():
+    assert _warn([50, 51], tvd=0.005) == []
+    assert _warn([1, 2], tvd=1 / 6) == []  # three objects cannot hold 50/50 closer
+
+
+def test_a_type_never_placed_is_named():
+    (w,) = _warn([0, 40], tvd=0.5)
+    assert w.startswith("type apple (share 50%) was not placed at all")
+    assert "--type-scale" in w
+
+
+def test_a_mix_far_from_the_shares_is_reported():
+    (w,) = _warn([30, 70], tvd=0.2)
+    assert "TVD 0.200" in w and "apple 30% (asked 50%)" in w
+
+
+def test_a_budget_ending_in_phase_1_and_attempts_cut_short():
+    cut = PhaseStats(inserted=1724, grown=217, stopped="deadline")
+    w = _warn([100, 101], phase1=cut, budget=30.0, stopped="deadline", asked=3, ran=1)
+    assert len(w) == 2
+    assert "217 of 1724 grew" in w[0] and "--time-budget" in w[0]
+    assert w[1].startswith("1 of the 3 attempts")
+    # cancelled, not the budget: the command line says it was interrupted instead
+    assert _warn([100, 101], stopped="cancelled", asked=3, ran=1) == []
+
+
+def test_pack_warns_when_a_type_fits_nowhere(tmp_path):
+    # an 80 mm rod passes the inscribed-sphere check of a 40 mm box but fits no orientation;
+    # it used to be left out of the packing without a word
+    rod, cube = tmp_path / "rod.stl", tmp_path / "cube.stl"
+    trimesh.creation.box((80.0, 4.0, 4.0)).export(rod)
+    trimesh.creation.box((5.0, 5.0, 5.0)).export(cube)
+    p = pack("box:40x40x40", [str(rod), str(cube)], seed=1, time_budget=3.0)
+    assert p.certificate["certified"]
+    assert np.all(p.type_index == 1)
+    assert any(w.startswith("type rod (share 50%) was not placed") for w in p.report.warnings)
