@@ -144,7 +144,8 @@ def cmd_export(args: argparse.Namespace) -> int:
 
     out, err = consoles()
     for path in args.output + ([args.render] if args.render else []):
-        check_output(path, "-o" if path != args.render else "--render", [args.packing])
+        check_output(path, "-o" if path != args.render else "--render", [args.packing],
+                     "packing file")
     try:
         options = ExportOptions(mode=args.mode, shell=args.shell,
                                 opening=args.open_plane or args.window, drain=args.drain,

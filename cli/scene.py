@@ -105,9 +105,10 @@ def check_mesh_file(path: str, role: str) -> None:
         raise UsageError(f"{role} mesh file '{path}' is not a file")
 
 
-def check_output(path: str, option: str, inputs: Sequence[str]) -> None:
+def check_output(path: str, option: str, inputs: Sequence[str],
+                 what: str = "input mesh") -> None:
     """Raise UsageError unless ``path`` can be written by ``option``: its folder exists, it
-    is no folder and none of ``inputs``."""
+    is no folder and none of ``inputs`` (named ``what`` in the message)."""
     out = os.path.abspath(path)
     folder = os.path.dirname(out)
     if not os.path.isdir(folder):
@@ -117,7 +118,7 @@ def check_output(path: str, option: str, inputs: Sequence[str]) -> None:
     for src in inputs:
         with contextlib.suppress(OSError):
             if os.path.exists(out) and os.path.samefile(out, src):
-                raise UsageError(f"{option} {path} is the input mesh {src}; choose another "
+                raise UsageError(f"{option} {path} is the {what} {src}; choose another "
                                  "output file")
 
 

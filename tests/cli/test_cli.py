@@ -403,3 +403,16 @@ def test_render_cuts_the_shell_open_so_the_packed_objects_show(tmp_path, fused):
     render.write_render(v, f, out, up="+z", container=container)
     left, right = _coloured_pixels(out)
     assert left == 0 and right > 500, (left, right)
+
+
+def test_outputs_that_are_inputs_are_refused_and_left_alone(packed, tmp_path):
+    # pack -o onto a type mesh and export -o onto its packing: exit 2 naming the input,
+    # which is left as it was
+    d, out, *_ = packed
+    mesh = tmp_path / "p1.obj"
+    mesh.write_bytes(P1.read_bytes())
+    before_mesh, before_packing = mesh.read_bytes(), out.read_bytes()
+    rc, _, se = run(["pack", "box:30x30x30", "--type", str(mesh), *SMALL, "-o", str(mesh)])
+    assert rc == 2 and "is the input mesh" in se and mesh.read_bytes() == before_mesh
+    rc, _, se = run(["export", str(out), "-o", str(out)])
+    assert rc == 2 and "is the packing file" in se and out.read_bytes() == before_packing
