@@ -175,6 +175,39 @@ def test_connect_makes_one_body_from_separate_objects(apart, tmp_path):
     assert bodies == 1 and vol > objects  # the struts add material
 
 
+def test_connect_judges_each_edge_once_when_struts_are_refused(apart, tmp_path, monkeypatch):
+    # a strut that would leave the container is refused and the tree rerouted; the whole
+    # tree used to be judged again after each refusal (a 3,315-object Spot ran past nine
+    # minutes), now each edge is judged once
+    import jampacked.export.connect as connect
+
+    judged: dict[tuple[int, int], int] = {}
+    real_gap, real_strut = connect._gap, connect._strut_between
+    made: list[tuple] = []
+    refused: set[tuple] = set()
+
+    def gap(a, b, upper):
+        key = (id(a), id(b))
+        judged[key] = judged.get(key, 0) + 1
+        return real_gap(a, b, upper)
+
+    def strut(pa, pb, *args):
+        key = (tuple(np.round(pa, 6)), tuple(np.round(pb, 6)))
+        if key not in made:
+            made.append(key)
+        if 3 <= made.index(key) < 6:  # the fourth to sixth struts run out through the wall
+            refused.add(key)
+            return real_strut(pa, pa + np.array([200.0, 0.0, 0.0]), *args)
+        return real_strut(pa, pb, *args)
+
+    monkeypatch.setattr(connect, "_gap", gap)
+    monkeypatch.setattr(connect, "_strut_between", strut)
+    rep = export_packing(apart, tmp_path / "c.3mf", ExportOptions(mode="connect", connector=2.0))
+    assert len(refused) == 3
+    assert rep.passed and rep.bodies == 1 and rep.connectors == 7
+    assert max(judged.values()) == 1
+
+
 def test_connect_fuses_touching_objects_without_struts(overlapping, tmp_path):
     rep = export_packing(overlapping, tmp_path / "c.stl", ExportOptions(mode="connect"))
     assert rep.bodies == 1 and rep.passed
