@@ -129,7 +129,8 @@ def add_export_parser(sub: argparse._SubParsersAction) -> None:
                    help="simplify meshes to the printer's resolution (surfaces move by at "
                         "most this much)")
     p.add_argument("--split", action="store_true",
-                   help="--mode parts: write one file per part (NAME_<type>_<n>.EXT)")
+                   help="--mode parts: write one file per part (NAME_<type>_<i>.EXT, i: "
+                        "the object's index among the packing's placements)")
     p.add_argument("--render", metavar="PNG",
                    help="also draw the first file written, as read back, in two shaded views")
     p.add_argument("--json", action="store_true",
