@@ -90,6 +90,9 @@ def surface_samples(vertices: np.ndarray, faces: np.ndarray, count: int,
     mesh has more; else all vertices, at least count / 2 spread points along long edges
     (and, with `on_faces`, inside the faces), and more edge points where vertices and
     edges are still farther than sqrt(area / count) from every sample (`_cover_skeleton`)."""
+    if len(vertices) > count:
+        start = int(np.argmax(((vertices - vertices.mean(axis=0)) ** 2).sum(axis=1)))
+        return np.ascontiguousarray(_farthest_points(np.roll(vertices, -start, axis=0), count))
     edges = np.sort(faces[:, [0, 1, 1, 2, 2, 0]].reshape(-1, 2), axis=1)
     edges = np.unique(edges, axis=0)
     a = vertices[edges[:, 0]]
@@ -109,9 +112,6 @@ def surface_samples(vertices: np.ndarray, faces: np.ndarray, count: int,
         t = (np.arange(1, 16) / 16)[None, :, None]
         extra.append((a[sel][:, None, :] * (1 - t) + b[sel][:, None, :] * t).reshape(-1, 3))
     skeleton = np.concatenate([vertices] + extra) if extra else vertices
-    if len(vertices) > count:
-        start = int(np.argmax(((vertices - vertices.mean(axis=0)) ** 2).sum(axis=1)))
-        return np.ascontiguousarray(_farthest_points(np.roll(vertices, -start, axis=0), count))
     pts = np.concatenate([skeleton, sample_surface(vertices, faces, 8 * count)]
                          ) if on_faces else skeleton
     # every vertex is kept: corners are where inner spheres miss most; vertices crowded

@@ -220,8 +220,8 @@ def plan_connectors(objects: Sequence[PlacedObject], diameter: float, *,
 
     # an edge's verdict (fused, refused, or its strut) depends on the edge alone, so each
     # is judged once, and every refused edge of a tree goes before the next tree: judging
-    # the whole tree again after each refusal took a packing of 3,315 objects in Spot past
-    # nine minutes (docs/notes-export.md)
+    # the whole tree again after each refusal grew as refusals x objects
+    # (docs/notes-export.md)
     verdicts: dict[int, tuple[m3.Manifold, float] | str] = {}
     while True:
         # scipy drops zero weights: shift every weight by a tiny positive amount
