@@ -26,7 +26,13 @@ from .fidelity import PRESETS, Fidelity
 from .meshes import mesh_volume_centroid, sample_surface
 from .spheres import inner_spheres
 
-_CACHE_VERSION = "3"  # 3: edge points where crowded vertices left edges bare
+_CACHE_VERSION = "4"  # 4: edge points where crowded vertices left edges bare
+
+#: a mesh with more vertices than points keeps its spread vertices, plus edge points where
+#: its vertices and edges are further than this many times sqrt(area / points) from them:
+#: spread vertices of fruit and scans stay within 0.7-1.4 of it, a bevelled die's corners
+#: leave its edges 4.5-6.6 bare (docs/notes-core.md)
+SPREAD_COVER = 1.5
 
 
 @dataclass(frozen=True)
@@ -87,12 +93,10 @@ def _farthest_points(points: np.ndarray, count: int, keep: int = 1) -> np.ndarra
 def surface_samples(vertices: np.ndarray, faces: np.ndarray, count: int,
                     on_faces: bool = False) -> np.ndarray:
     """Surface samples (P,3): `count` spread vertices (farthest point sampling) when the
-    mesh has more; else all vertices, at least count / 2 spread points along long edges
-    (and, with `on_faces`, inside the faces), and more edge points where vertices and
-    edges are still farther than sqrt(area / count) from every sample (`_cover_skeleton`)."""
-    if len(vertices) > count:
-        start = int(np.argmax(((vertices - vertices.mean(axis=0)) ** 2).sum(axis=1)))
-        return np.ascontiguousarray(_farthest_points(np.roll(vertices, -start, axis=0), count))
+    mesh has more, then edge points where vertices and edges are still further than
+    SPREAD_COVER x sqrt(area / count) from every sample; else all vertices, at least
+    count / 2 spread points along long edges (and, with `on_faces`, inside the faces), then
+    edge points where they are further than sqrt(area / count) (`_cover_skeleton`)."""
     edges = np.sort(faces[:, [0, 1, 1, 2, 2, 0]].reshape(-1, 2), axis=1)
     edges = np.unique(edges, axis=0)
     a = vertices[edges[:, 0]]
@@ -112,16 +116,21 @@ def surface_samples(vertices: np.ndarray, faces: np.ndarray, count: int,
         t = (np.arange(1, 16) / 16)[None, :, None]
         extra.append((a[sel][:, None, :] * (1 - t) + b[sel][:, None, :] * t).reshape(-1, 3))
     skeleton = np.concatenate([vertices] + extra) if extra else vertices
+    area = 0.5 * float(np.linalg.norm(np.cross(vertices[faces[:, 1]] - vertices[faces[:, 0]],
+                                               vertices[faces[:, 2]] - vertices[faces[:, 0]]),
+                                      axis=1).sum())
+    spacing = np.sqrt(area / count)
+    if len(vertices) > count:
+        start = int(np.argmax(((vertices - vertices.mean(axis=0)) ** 2).sum(axis=1)))
+        chosen = _farthest_points(np.roll(vertices, -start, axis=0), count)
+        return np.ascontiguousarray(_cover_skeleton(chosen, skeleton, SPREAD_COVER * spacing))
     pts = np.concatenate([skeleton, sample_surface(vertices, faces, 8 * count)]
                          ) if on_faces else skeleton
     # every vertex is kept: corners are where inner spheres miss most; vertices crowded
     # into rounded corners must not take the whole count: at least half of it is spread
     # over the edges (and faces)
     chosen = _farthest_points(pts, max(count, len(vertices) + count // 2), keep=len(vertices))
-    area = 0.5 * float(np.linalg.norm(np.cross(vertices[faces[:, 1]] - vertices[faces[:, 0]],
-                                               vertices[faces[:, 2]] - vertices[faces[:, 0]]),
-                                      axis=1).sum())
-    return np.ascontiguousarray(_cover_skeleton(chosen, skeleton, np.sqrt(area / count)))
+    return np.ascontiguousarray(_cover_skeleton(chosen, skeleton, spacing))
 
 
 def _cover_skeleton(chosen: np.ndarray, skeleton: np.ndarray, radius: float) -> np.ndarray:

@@ -7,7 +7,7 @@ import pytest
 import trimesh
 from scipy.spatial import cKDTree
 
-from jampacked.core.objects import build_type, surface_samples
+from jampacked.core.objects import SPREAD_COVER, build_type, surface_samples
 
 
 @pytest.fixture()
@@ -68,11 +68,12 @@ def _rounded_box(half: tuple[float, float, float], radius: float, directions: in
     return trimesh.convex.convex_hull((corners[:, None] + ball[None]).reshape(-1, 3))
 
 
-def test_surface_samples_cover_the_edges_of_a_bevelled_box():
-    # 357 vertices for 384 points: its long rounded edges ran bare between their corner
-    # caps, where a face pressed against them overlapped unseen; now every point of every
-    # edge lies near a sample
-    m = _rounded_box((10.0, 8.0, 5.0), 0.25, 240)
+@pytest.mark.parametrize("directions, cover", [(240, 1.0), (400, SPREAD_COVER)])
+def test_surface_samples_cover_the_edges_of_a_bevelled_box(directions, cover):
+    # 357 and 545 vertices for 384 points: its long rounded edges ran bare between their
+    # corner caps, where a face pressed against them overlapped unseen; now every point of
+    # every edge lies near a sample
+    m = _rounded_box((10.0, 8.0, 5.0), 0.25, directions)
     v, f = np.asarray(m.vertices), np.asarray(m.faces, np.int64)
     count = 384
     pts = surface_samples(v, f, count)
@@ -81,21 +82,25 @@ def test_surface_samples_cover_the_edges_of_a_bevelled_box():
     along = (v[e[:, 0]][:, None] * (1 - t) + v[e[:, 1]][:, None] * t).reshape(-1, 3)
     far = cKDTree(pts).query(along)[0].max()
     step = np.ptp(v, axis=0).max() / 16  # edge points lie at most this far apart
-    assert far <= np.sqrt(m.area / count) + step / 2
+    assert far <= cover * np.sqrt(m.area / count) + step / 2
     assert len(pts) < 3 * count
 
 
-def test_bevelled_polyhedra_pack_without_hidden_overlaps(tmp_path, monkeypatch):
+@pytest.mark.parametrize("directions, box, removed", [(200, "box:22x20x24", 0),
+                                                      (700, "box:28x26x30", 3)])
+def test_bevelled_polyhedra_pack_without_hidden_overlaps(tmp_path, monkeypatch, directions,
+                                                         box, removed):
     # convex5 with its edges and corners rounded by 0.25 mm: their vertices crowd into the
-    # corners, and before their edges got points the first certification found 5 pairs
-    # overlapping that the solver never saw (2 objects removed, 39.6%)
+    # corners (319-362 or 916-982 of them, fewer or more than the 384 points), and before
+    # their edges got points the first certification found 5 and 24 pairs overlapping that
+    # the solver never saw (2 and 12 objects removed, 39.6% and 23.9%)
     from testdata import mesh_path
 
     from jampacked.core.api import pack
 
     monkeypatch.setenv("JAMPACKED_CACHE", str(tmp_path / "cache"))
-    i = np.arange(200) + 0.5
-    phi, th = np.arccos(1 - 2 * i / 200), np.pi * (1 + 5 ** 0.5) * i
+    i = np.arange(directions) + 0.5
+    phi, th = np.arccos(1 - 2 * i / directions), np.pi * (1 + 5 ** 0.5) * i
     ball = 0.25 * np.stack([np.cos(th) * np.sin(phi), np.sin(th) * np.sin(phi), np.cos(phi)], 1)
     types = []
     for k in range(1, 6):
@@ -103,7 +108,7 @@ def test_bevelled_polyhedra_pack_without_hidden_overlaps(tmp_path, monkeypatch):
         hull = trimesh.convex.convex_hull((m.vertices[:, None] + ball[None]).reshape(-1, 3))
         types.append(str(tmp_path / f"bevelled{k}.obj"))
         hull.export(types[-1])
-    p = pack("box:22x20x24", types, seed=3)
+    p = pack(box, types, seed=3)
     assert p.certificate["certified"]
-    assert p.report.repair.first["bad_pairs"] <= 1
-    assert p.report.repair.removed == 0
+    assert p.report.repair.removed <= removed
+    assert p.metrics["density"] > 0.4
