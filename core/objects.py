@@ -30,8 +30,8 @@ _CACHE_VERSION = "4"  # 4: edge points where crowded vertices left edges bare
 
 #: a mesh with more vertices than points keeps its spread vertices, plus edge points where
 #: its vertices and edges are further than this many times sqrt(area / points) from them:
-#: spread vertices of fruit and scans stay within 0.7-1.4 of it, a bevelled die's corners
-#: leave its edges 4.5-6.6 bare (docs/notes-core.md)
+#: the spread vertices of fruit and scans lie closer than that, a bevelled die's crowded
+#: corners leave its edges far barer (docs/notes-core.md)
 SPREAD_COVER = 1.5
 
 
