@@ -26,7 +26,7 @@ from .cluster import AttemptJob, client_for, cluster_threads, place_on_cluster
 from .container import Container, build_container
 from .cost import TypeSize, check_cost, check_sizes, estimate_cost
 from .errors import InputError, PackingError
-from .fidelity import PRESETS, Fidelity, choose_fidelity
+from .fidelity import PRESETS, Fidelity, choose_fidelity, preset
 from .margins import Margins, contact_margins
 from .meshes import MeshData, box_mesh, load_mesh, parse_box_spec
 from .metrics import compute_metrics, equivalent_radius
@@ -308,7 +308,8 @@ def _approximate(scene: _Scene, q: np.ndarray, inputs: PackInputs,
     volumes = np.array([t.volume for t in sizes])
     expected = 0.5 * scene.volume / float(np.sum(q * volumes))
     f_min = float(equivalent_radius(volumes.min()))
-    fid = PRESETS["medium"] if inputs.fidelity == "auto" else PRESETS[inputs.fidelity]
+    fid = PRESETS["medium"] if inputs.fidelity == "auto" else preset(inputs.fidelity,
+                                                                     clearance)
     cmesh = scene.container
     cont = build_container(scene.vertices, cmesh.faces, scene.volume,
                            f_min / fid.container_cells)

@@ -47,6 +47,18 @@ TIGHT_DEPTH = 2.0
 CLEARANCE_POINTS = 1024
 
 
+def preset(name: str, clearance: float) -> Fidelity:
+    """The preset `name` for a scene with this clearance (container units): "high" then
+    takes CLEARANCE_POINTS surface points as the automatic choice does. With its own 384,
+    the finest preset kept the larger sampling gaps, and so margins, of fewer points
+    (docs/notes-core.md)."""
+    fid = PRESETS[name]
+    if name == "high" and clearance > 0 and fid.surface_points < CLEARANCE_POINTS:
+        fid = replace(fid, surface_points=CLEARANCE_POINTS, reasons=fid.reasons + (
+            f"clearance {clearance:g}: {CLEARANCE_POINTS} surface points per type",))
+    return fid
+
+
 def thickness_ratio(vertices: np.ndarray) -> float:
     """Largest over smallest extent along the principal axes of a vertex cloud (V,3)."""
     v = vertices - vertices.mean(axis=0)

@@ -8,7 +8,13 @@ import trimesh
 from testdata import mesh_path
 
 from jampacked.core.api import pack
-from jampacked.core.fidelity import CLEARANCE_POINTS, PRESETS, choose_fidelity, thickness_ratio
+from jampacked.core.fidelity import (
+    CLEARANCE_POINTS,
+    PRESETS,
+    choose_fidelity,
+    preset,
+    thickness_ratio,
+)
 from jampacked.core.options import CavityPassOptions, FidelityOverrides, PackOptions
 
 
@@ -79,4 +85,15 @@ def test_pack_records_the_fidelity_and_applies_overrides():
     assert d.name == "auto" and d.spheres == 12 and d.container_cells == 3.5
     assert max(p.report.spheres_per_type) <= 12
     assert any("overridden" in r for r in d.reasons)
+    assert p.certificate["certified"]
+
+
+def test_the_high_preset_takes_the_clearance_points_as_auto_does(tmp_path):
+    # --fidelity high with a clearance kept its 384 points while auto took 1024
+    assert preset("high", 0.5).surface_points == CLEARANCE_POINTS
+    assert preset("high", 0.0) == PRESETS["high"]
+    assert preset("low", 0.5) == PRESETS["low"]  # low stays the fast one
+    p = pack("box:24x24x24", [str(mesh_path("polyhedra/convex5/polytope3.obj"))], seed=1,
+             clearance=0.5, fidelity="high", time_budget=2.0)
+    assert p.report.fidelity_detail.surface_points == CLEARANCE_POINTS
     assert p.certificate["certified"]
