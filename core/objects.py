@@ -23,6 +23,7 @@ from scipy.spatial import cKDTree
 
 from .distance import DistanceGrid, distance_grid
 from .fidelity import PRESETS, Fidelity
+from .mesh_geometry import face_areas2
 from .meshes import mesh_volume_centroid, sample_surface
 from .spheres import inner_spheres
 
@@ -116,10 +117,7 @@ def surface_samples(vertices: np.ndarray, faces: np.ndarray, count: int,
         t = (np.arange(1, 16) / 16)[None, :, None]
         extra.append((a[sel][:, None, :] * (1 - t) + b[sel][:, None, :] * t).reshape(-1, 3))
     skeleton = np.concatenate([vertices] + extra) if extra else vertices
-    area = 0.5 * float(np.linalg.norm(np.cross(vertices[faces[:, 1]] - vertices[faces[:, 0]],
-                                               vertices[faces[:, 2]] - vertices[faces[:, 0]]),
-                                      axis=1).sum())
-    spacing = np.sqrt(area / count)
+    spacing = np.sqrt(0.5 * float(face_areas2(vertices, faces).sum()) / count)
     if len(vertices) > count:
         start = int(np.argmax(((vertices - vertices.mean(axis=0)) ** 2).sum(axis=1)))
         chosen = _farthest_points(np.roll(vertices, -start, axis=0), count)
@@ -217,9 +215,7 @@ def build_type(name: str, vertices_file: np.ndarray, faces: np.ndarray, *, path:
     extent = float(np.ptp(v, axis=0).max())
     spacing = extent / cells
     reach = max(float(reach), 0.0)
-    # "faces": entries made before the points covered the faces are not reused
-    key = _geometry_key(v, faces, (n_spheres, cells, n_points)
-                        + ((reach, "faces") if reach else ()))
+    key = _geometry_key(v, faces, (n_spheres, cells, n_points) + ((reach,) if reach else ()))
     cached = _load_cached(key) if use_cache else None
     if cached is None:
         grid = distance_grid(v, faces, spacing, pad=2 * spacing + reach, band=3)
