@@ -28,7 +28,8 @@ shares:
   --type FILE=SHARE gives a type's target share by count, as a fraction (0.4) or a
   percent (40%%). Types without a share split what is left equally; with no shares at all
   every type gets the same share. When every type has a share, the shares are normalised,
-  so --type a.stl=2 --type b.stl=1 means two a's for each b.
+  so --type a.stl=2 --type b.stl=1 means two a's for each b (percents that do not add up
+  to 100%% are normalised too, with a warning).
 
 units:
   The container's units are the scene's units (millimetres for printing).
@@ -139,6 +140,8 @@ def cmd_pack(args: argparse.Namespace) -> int:
     out, err = consoles()
     with contextlib.ExitStack() as stack:
         scene = resolve_scene(args, stack)
+        for note in scene.notes:
+            warn(err, note)
         client = cluster_client(args, stack)
         cancel = stack.enter_context(CancelOnInterrupt())
         progress_cb = None if args.quiet else progress_bar(stack, err, cancel)

@@ -12,7 +12,7 @@ import math
 import os
 import re
 from collections.abc import Sequence
-from dataclasses import dataclass
+from dataclasses import dataclass, field
 from importlib import resources
 from pathlib import Path
 
@@ -40,6 +40,7 @@ class Scene:
     names: list[str] | None
     container_size: float | None
     type_scale: float
+    notes: list[str] = field(default_factory=list)  # said before packing (warnings)
 
 
 _SHARE_RE = re.compile(r"^\s*([-+]?(?:\d+\.?\d*|\.\d+)(?:[eE][-+]?\d+)?)\s*(%?)\s*$")
@@ -95,6 +96,21 @@ def resolve_shares(shares: Sequence[float | None], labels: Sequence[str]) -> lis
             "type a share")
     rest = (1.0 - total) / len(missing)
     return [float(s) if s is not None else rest for s in shares]
+
+
+def shares_note(shares: Sequence[float] | None, labels: Sequence[str]) -> str | None:
+    """A note when every type's share is a fraction or a percent (none a weight above 1)
+    and they do not add up to 100% (within half a point): they are then read as
+    proportions, which a typo (40% + 40% + 40%) would silently change."""
+    if not shares or any(s > 1.0 for s in shares):
+        return None
+    total = float(sum(shares))
+    if abs(total - 1.0) <= 0.005:
+        return None
+    scaled = ", ".join(f"{Path(lab).stem} {s / total:.0%}"
+                       for lab, s in zip(labels, shares, strict=True))
+    return (f"the shares add up to {total:.0%}, not 100%; they are taken as proportions: "
+            f"{scaled}")
 
 
 def check_mesh_file(path: str, role: str) -> None:
@@ -179,6 +195,8 @@ def resolve_scene(args: argparse.Namespace, stack: contextlib.ExitStack) -> Scen
         if os.path.abspath(args.preview) == os.path.abspath(args.output):
             raise UsageError("--preview and -o name the same file; give the preview its own "
                              "name, e.g. preview.png")
+    note = shares_note(shares, paths)
     return Scene(container=container, types=paths, shares=shares, names=names,
                  container_size=container_size,
-                 type_scale=1.0 if type_scale is None else type_scale)
+                 type_scale=1.0 if type_scale is None else type_scale,
+                 notes=[note] if note else [])

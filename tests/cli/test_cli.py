@@ -20,7 +20,7 @@ from jampacked.cli.args import UsageError
 from jampacked.cli.main import main
 from jampacked.cli.parser import build_parser
 from jampacked.cli.preview import write_preview
-from jampacked.cli.scene import parse_type_arg, resolve_scene, resolve_shares
+from jampacked.cli.scene import parse_type_arg, resolve_scene, resolve_shares, shares_note
 from jampacked.core.errors import InputError
 from jampacked.core.metrics import compute_metrics
 from jampacked.core.packing_json import load_packing
@@ -264,6 +264,30 @@ def test_resolve_shares():
     assert resolve_shares([0.4, None, None], ["a", "b", "c"]) == pytest.approx([0.4, 0.3, 0.3])
     with pytest.raises(UsageError, match="100%"):
         resolve_shares([0.6, 0.4, None], ["a", "b", "c"])
+
+
+def test_shares_note_when_percents_do_not_add_up():
+    assert shares_note(None, ["a"]) is None
+    assert shares_note([0.4, 0.6], ["a", "b"]) is None
+    assert shares_note([1 / 3, 1 / 3, 0.333], ["a", "b", "c"]) is None  # rounding
+    assert shares_note([2.0, 1.0], ["a", "b"]) is None  # weights: proportions meant
+    note = shares_note([0.4, 0.4, 0.4], ["dir/a.obj", "b.stl", "c.ply"])
+    assert note is not None and "120%" in note and "a 33%, b 33%, c 33%" in note
+    assert "60%" in shares_note([0.3, 0.3], ["a", "b"])
+
+
+def test_pack_warns_when_percents_do_not_add_up(tmp_path):
+    out = tmp_path / "p.json"
+    rc, _, se = run(["pack", "box:30x30x30", "--type", f"{P1}=30%", "--type", f"{P3}=30%",
+                     "--fidelity", "low", "--time-budget", "1", "--seed", "1", "-q",
+                     "-o", str(out)])
+    assert rc == 0, se
+    assert "warning:" in se and "add up to 60%" in se and "polytope1 50%" in se
+    assert [t.share for t in load_packing(out).types] == pytest.approx([0.5, 0.5])
+    rc, _, se = run(["pack", "box:30x30x30", "--type", f"{P1}=40%", "--type", f"{P3}=60%",
+                     "--fidelity", "low", "--time-budget", "1", "--seed", "1", "-q",
+                     "-o", str(out)])
+    assert rc == 0 and "add up" not in se
 
 
 def test_default_scene_resolves_bundled_files(tmp_path):
