@@ -82,8 +82,13 @@ def add_pack_parser(sub: argparse._SubParsersAction) -> None:
         help="where to write the packing (JSON; written atomically)")
     p.add_argument(
         "--preview", metavar="PREVIEW.png",
-        help="also write a PNG of cross-sections at 25%%, 50%% and 75%% of the container's "
-             "height, objects coloured by type")
+        help="also write a PNG of cross-sections at 25%%, 50%% and 75%% along the "
+             "--preview-axis, objects coloured by type")
+    p.add_argument(
+        "--preview-axis", choices=("auto", "x", "y", "z"), default="auto",
+        help="the axis the preview's sections cut across: auto takes z, or the "
+             "container's thinnest side where z is over twice as long (a torus lying in "
+             "x-z is cut across y) (default: auto)")
     p.add_argument(
         "--container-size", type=positive_float("--container-size"), metavar="MM",
         help="scale the container so its largest bounding-box side is MM container units "
@@ -165,7 +170,7 @@ def cmd_pack(args: argparse.Namespace) -> int:
     if args.preview:
         from jampacked.cli.preview import write_preview
 
-        write_preview(packing, args.preview)
+        write_preview(packing, args.preview, axis=args.preview_axis)
     if not args.quiet:
         out.print(f"wrote {args.output}" + (f" and {args.preview}" if args.preview else ""),
                   highlight=False)

@@ -1,4 +1,4 @@
-"""Preview image of a packing: horizontal cross-sections, objects coloured by type.
+"""Preview image of a packing: parallel cross-sections, objects coloured by type.
 
 Frames: everything is drawn in the container frame (container units). The container is
 ``frame_from_file @ v_file``; a placed object is ``matrix @ local_from_file @ v_file``
@@ -18,6 +18,12 @@ from jampacked.core.errors import InputError
 from jampacked.core.meshes import load_mesh
 from jampacked.core.packing import Packing, container_mesh
 from jampacked.core.solids import to_solid
+
+#: a container at least this many times longer along z than across its thinnest side is
+#: cut across that side (a torus lying in x-z, as Y-up files have it, cut along z reads as
+#: strips); others along z
+THIN_RATIO = 2.0
+AXES = "xyz"
 
 #: outline and fill of the container's section
 _CONTAINER_EDGE = "#7f7f7f"
@@ -48,19 +54,36 @@ def _path(polygons: list[np.ndarray]):
     return Path(np.concatenate(verts), np.concatenate(codes))
 
 
+def section_axis(extents: np.ndarray, axis: str = "auto") -> int:
+    """The axis (0, 1, 2) the preview cuts along: `axis` ("x", "y" or "z"), or for "auto" z
+    unless the container's bounding-box `extents` (3,) along z are THIN_RATIO times its
+    shortest (then that shortest axis)."""
+    if axis != "auto":
+        if axis not in AXES:
+            raise InputError(f"preview axis must be auto, x, y or z, got {axis!r}")
+        return AXES.index(axis)
+    e = np.asarray(extents, np.float64)
+    thin = int(np.argmin(e))
+    return thin if e[2] >= THIN_RATIO * e[thin] else 2
+
+
 def write_preview(packing: Packing, path: str | os.PathLike, *,
-                  heights: Sequence[float] = (0.25, 0.5, 0.75)) -> None:
+                  heights: Sequence[float] = (0.25, 0.5, 0.75), axis: str = "auto") -> None:
     """Write a PNG of cross-sections of `packing`, one panel per height, side by side.
 
     Args:
         packing: the packing; its container and type mesh files must be readable (a box
             spec container needs no file). Types without a mesh file are left out.
         path: the PNG to write (atomically: temp file in the same folder + os.replace).
-        heights: section heights as fractions of the container's z-extent in the container
-            frame, each strictly between 0 and 1.
+        heights: section positions as fractions of the container's extent along the cut
+            axis in the container frame, each strictly between 0 and 1.
+        axis: the axis the sections are cut across, "x", "y" or "z", or "auto"
+            (`section_axis`). Each panel shows the other two axes in order, the later
+            one upwards.
 
     Raises:
-        InputError: a height outside (0, 1), or the output folder does not exist.
+        InputError: a height outside (0, 1), an unknown axis, or the output folder does
+            not exist.
         MeshError: a mesh file named by the packing cannot be read.
     """
     heights = [float(h) for h in heights]
@@ -76,8 +99,16 @@ def write_preview(packing: Packing, path: str | os.PathLike, *,
     # container in the container frame
     cmesh = container_mesh(packing, "draw")
     c_verts = _transform(cmesh.vertices, packing.frame_from_file)
-    container = to_solid(c_verts, cmesh.faces, double=False)
-    lo, hi = c_verts.min(axis=0), c_verts.max(axis=0)
+    a = section_axis(c_verts.max(axis=0) - c_verts.min(axis=0), axis)
+    u, w = (k for k in range(3) if k != a)  # the panel's horizontal and vertical axes
+    # manifold3d slices along z: turn the cut axis into z, keeping (u, w) as (x, y); a
+    # rotation (the cut axis's sign flips where the order would mirror)
+    to_cut = np.eye(4)[[u, w, a, 3]]
+    sign = float(np.linalg.det(to_cut[:3, :3]))
+    to_cut[2] *= sign
+    cut = _transform(c_verts, to_cut)
+    container = to_solid(cut, cmesh.faces, double=False)
+    lo, hi = cut.min(axis=0), cut.max(axis=0)
 
     # types in their local frame; objects placed as transformed manifolds, built lazily
     n_types = len(packing.types)
@@ -90,7 +121,7 @@ def write_preview(packing: Packing, path: str | os.PathLike, *,
         v = _transform(m.vertices, rec.local_from_file)
         type_verts[t] = v
         type_solids[t] = to_solid(v, m.faces, double=False)
-    mats = packing.matrices()
+    mats = to_cut @ packing.matrices()
     z_lo = np.full(packing.n, np.inf)
     z_hi = np.full(packing.n, -np.inf)
     for i in range(packing.n):
@@ -115,7 +146,7 @@ def write_preview(packing: Packing, path: str | os.PathLike, *,
     pad = 0.03 * float(span[:2].max())
     counts = np.bincount(packing.type_index, minlength=n_types) if n_types else []
     for ax, frac in zip(axes, heights, strict=True):
-        z = float(lo[2] + frac * span[2])
+        z = float(lo[2] + frac * span[2]) if sign > 0 else float(hi[2] - frac * span[2])
         cpath = _path(container.slice(z).to_polygons())
         if cpath is not None:
             ax.add_patch(PathPatch(cpath, facecolor=_CONTAINER_FILL, edgecolor=_CONTAINER_EDGE,
@@ -137,9 +168,11 @@ def write_preview(packing: Packing, path: str | os.PathLike, *,
         ax.set_xlim(lo[0] - pad, hi[0] + pad)
         ax.set_ylim(lo[1] - pad, hi[1] + pad)
         ax.set_aspect("equal")
-        ax.set_xlabel("x (container units)")
-        ax.set_ylabel("y (container units)")
-        ax.set_title(f"z = {z:.4g}  ({frac:.0%} of height), {shown} objects cut", fontsize=10)
+        ax.set_xlabel(f"{AXES[u]} (container units)")
+        ax.set_ylabel(f"{AXES[w]} (container units)")
+        ax.set_title(f"{AXES[a]} = {sign * z:.4g}  ({frac:.0%} along {AXES[a]}), {shown} "
+                     "objects cut",
+                     fontsize=10)
         ax.tick_params(labelsize=8)
 
     density = (packing.metrics or {}).get("density")

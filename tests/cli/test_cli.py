@@ -19,7 +19,7 @@ from jampacked.cli import pack_cmd
 from jampacked.cli.args import UsageError
 from jampacked.cli.main import main
 from jampacked.cli.parser import build_parser
-from jampacked.cli.preview import write_preview
+from jampacked.cli.preview import section_axis, write_preview
 from jampacked.cli.scene import parse_type_arg, resolve_scene, resolve_shares, shares_note
 from jampacked.core.errors import InputError
 from jampacked.core.metrics import compute_metrics
@@ -106,6 +106,32 @@ def test_write_preview_rejects_bad_heights(packed, tmp_path):
         write_preview(p, tmp_path / "x.png", heights=(0.5, 1.5))
     with pytest.raises(InputError, match="does not exist"):
         write_preview(p, tmp_path / "missing" / "x.png")
+
+
+def test_preview_axis_is_z_unless_the_container_is_thin_across_another():
+    assert section_axis(np.array([2.5, 0.5, 2.5])) == 1  # a torus lying in x-z (Y-up)
+    assert section_axis(np.array([0.303, 0.515, 1.0])) == 0
+    assert section_axis(np.array([0.943, 1.69, 1.718])) == 2  # Spot: under twice as long
+    assert section_axis(np.array([3.0, 4.0, 1.0])) == 2
+    assert section_axis(np.array([2.5, 0.5, 2.5]), "x") == 0
+    with pytest.raises(InputError, match="auto, x, y or z"):
+        section_axis(np.ones(3), "w")
+
+
+def test_preview_of_a_container_thin_across_y_cuts_across_y(tmp_path):
+    out, png = tmp_path / "p.json", tmp_path / "flat.png"
+    rc, _, se = run(["pack", "box:50x16x50", "--type", str(P1), *SMALL, "-q", "-o", str(out),
+                     "--preview", str(png)])
+    assert rc == 0, se
+    import matplotlib.image as mpimg
+
+    flat = mpimg.imread(png)
+    write_preview(load_packing(out), tmp_path / "z.png", axis="z")
+    along_z = mpimg.imread(tmp_path / "z.png")
+    # panels of the 50 x 50 x-z section are square; the x-y ones 50 x 16 (at their lowest)
+    assert flat.shape[1] == along_z.shape[1] and flat.shape[0] > 1.5 * along_z.shape[0]
+    rgb = np.round(flat[..., :3] * 255).astype(int)
+    assert np.any(np.all(np.abs(rgb - (31, 119, 180)) <= 2, axis=-1))  # objects were cut
 
 
 def test_info_prints_summary_and_checks_sources(packed, capsys):
