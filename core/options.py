@@ -24,6 +24,10 @@ class PhaseOptions:
     phase2_spacing: float = 0.5  # phase 2 lattice spacing, fraction of phase 1's
     phase2_iterations: int = 80  # per growth step (paper: 55-150)
     phase2_retries: int = 2  # random smaller types tried after a failure
+    # phase 1 grows, of the next this many lattice objects, the one furthest from the grown
+    # objects of the type it takes (1: the paper's random order, whose clumping index a
+    # box of five fruit kept at 1.08-1.10)
+    spread_window: int = 8
 
 
 @dataclass(frozen=True)

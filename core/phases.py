@@ -18,6 +18,7 @@ from .metrics import best_tvd, density, equivalent_radius, tvd_of_counts
 from .report import PhaseStats
 from .rotations import random_quaternions
 from .solver import Solver
+from .type_spread import TypeSpread
 
 START_SCALE = 0.05
 GROWTH_STEPS = 30
@@ -91,15 +92,17 @@ def grow(solver: Solver, k: int, start: float, iters: int, stop: Stop,
 
 def phase1(solver: Solver, shares: np.ndarray, spacing: float, rng: np.random.Generator,
            stop: Stop, *, iters: int = 30, margin: np.ndarray,
-           growth_steps: int = GROWTH_STEPS,
+           growth_steps: int = GROWTH_STEPS, spread_window: int = 1,
            progress: Callable[[float, str], None] | None = None) -> PhaseStats:
     """Place one shrunken object per interior lattice point and grow them one at a time.
 
     spacing: lattice spacing (container units). shares: (T,) target shares by count.
     margin: (T,) per-type safety margin (container units). growth_steps: steps from scale 0
     to 1 (the paper: 30).
-    The next object to grow is the first ungrown one, as the largest type that is below its
-    target share (or, when none is, the type furthest below it).
+    The next object to grow takes the largest type that is below its target share (or, when
+    none is, the type furthest below it); it is the first ungrown one, or with
+    spread_window > 1 the one of the next spread_window ungrown ones furthest from the
+    grown objects of that type.
     """
     t0 = time.perf_counter()
     st = PhaseStats()
@@ -131,9 +134,11 @@ def phase1(solver: Solver, shares: np.ndarray, spacing: float, rng: np.random.Ge
     counts = np.zeros(n_types)
     order_by_volume = np.argsort(-table.volume)
     total = len(queue)
-    for done, k in enumerate(queue, start=1):
+    spread = TypeSpread(n_types)
+    for done in range(1, total + 1):
         if stop():
             break
+        k = queue[done - 1]
         if not solver.s.alive[k]:
             continue
         g = max(counts.sum(), 1.0)
@@ -144,13 +149,23 @@ def phase1(solver: Solver, shares: np.ndarray, spacing: float, rng: np.random.Ge
             # a type with a zero target share is never placed
             t = int(np.argmin(np.where(shares > 0, counts / np.maximum(shares, 1e-12),
                                        np.inf)))
-        # the first ungrown object takes the type the mix needs now (the paper draws types
-        # up front; typing on demand keeps the mix when big types fail more often)
+        # an ungrown object takes the type the mix needs now (the paper draws types up
+        # front; typing on demand keeps the mix when big types fail more often); the
+        # queue is in random order, and of its next few the one furthest from its type
+        # spreads the type
+        if spread_window > 1:
+            ahead = [j for j in range(done - 1, min(done - 1 + spread_window, total))
+                     if solver.s.alive[queue[j]]]
+            gaps = spread.nearest(t, solver.s.pos[[queue[j] for j in ahead]])
+            far = ahead[int(np.argmax(gaps))]
+            queue[done - 1], queue[far] = queue[far], queue[done - 1]
+            k = queue[done - 1]
         solver.s.typ[k] = t
         solver.s.margin[k] = margin[t]
         if grow(solver, k, solver.s.scale[k], iters, stop, growth_steps):
             counts[t] += 1
             st.grown += 1
+            spread.add(t, solver.s.pos[k])
         else:
             st.failed += 1
         if progress is not None and done % 4 == 0:
