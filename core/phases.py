@@ -22,6 +22,8 @@ from .type_spread import TypeSpread
 
 START_SCALE = 0.05
 GROWTH_STEPS = 30
+#: phase 1's spread window is at most its lattice objects over this
+SPREAD_QUEUE = 8
 
 
 def _density(solver: Solver) -> float:
@@ -101,8 +103,8 @@ def phase1(solver: Solver, shares: np.ndarray, spacing: float, rng: np.random.Ge
     to 1 (the paper: 30).
     The next object to grow takes the largest type that is below its target share (or, when
     none is, the type furthest below it); it is the first ungrown one, or with
-    spread_window > 1 the one of the next spread_window ungrown ones furthest from the
-    grown objects of that type.
+    spread_window > 1 the one of the next spread_window (at most a SPREAD_QUEUE-th of the
+    lattice) ungrown ones furthest from the grown objects of that type.
     """
     t0 = time.perf_counter()
     st = PhaseStats()
@@ -135,6 +137,9 @@ def phase1(solver: Solver, shares: np.ndarray, spacing: float, rng: np.random.Ge
     order_by_volume = np.argsort(-table.volume)
     total = len(queue)
     spread = TypeSpread(n_types)
+    # a few lattice points: a window over most of them would fix the order, and the
+    # attempts of a small scene would all grow alike
+    window = max(1, min(spread_window, total // SPREAD_QUEUE))
     for done in range(1, total + 1):
         if stop():
             break
@@ -153,8 +158,8 @@ def phase1(solver: Solver, shares: np.ndarray, spacing: float, rng: np.random.Ge
         # front; typing on demand keeps the mix when big types fail more often); the
         # queue is in random order, and of its next few the one furthest from its type
         # spreads the type
-        if spread_window > 1:
-            ahead = [j for j in range(done - 1, min(done - 1 + spread_window, total))
+        if window > 1:
+            ahead = [j for j in range(done - 1, min(done - 1 + window, total))
                      if solver.s.alive[queue[j]]]
             gaps = spread.nearest(t, solver.s.pos[[queue[j] for j in ahead]])
             far = ahead[int(np.argmax(gaps))]
