@@ -170,8 +170,8 @@ def write_preview(packing: Packing, path: str | os.PathLike, *,
         ax.set_aspect("equal")
         ax.set_xlabel(f"{AXES[u]} (container units)")
         ax.set_ylabel(f"{AXES[w]} (container units)")
-        ax.set_title(f"{AXES[a]} = {sign * z:.4g}  ({frac:.0%} along {AXES[a]}), {shown} "
-                     "objects cut",
+        at = sign * z + 0.0  # no "-0" in the title
+        ax.set_title(f"{AXES[a]} = {at:.4g}  ({frac:.0%} along {AXES[a]}), {shown} objects cut",
                      fontsize=10)
         ax.tick_params(labelsize=8)
 

@@ -25,8 +25,8 @@ class PhaseOptions:
     phase2_iterations: int = 80  # per growth step (paper: 55-150)
     phase2_retries: int = 2  # random smaller types tried after a failure
     # phase 1 grows, of the next this many lattice objects, the one furthest from the grown
-    # objects of the type it takes (1: the paper's random order, whose clumping index a
-    # box of five fruit kept at 1.08-1.10)
+    # objects of the type it takes (1: the paper's random order, which left each type's
+    # clumping index near the bar; docs/notes-core.md)
     spread_window: int = 8
 
 
