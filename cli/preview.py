@@ -146,7 +146,8 @@ def write_preview(packing: Packing, path: str | os.PathLike, *,
     pad = 0.03 * float(span[:2].max())
     counts = np.bincount(packing.type_index, minlength=n_types) if n_types else []
     for ax, frac in zip(axes, heights, strict=True):
-        z = float(lo[2] + frac * span[2]) if sign > 0 else float(hi[2] - frac * span[2])
+        at = float(c_verts[:, a].min() + frac * span[2])  # along the cut axis, as given
+        z = sign * at
         cpath = _path(container.slice(z).to_polygons())
         if cpath is not None:
             ax.add_patch(PathPatch(cpath, facecolor=_CONTAINER_FILL, edgecolor=_CONTAINER_EDGE,
@@ -170,7 +171,6 @@ def write_preview(packing: Packing, path: str | os.PathLike, *,
         ax.set_aspect("equal")
         ax.set_xlabel(f"{AXES[u]} (container units)")
         ax.set_ylabel(f"{AXES[w]} (container units)")
-        at = sign * z + 0.0  # no "-0" in the title
         ax.set_title(f"{AXES[a]} = {at:.4g}  ({frac:.0%} along {AXES[a]}), {shown} objects cut",
                      fontsize=10)
         ax.tick_params(labelsize=8)
