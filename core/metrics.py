@@ -8,6 +8,8 @@ written to JSON as they are.
 
 from __future__ import annotations
 
+import math
+
 import numpy as np
 from scipy.spatial import cKDTree
 
@@ -88,8 +90,15 @@ def _normalised_shares(target_shares: np.ndarray) -> np.ndarray:
 
 
 def equivalent_radius(volume: np.ndarray | float) -> np.ndarray | float:
-    """f(V) = (3V / 4pi)^(1/3): the radius of the sphere of volume V (container units)."""
-    return np.cbrt(3.0 * np.asarray(volume) / (4.0 * np.pi))
+    """f(V) = (3V / 4pi)^(1/3): the radius of the sphere of volume V (container units).
+
+    The cube root is libm's (`math.cbrt`): numpy's own differs by an ulp on CPUs with
+    AVX-512, and the solver's chaos turned that into other packings for the same seed
+    (docs/notes-core.md, "Same packing on every machine").
+    """
+    a = 3.0 * np.asarray(volume, dtype=np.float64) / (4.0 * np.pi)
+    r = np.fromiter(map(math.cbrt, a.ravel().tolist()), np.float64, a.size).reshape(a.shape)
+    return float(r) if r.ndim == 0 else r
 
 
 def tvd_of_counts(counts: np.ndarray, shares: np.ndarray) -> float:

@@ -7,6 +7,7 @@ state left behind only holds full-size objects and objects never grown (removed 
 
 from __future__ import annotations
 
+import math
 import time
 from collections.abc import Callable
 
@@ -211,7 +212,9 @@ def phase2(solver: Solver, shares: np.ndarray, spacing: float, rng: np.random.Ge
         return st
     table = solver.t
     f = equivalent_radius(table.volume)
-    vbar = float(np.exp(np.sum(shares * np.log(table.volume))))
+    # libm's log and exp, as equivalent_radius's cube root: numpy's differ on AVX-512 CPUs
+    logs = np.fromiter(map(math.log, table.volume.tolist()), np.float64, len(table.volume))
+    vbar = math.exp(float(np.sum(shares * logs)))
     if threshold is None:
         threshold = 0.5 * (float(equivalent_radius(vbar)) + float(f.min()))
     pts = interior_points(solver.c, spacing, threshold, rng)

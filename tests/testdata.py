@@ -9,6 +9,8 @@ import sys
 from pathlib import Path
 from types import ModuleType
 
+import numpy as np
+
 TESTS = Path(__file__).resolve().parent
 REPO = TESTS.parent
 DATA = TESTS / "data"
@@ -44,3 +46,18 @@ def bench_module(stem: str, siblings: bool = False) -> ModuleType:
         sys.modules[name] = module
         spec.loader.exec_module(module)
     return sys.modules[name]
+
+
+class UlpUp:
+    """A numpy ufunc whose results are one ulp larger, as numpy's SIMD cube root, log and
+    exp differ from libm's on CPUs with AVX-512."""
+
+    def __init__(self, ufunc):
+        self.ufunc = ufunc
+
+    def __call__(self, *args, **kwargs):
+        return np.nextafter(self.ufunc(*args, **kwargs), np.inf)
+
+    def __getattr__(self, name):
+        return getattr(self.ufunc, name)
+

@@ -6,9 +6,17 @@ import json
 
 import numpy as np
 import pytest
+from testdata import UlpUp
 
 from jampacked.core.errors import InputError
-from jampacked.core.metrics import compute_metrics, density, nni, tvd, type_shares
+from jampacked.core.metrics import (
+    compute_metrics,
+    density,
+    equivalent_radius,
+    nni,
+    tvd,
+    type_shares,
+)
 
 
 def lattice(k: int, spacing: float, origin: float = 0.0) -> np.ndarray:
@@ -180,3 +188,14 @@ def test_mix_cap_lets_small_scenes_take_the_best_next_object():
     assert mix_cap(counts * 20, q, 0.03) == pytest.approx(0.03)
     # never looser than one object beyond the best mix of the next count
     assert mix_cap(counts, q, 0.03) <= 0.0207 + 1 / 58 + 1e-3
+
+
+def test_the_equivalent_radius_does_not_follow_numpys_cube_root(monkeypatch):
+    # an ulp here changed a packing of the same seed between two machines
+    volumes = np.geomspace(1e-3, 1e6, 500)
+    want = equivalent_radius(volumes)
+    assert want.shape == (500,) and isinstance(equivalent_radius(2.0), float)
+    assert want == pytest.approx((3 * volumes / (4 * np.pi)) ** (1 / 3), rel=1e-15)
+    monkeypatch.setattr(np, "cbrt", UlpUp(np.cbrt))
+    np.testing.assert_array_equal(equivalent_radius(volumes), want)
+    assert equivalent_radius(volumes.reshape(20, 25)).shape == (20, 25)
