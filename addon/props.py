@@ -48,7 +48,7 @@ class JAMPACKED_PG_type(bpy.types.PropertyGroup):
 
 FIDELITY_ITEMS = [
     ('AUTO', "Auto", "Chosen from the scene: fewer spheres when there are many objects"),
-    ('LOW', "Low", "Fewest spheres and surface points: fastest"),
+    ('LOW', "Low", "Fewest spheres and coarsest grids: fastest"),
     ('MEDIUM', "Medium", "Balanced"),
     ('HIGH', "High", "Most spheres: slowest, tightest contacts"),
 ]

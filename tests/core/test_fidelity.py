@@ -97,3 +97,14 @@ def test_the_high_preset_takes_the_clearance_points_as_auto_does(tmp_path):
              clearance=0.5, fidelity="high", time_budget=2.0)
     assert p.report.fidelity_detail.surface_points == CLEARANCE_POINTS
     assert p.certificate["certified"]
+
+
+def test_the_low_preset_keeps_what_it_places():
+    # with 96 surface points per type low let overlaps through that certification removed:
+    # 11 of the 28 fruit placed in this box (low now keeps medium's points)
+    fruit = [str(mesh_path(f"fruit/ycb_lowpoly/{n}.obj")) for n in ("017_orange", "014_lemon")]
+    p = pack("box:20x20x20", fruit, seed=1, type_scale=100.0, fidelity="low")
+    placed = len(p.type_index) + p.report.repair.removed
+    assert p.report.fidelity_detail.spheres < PRESETS["medium"].spheres
+    assert p.report.repair.removed <= 0.1 * placed, p.report.repair
+    assert p.certificate["certified"]

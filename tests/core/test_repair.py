@@ -10,14 +10,19 @@ import pytest
 from testdata import mesh_path
 
 from jampacked.core.api import pack
-from jampacked.core.options import PackOptions
+from jampacked.core.options import FidelityOverrides, PackOptions
 
 FRUIT = [str(mesh_path(f"fruit/ycb_lowpoly/{n}.obj")) for n in ("017_orange", "014_lemon")]
 
 
-def _pack(**kwargs):
-    # low fidelity at this size leaves overlaps for the repair (19 bad pairs, 3 rounds)
-    return pack("box:20x20x20", FRUIT, seed=1, type_scale=100.0, fidelity="low", **kwargs)
+#: a deliberately coarse model (96 surface points per type) leaves overlaps for the repair
+COARSE = FidelityOverrides(surface_points=96)
+
+
+def _pack(options: PackOptions | None = None, **kwargs):
+    options = replace(options or PackOptions(), fidelity=COARSE)
+    return pack("box:20x20x20", FRUIT, seed=1, type_scale=100.0, fidelity="low",
+                options=options, **kwargs)
 
 
 def test_without_a_budget_the_repair_ignores_its_time_cap():
