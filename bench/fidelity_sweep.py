@@ -42,6 +42,7 @@ from scenes import (  # noqa: E402
     SCENES,
     Runs,
     fresh_cache_env,
+    median_phase_seconds,
     run_in_child,
     save_figure,
     write_json,
@@ -113,9 +114,7 @@ def sweep(scene: str, seeds: list[int], env: dict, meshes: Path,
             "worst_outside": med([r["before_certification"]["worst_outside"] for r in runs]),
             "moved": med([r["repair"]["moved"] for r in runs]),
             "removed": med([r["repair"]["removed"] for r in runs]),
-            # a phase some runs lack (other_attempts: one attempt only) took them 0 s
-            "phase_seconds": {k: med([r["timings"].get(k, 0.0) for r in runs])
-                              for k in dict.fromkeys(k for r in runs for k in r["timings"])},
+            "phase_seconds": median_phase_seconds(runs),
             "runs": runs,
         }
         rows.append(row)

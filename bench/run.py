@@ -41,6 +41,7 @@ from scenes import (  # noqa: E402
     Runs,
     clearance_row,
     fresh_cache_env,
+    median_phase_seconds,
     physical_cost,
     run_in_child,
     save_figure,
@@ -88,8 +89,7 @@ def summarise(scene: str, cold: dict | None, warm: list[dict]) -> dict:
         "median_count": med([r["metrics"]["count"] for r in warm]),
         "median_tvd": med([r["metrics"]["tvd"] for r in warm]),
         "median_nni": med([r["metrics"]["nni_mean"] or 0.0 for r in warm]),
-        "median_phase_seconds": {k: med([r["timings"][k] for r in warm])
-                                 for k in warm[0]["timings"]},
+        "median_phase_seconds": median_phase_seconds(warm),
         "worst_overlap_before_certification": max(
             r["before_certification"]["worst_overlap"] for r in warm),
         "worst_outside_before_certification": max(

@@ -13,6 +13,7 @@ import json
 import os
 import re
 import resource
+import statistics
 import subprocess
 import sys
 import tempfile
@@ -139,6 +140,13 @@ def clearance_row(clearance: float, cost: float, density: float,
         row["target"] = density_without * (1.0 - cost) - 0.01
         row["meets_target"] = bool(density >= row["target"])
     return row
+
+
+def median_phase_seconds(runs: list[dict]) -> dict[str, float]:
+    """Median seconds of each phase over run records; a phase some runs lack (other_attempts
+    when a run made one attempt) took them 0 s."""
+    names = dict.fromkeys(k for r in runs for k in r["timings"])
+    return {k: statistics.median([r["timings"].get(k, 0.0) for r in runs]) for k in names}
 
 
 def run_record(container: str, types: list[str], seed: int, kwargs: dict,

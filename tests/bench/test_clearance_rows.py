@@ -41,3 +41,11 @@ def test_every_clearance_scene_names_a_scene_without():
         assert without["container"] == scenes[name]["container"]
         same = {k: v for k, v in scenes[name]["kwargs"].items() if k != "clearance"}
         assert same == without["kwargs"]
+
+
+def test_median_phase_seconds_of_runs_with_and_without_other_attempts():
+    # a run of one attempt has no other_attempts: the scene row's summary raised KeyError
+    # when seed 1 made two attempts and seed 2 one
+    runs = [{"timings": {"phase1": 1.0, "other_attempts": 4.0}}, {"timings": {"phase1": 3.0}},
+            {"timings": {"phase1": 2.0, "other_attempts": 6.0}}]
+    assert _scenes().median_phase_seconds(runs) == {"phase1": 2.0, "other_attempts": 4.0}
