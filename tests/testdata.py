@@ -60,4 +60,3 @@ class UlpUp:
 
     def __getattr__(self, name):
         return getattr(self.ufunc, name)
-
