@@ -99,7 +99,9 @@ class RepairOptions:
 
     rounds: int = 3  # certify -> push apart rounds before removing offenders
     margin: float = 0.01  # margin added per round, fraction of bounding radius
-    iterations: int = 100
+    # solver iterations per push: a push in a jammed packing moves a chain of neighbours, and
+    # 100 often ended before it settled, so the object was removed (docs/notes-core.md)
+    iterations: int = 1000
     seconds: float = 20.0  # push-apart cap with a time budget; what still fails is removed
 
 
