@@ -534,7 +534,8 @@ def contacts_parallel(pa, pb, n_pairs, wa, n_wall, typ, pos, quat, scale, margin
 
 
 @njit(cache=True)
-def resolve(focus, state, table, cont, scratch, grid, params, max_iter, rollback, par_min):
+def resolve(focus, state, table, cont, scratch, grid, params, max_iter, rollback, par_min,
+            settle_every):
     """Penalty-force overlap resolution starting from the objects in `focus`.
 
     state: (typ, pos, quat, scale, alive, margin, vel) of every inserted object; table: the
@@ -553,6 +554,11 @@ def resolve(focus, state, table, cont, scratch, grid, params, max_iter, rollback
     overlaps except near `focus`, so only moved objects need re-checking.
 
     wall_extra is added to the wall distance each object must keep (grid error allowance).
+
+    settle_every > 0: every settle_every iterations the call gives up (fails) unless the
+    deepest penetration of the objects in contact fell below what it was settle_every
+    iterations before (at the first iteration for the first check), so a long `max_iter`
+    is spent on a push that is settling, not on one that jams; 0: no check.
 
     An iteration with at least `par_min` contact tests (pairs plus walls) splits them into
     Fc.shape[0] chunks that run on numba's threads (`contacts_parallel`) and sums the
@@ -591,6 +597,7 @@ def resolve(focus, state, table, cont, scratch, grid, params, max_iter, rollback
     tests = 0
     ok = False
     its = max_iter
+    settle_ref = 0.0
     for it in range(max_iter + 1):
         n_pairs = 0
         for ii in range(n_act):
@@ -634,9 +641,11 @@ def resolve(focus, state, table, cont, scratch, grid, params, max_iter, rollback
                     kp += 1
         n_hit = 0
         kp = 0
+        deepest = 0.0
         for ii in range(n_act):
             a = act_list[ii]
             pw = pen_w[ii]
+            deepest = max(deepest, pw)
             if pw > 0.0:
                 pen_wall[a] = max(pen_wall[a], pw)
                 if not hit[a]:
@@ -647,6 +656,7 @@ def resolve(focus, state, table, cont, scratch, grid, params, max_iter, rollback
                 b = pb[kp]
                 p = pen_pair[kp]
                 kp += 1
+                deepest = max(deepest, p)
                 if p > 0.0:
                     pen_obj[a] = max(pen_obj[a], p)
                     pen_obj[b] = max(pen_obj[b], p)
@@ -669,6 +679,11 @@ def resolve(focus, state, table, cont, scratch, grid, params, max_iter, rollback
             break
         if it == max_iter:
             break
+        if settle_every > 0 and it % settle_every == 0:
+            if it > 0 and deepest >= settle_ref:
+                its = it
+                break
+            settle_ref = deepest
         n_act = 0
         for ii in range(n_hit):
             a = hit_list[ii]

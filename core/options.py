@@ -102,6 +102,9 @@ class RepairOptions:
     # solver iterations per push: a push in a jammed packing moves a chain of neighbours, and
     # 100 often ended before it settled, so the object was removed (docs/notes-core.md)
     iterations: int = 1000
+    # ... but a push gives up when its deepest penetration has not fallen in this many
+    # iterations: one that jams the whole packing then costs what 100 iterations did
+    settle_every: int = 100
     seconds: float = 20.0  # push-apart cap with a time budget; what still fails is removed
 
 

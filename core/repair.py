@@ -97,7 +97,7 @@ def certify_and_repair(solver: Solver, certifier: Certifier, clearance: float,
             else:  # an overlap: its depth is not measured
                 s.margin[k] = 2.0 * old + options.margin * solver.t.radius[s.typ[k]]
             if not solver.resolve(np.array([k], np.int64), options.iterations,
-                                  rollback=True):
+                                  rollback=True, settle_every=options.settle_every):
                 s.margin[k] = old
         moved = np.flatnonzero(np.any(s.pos[: s.n] != before_pos, axis=1)
                                | np.any(s.quat[: s.n] != before_q, axis=1))

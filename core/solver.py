@@ -147,8 +147,10 @@ class Solver:
                               float(table.radius.max()) if len(table.radius) else 0.0,
                               params.clearance)
 
-    def resolve(self, focus: np.ndarray, max_iter: int, rollback: bool = True) -> bool:
-        """Resolve overlaps around `focus` (object indices); False if still overlapping."""
+    def resolve(self, focus: np.ndarray, max_iter: int, rollback: bool = True,
+                settle_every: int = 0) -> bool:
+        """Resolve overlaps around `focus` (object indices); False if still overlapping.
+        settle_every > 0: give up early on a push that stops settling (`kernels.resolve`)."""
         p = self.p
         # numba's thread count is per calling thread: set it for this call only
         before = numba.get_num_threads()
@@ -162,7 +164,7 @@ class Solver:
                 focus, self.s.view(), self.t.arrays(),
                 self.container_arrays(), self._scratch(), self.cells.sync(self.s, focus),
                 (p.clearance, p.tol, p.k_obj, p.k_wall, p.k_rot, p.damping, p.wall_margin),
-                int(max_iter), rollback, p.parallel_min)
+                int(max_iter), rollback, p.parallel_min, int(settle_every))
         finally:
             if threads != before:
                 numba.set_num_threads(before)

@@ -788,6 +788,36 @@ def test_resolve_rollback_restores_state(table, container):
     np.testing.assert_array_equal(before[1][-1], sv.s.pos[n - 1])  # the free one never moved
 
 
+def _jostle(table, container, n):
+    """n objects at 2.5x scale dropped at random into the box: 50 settle, 80 cannot."""
+    rng = np.random.default_rng(7)
+    return _solver_for(table, container, rng.integers(0, 2, n), rng.uniform(-12, 12, (n, 3)),
+                       random_quats(rng, n), scale=np.full(n, 2.5))
+
+
+def test_resolve_gives_up_on_a_push_that_stops_settling(table, container):
+    """settle_every: a jam (80 objects) stops at the first check whose deepest penetration
+    did not fall, and is rolled back; a crowd that settles (50) settles exactly as
+    without the check."""
+    sv = _jostle(table, container, 80)
+    before = _snapshot(sv.s)
+    assert not sv.resolve(np.arange(80), max_iter=300, rollback=True, settle_every=20)
+    assert sv.iterations < 100  # gave up early
+    for x, y in zip(before, sv.s.view(), strict=True):
+        np.testing.assert_array_equal(x, y)
+    sv = _jostle(table, container, 80)
+    assert not sv.resolve(np.arange(80), max_iter=300, rollback=True)
+    assert sv.iterations == 300  # without the check it runs to the end
+    results = []
+    for every in (0, 20):
+        sv = _jostle(table, container, 50)
+        assert sv.resolve(np.arange(50), max_iter=300, rollback=True, settle_every=every)
+        results.append((sv.iterations, _snapshot(sv.s)))
+    assert results[0][0] == results[1][0] > 20  # it passed checks on its way
+    for x, y in zip(results[0][1], results[1][1], strict=True):
+        np.testing.assert_array_equal(x, y)
+
+
 def test_resolve_leaves_free_state_untouched(table, container):
     rng = np.random.default_rng(91)
     pos = [[-6.0, 0, 0], [0.0, 0, 0], [6.0, 0, 0]]
