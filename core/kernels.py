@@ -641,11 +641,9 @@ def resolve(focus, state, table, cont, scratch, grid, params, max_iter, rollback
                     kp += 1
         n_hit = 0
         kp = 0
-        deepest = 0.0
         for ii in range(n_act):
             a = act_list[ii]
             pw = pen_w[ii]
-            deepest = max(deepest, pw)
             if pw > 0.0:
                 pen_wall[a] = max(pen_wall[a], pw)
                 if not hit[a]:
@@ -656,7 +654,6 @@ def resolve(focus, state, table, cont, scratch, grid, params, max_iter, rollback
                 b = pb[kp]
                 p = pen_pair[kp]
                 kp += 1
-                deepest = max(deepest, p)
                 if p > 0.0:
                     pen_obj[a] = max(pen_obj[a], p)
                     pen_obj[b] = max(pen_obj[b], p)
@@ -680,6 +677,10 @@ def resolve(focus, state, table, cont, scratch, grid, params, max_iter, rollback
         if it == max_iter:
             break
         if settle_every > 0 and it % settle_every == 0:
+            deepest = 0.0  # the hit objects hold this iteration's deepest penetrations
+            for ii in range(n_hit):
+                a = hit_list[ii]
+                deepest = max(deepest, pen_obj[a], pen_wall[a])
             if it > 0 and deepest >= settle_ref:
                 its = it
                 break

@@ -7,7 +7,7 @@ from dataclasses import replace
 
 import numpy as np
 import pytest
-from testdata import mesh_path
+from testdata import mesh_path, mesh_paths
 
 from jampacked.core.api import pack
 from jampacked.core.options import FidelityOverrides, PackOptions
@@ -51,8 +51,7 @@ def test_a_push_in_a_jammed_container_settles_instead_of_removing():
     walls. With 100 solver iterations the push ended unsettled and a fruit was removed (the
     knight at 130 mm, seed 3: 3 of 30; the Armadillo scene, seed 1: 8 of 137); it now
     settles."""
-    lowpoly = [str(mesh_path(f"fruit/ycb_lowpoly/{n}.obj"))
-               for n in ("011_banana", "012_strawberry", "014_lemon", "015_peach", "017_orange")]
+    lowpoly = [str(mesh_path(m)) for m in mesh_paths("fruit/ycb_lowpoly/*.obj")]
     p = pack(str(mesh_path("containers/spot.obj")), lowpoly, seed=2, container_size=130.0,
              type_scale=300.0, attempts=1)
     rep = p.report.repair
