@@ -12,11 +12,18 @@ import numpy as np
 
 from .distance import DistanceGrid, distance_grid, min_pyramid
 from .kernels import sample_grid_many
+from .mesh_geometry import face_areas2, sample_surface
 
 #: grid cells across the container's largest extent are capped to keep memory and time sane
 MAX_CELLS_PER_AXIS = 220
 #: lattice points `interior_points` tests at a time
 SLAB_POINTS = 1 << 20
+#: surface samples per cell face's area (spacing^2) that `tighten_to_surface` tests, and
+#: their bounds
+WALL_SAMPLES_PER_CELL = 16
+WALL_SAMPLES = (20_000, 1_000_000)
+#: overshoot (cells) below which the grid is taken as exact: a wall on grid planes
+ROUNDOFF = 1e-9
 
 
 @dataclass(frozen=True)
@@ -43,9 +50,45 @@ def build_container(vertices: np.ndarray, faces: np.ndarray, volume: float,
     vertices = np.ascontiguousarray(vertices, np.float64)
     extent = float(np.ptp(vertices, axis=0).max())
     spacing = max(float(spacing), extent / MAX_CELLS_PER_AXIS)
-    grid = distance_grid(vertices, faces, spacing, pad=2 * spacing, band=4)
+    grid = tighten_to_surface(distance_grid(vertices, faces, spacing, pad=2 * spacing, band=4),
+                              vertices, faces)
     return Container(vertices, np.ascontiguousarray(faces, np.int64), float(volume), grid,
                      min_pyramid(grid.values))
+
+
+def tighten_to_surface(grid: DistanceGrid, vertices: np.ndarray,
+                       faces: np.ndarray) -> DistanceGrid:
+    """The container grid lowered where its interpolant sees room beyond the wall.
+
+    The nodes hold exact distances, but between them the trilinear interpolant of a curved
+    wall can lie outside the true surface by a tenth of a cell or more (the Armadillo's
+    limbs: docs/notes-core.md), where the solver then places objects that certification
+    finds through the wall. Each cell holding surface samples where the interpolant is
+    positive has its eight nodes lowered by the largest such value: lowering a cell's
+    corners by d lowers the interpolant inside it by exactly d, so at every sample the grid
+    sees no room beyond the wall. Same frame and units as the grid (positive inside).
+    """
+    area = 0.5 * float(face_areas2(vertices, faces).sum())
+    lo, hi = WALL_SAMPLES
+    n = int(min(hi, max(lo, WALL_SAMPLES_PER_CELL * area / grid.spacing ** 2)))
+    pts = sample_surface(vertices, faces, n)
+    over = sample_grid_many(grid.values, grid.origin, grid.spacing, pts)
+    keep = over > ROUNDOFF * grid.spacing
+    if not keep.any():
+        return grid
+    shape = np.asarray(grid.values.shape)
+    cell = np.clip(np.floor((pts[keep] - grid.origin) / grid.spacing).astype(np.int64), 0,
+                   shape - 2)
+    by_cell = np.zeros(tuple(shape - 1))
+    np.maximum.at(by_cell, (cell[:, 0], cell[:, 1], cell[:, 2]), over[keep])
+    drop = np.zeros(tuple(shape))
+    nx, ny, nz = by_cell.shape
+    for dx in (0, 1):
+        for dy in (0, 1):
+            for dz in (0, 1):
+                view = drop[dx:dx + nx, dy:dy + ny, dz:dz + nz]
+                np.maximum(view, by_cell, out=view)
+    return DistanceGrid(np.ascontiguousarray(grid.values - drop), grid.origin, grid.spacing)
 
 
 def interior_points(container: Container, spacing: float, min_depth: float,
