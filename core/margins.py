@@ -5,7 +5,9 @@ The solver sees objects and the container through trilinear distance grids. A sm
 surface is reproduced to a few hundredths of a cell; sharp edges and corners are rounded
 off by up to half a cell, and there the approximations miss overlaps that certification
 then finds on the real meshes. A margin covers that error, and every margin costs density,
-so types whose grid reproduces their surface closely keep the smaller margin.
+so types whose grid reproduces their surface closely keep the smaller margin. The
+container's grid is lowered where it sees room beyond the wall (`tighten_to_surface` in
+container.py), so its error measured here is what remains between those samples.
 
 Smooth types' grids err far less than sharp ones', and halved margins gained density on
 smooth scenes but left overlaps on sharp ones, even where only one sharp type kept the
