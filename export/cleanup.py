@@ -12,6 +12,10 @@ vertices closer than float32 resolution. Two local, shape-preserving repairs fix
 * a *cap* (a corner on the opposite edge ab) is removed by flipping ab: faces (a, b, c) and
   (b, a, d) become (c, a, d) and (d, b, c), the same region split at c.
 
+A needle need not have zero area to fold over its neighbour once its positions are rounded
+to float32: `collapse_needles` collapses the short edges of the needles among given faces
+(those a float32 self-intersection test names).
+
 Positions are tested as given and as float32 (the coarsest format written); faces keep
 their winding.
 """
@@ -112,3 +116,28 @@ def remove_degenerate_faces(v: np.ndarray, f: np.ndarray, max_steps: int = 1000
         if new is not None:
             f = new
     return v, f, len(degenerate_faces(v, f))
+
+
+def collapse_needles(v: np.ndarray, f: np.ndarray, faces: np.ndarray
+                     ) -> tuple[np.ndarray, int]:
+    """Collapse the short edge of each needle among `faces` (indices into f): a face whose
+    shortest edge, with positions rounded to float32, is at most NEEDLE_REL of its longest,
+    where the 2-manifold allows it (`_collapse`). Returns (faces, edges collapsed);
+    vertices are unchanged and faces keep their winding."""
+    f = np.array(f, dtype=np.int64, copy=True)
+    p32 = v.astype(np.float32).astype(np.float64)
+    edges = []
+    for i in np.unique(np.asarray(faces, np.int64)):
+        tri = [int(x) for x in f[i]]
+        pairs = [(tri[k], tri[(k + 1) % 3]) for k in range(3)]
+        lengths = [float(np.linalg.norm(p32[a] - p32[b])) for a, b in pairs]
+        k = int(np.argmin(lengths))
+        if lengths[k] <= NEEDLE_REL * max(lengths):
+            edges.append(pairs[k])
+    done = 0
+    for a, b in edges:
+        new = _collapse(f, a, b)  # None too when an earlier collapse took a or b
+        if new is not None:
+            f, done = new, done + 1
+    return f, done
+

@@ -16,7 +16,7 @@ from scipy.sparse.csgraph import connected_components
 from jampacked.core.errors import MeshError
 from jampacked.core.solids import solid_arrays
 
-from .cleanup import remove_degenerate_faces
+from .cleanup import collapse_needles, remove_degenerate_faces
 from .intersect import intersecting_pairs
 from .validate import merge_identical
 
@@ -26,6 +26,9 @@ __all__ = ["SPECK_REL", "Cleaned", "clean_bodies", "clean_arrays", "drop_specks"
 #: components of a union with less volume than this fraction of its bounding box are specks
 #: (where a strut grazes a surface), dropped
 SPECK_REL = 1e-9
+#: rounds of needle collapses on the faces that fold over once rounded to float32 (each
+#: round tests the whole mesh again)
+NEEDLE_ROUNDS = 3
 
 
 def union_arrays(pieces: list[m3.Manifold], shell: m3.Manifold | None,
@@ -68,9 +71,10 @@ def clean_arrays(result: m3.Manifold, float32: bool = False
     """The result's arrays without zero-area faces (see export/cleanup.py), and how many
     faces are left bad. With `float32` (an STL or PLY will be written) a face that
     intersects another once the positions are rounded to float32 is bad too: slivers
-    from the booleans, a thousandth of a millimetre wide, can fold over there. Where the
-    local repairs cannot remove them all, manifold3d first simplifies by a tolerance far
-    below any printer's resolution (1e-7 to 1e-5 of the size)."""
+    from the booleans, a thousandth of a millimetre wide, can fold over there: the
+    needles among the faces that fold have their short edges collapsed. Where the local
+    repairs cannot remove them all, manifold3d first simplifies by a tolerance far below
+    any printer's resolution (1e-7 to 1e-5 of the size)."""
 
     def cleaned(m: m3.Manifold) -> tuple[np.ndarray, np.ndarray, int]:
         v, f, left = remove_degenerate_faces(*solid_arrays(m))
@@ -79,8 +83,14 @@ def clean_arrays(result: m3.Manifold, float32: bool = False
             # merges them when it reads the file back
             p32 = v.astype(np.float32).astype(np.float64)
             first, remap = merge_identical(p32)
-            _, crossing, _ = intersecting_pairs(p32[first], remap[f])
-            left = int(crossing)
+            for _ in range(NEEDLE_ROUNDS):
+                pairs, crossing, _ = intersecting_pairs(p32[first], remap[f])
+                left = int(crossing)
+                if left == 0:
+                    break
+                f, collapsed = collapse_needles(v, f, pairs.ravel())
+                if collapsed == 0:
+                    break
         return v, f, left
 
     v, f, left = cleaned(result)

@@ -537,6 +537,64 @@ def test_stl_export_survives_slivers_that_fold_over_in_float32(tmp_path):
     assert _meshio_volume(tmp_path / "a.stl") == pytest.approx(volume, rel=1e-5)
 
 
+NEEDLES = DATA / "spot-float32-needles.json"
+
+
+def test_stl_export_collapses_needles_that_fold_over_in_float32(tmp_path):
+    """The bundled scene's packing (`make demo` with the tightened container grid) whose
+    STL was refused: a needle of the union (edges of 2.3 mm, 2.3 mm and 1e-5 mm, not of
+    zero area) folds over its neighbours once rounded to float32, and simplifying by up to
+    1e-5 of the size left it. Its short edge is now collapsed; the STL passes."""
+    from jampacked.export.intersect import intersecting_pairs
+    from jampacked.export.io import read_mesh_arrays
+
+    opts = ExportOptions(mode="connect", shell=2.0, up="+y",
+                         opening=Opening(kind="window", axis="+y", size=45.0), drain=3.0)
+    rep = export_packing(NEEDLES, tmp_path / "a.3mf", opts)
+    assert rep.passed
+    v, f = read_mesh_arrays(tmp_path / "a.3mf")
+    p32, merged = np.unique(v.astype(np.float32), axis=0, return_inverse=True)
+    _, crossing, _ = intersecting_pairs(p32.astype(np.float64), merged.reshape(-1)[f])
+    assert crossing > 0  # the failure mode is in this packing
+    rep32 = export_packing(NEEDLES, tmp_path / "a.stl", opts)
+    assert rep32.passed and rep32.bodies == 1
+    assert validate_file(tmp_path / "a.stl").passed
+    assert rep32.volume == pytest.approx(rep.volume, rel=1e-6)
+
+
+def test_collapse_needles_removes_a_needle_and_keeps_the_surface_closed():
+    from jampacked.export.cleanup import collapse_needles
+
+    sphere = trimesh.creation.icosphere(subdivisions=2)
+    v, f = np.asarray(sphere.vertices), np.asarray(sphere.faces, np.int64)
+    a, b = (int(x) for x in f[0][:2])  # split edge ab next to a: two needles
+    c = len(v)
+    v = np.vstack([v, v[a] + 1e-5 * (v[b] - v[a])])
+    out = []
+    for tri in f:
+        tri = [int(x) for x in tri]
+        for k in range(3):
+            p, q, r = tri[k], tri[(k + 1) % 3], tri[(k + 2) % 3]
+            if {p, q} == {a, b}:
+                out += [[p, c, r], [c, q, r]]
+                break
+        else:
+            out.append(tri)
+    f2 = np.array(out, np.int64)
+    needles = [i for i, tri in enumerate(f2) if c in tri and a in tri]
+    assert len(needles) == 2
+    g, done = collapse_needles(v, f2, np.array(needles))
+    assert done == 1 and len(g) == len(f)
+    edges = np.sort(np.concatenate([g[:, [0, 1]], g[:, [1, 2]], g[:, [2, 0]]]), axis=1)
+    _, counts = np.unique(edges, axis=0, return_counts=True)
+    assert np.all(counts == 2)  # closed and 2-manifold
+    assert trimesh.Trimesh(v, g, process=False).volume == pytest.approx(sphere.volume,
+                                                                        rel=1e-6)
+    # a face that is no needle is left alone
+    other = next(i for i in range(len(f2)) if i not in needles)
+    assert collapse_needles(v, f2, np.array([other]))[1] == 0
+
+
 # --------------------------------------------------------------------------- inputs refused
 # (issue 20: what export did with packings and options it cannot honour)
 
