@@ -140,4 +140,3 @@ def collapse_needles(v: np.ndarray, f: np.ndarray, faces: np.ndarray
         if new is not None:
             f, done = new, done + 1
     return f, done
-
