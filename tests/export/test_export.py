@@ -513,23 +513,28 @@ def test_needle_is_collapsed():
 SLIVERS = DATA / "spot-float32-slivers.json"
 
 
+def _float32_crossings(path: Path) -> int:
+    """Face pairs of a written mesh that intersect once its positions are rounded to
+    float32 (identical rounded positions merged, as the validator reads an STL back)."""
+    from jampacked.export.intersect import intersecting_pairs
+    from jampacked.export.io import read_mesh_arrays
+
+    v, f = read_mesh_arrays(path)
+    p32, merged = np.unique(v.astype(np.float32), axis=0, return_inverse=True)
+    return int(intersecting_pairs(p32.astype(np.float64), merged.reshape(-1)[f])[1])
+
+
 def test_stl_export_survives_slivers_that_fold_over_in_float32(tmp_path):
     """The bundled scene's packing whose connected print made `make demo` fail: the union
     holds slivers (edges of 1e-3 mm) that intersect their neighbours once the positions
     are rounded to float32, as STL stores them. The STL export now simplifies them away
     (by at most 1e-5 of the size) and passes; the 3MF, float64, keeps them."""
-    from jampacked.export.intersect import intersecting_pairs
-    from jampacked.export.io import read_mesh_arrays
-
     opts = ExportOptions(mode="connect", shell=2.0, up="+y",
                          opening=Opening(axis="+y", at=0.55), drain=3.0)
     rep = export_packing(SLIVERS, tmp_path / "a.3mf", opts)
     assert rep.passed
     volume = rep.volume
-    v, f = read_mesh_arrays(tmp_path / "a.3mf")
-    p32, merged = np.unique(v.astype(np.float32), axis=0, return_inverse=True)
-    _, crossing, _ = intersecting_pairs(p32.astype(np.float64), merged.reshape(-1)[f])
-    assert crossing > 0  # the failure mode is in this packing
+    assert _float32_crossings(tmp_path / "a.3mf") > 0  # the failure mode is in this packing
     rep = export_packing(SLIVERS, tmp_path / "a.stl", opts)
     assert rep.passed and rep.bodies == 1
     assert validate_file(tmp_path / "a.stl").passed
@@ -545,17 +550,11 @@ def test_stl_export_collapses_needles_that_fold_over_in_float32(tmp_path):
     STL was refused: a needle of the union (edges of 2.3 mm, 2.3 mm and 1e-5 mm, not of
     zero area) folds over its neighbours once rounded to float32, and simplifying by up to
     1e-5 of the size left it. Its short edge is now collapsed; the STL passes."""
-    from jampacked.export.intersect import intersecting_pairs
-    from jampacked.export.io import read_mesh_arrays
-
     opts = ExportOptions(mode="connect", shell=2.0, up="+y",
                          opening=Opening(kind="window", axis="+y", size=45.0), drain=3.0)
     rep = export_packing(NEEDLES, tmp_path / "a.3mf", opts)
     assert rep.passed
-    v, f = read_mesh_arrays(tmp_path / "a.3mf")
-    p32, merged = np.unique(v.astype(np.float32), axis=0, return_inverse=True)
-    _, crossing, _ = intersecting_pairs(p32.astype(np.float64), merged.reshape(-1)[f])
-    assert crossing > 0  # the failure mode is in this packing
+    assert _float32_crossings(tmp_path / "a.3mf") > 0  # the failure mode is in this packing
     rep32 = export_packing(NEEDLES, tmp_path / "a.stl", opts)
     assert rep32.passed and rep32.bodies == 1
     assert validate_file(tmp_path / "a.stl").passed
