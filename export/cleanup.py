@@ -71,6 +71,20 @@ def _collapse(f: np.ndarray, p: int, q: int) -> np.ndarray | None:
     return out
 
 
+def _edges(p: np.ndarray, tri: list[int]) -> tuple[list[tuple[int, int]], list[float]]:
+    """A face's three edges (a, b) and their lengths at positions p."""
+    edges = [(tri[k], tri[(k + 1) % 3]) for k in range(3)]
+    return edges, [float(np.linalg.norm(p[a] - p[b])) for a, b in edges]
+
+
+def _needle_edge(p: np.ndarray, tri: list[int]) -> tuple[int, int] | None:
+    """A needle's short edge: the face's shortest edge when it is at most NEEDLE_REL of its
+    longest, at positions p; None for a face that is no needle."""
+    edges, lengths = _edges(p, tri)
+    k = int(np.argmin(lengths))
+    return edges[k] if lengths[k] <= NEEDLE_REL * max(lengths) else None
+
+
 def _flip(f: np.ndarray, face: int, a: int, b: int, c: int) -> np.ndarray | None:
     """Flip edge ab of face (a, b, c) with the face across it, or None when edge cd exists."""
     across = _faces_with_edge(f, b, a)
@@ -103,12 +117,11 @@ def remove_degenerate_faces(v: np.ndarray, f: np.ndarray, max_steps: int = 1000
         i = bad[0]
         tri = [int(x) for x in f[i]]
         tried.add(tuple(tri))
-        edges = [(tri[k], tri[(k + 1) % 3]) for k in range(3)]
-        lengths = [float(np.linalg.norm(p32[a] - p32[b])) for a, b in edges]
+        edges, lengths = _edges(p32, tri)
         new = None
-        k = int(np.argmin(lengths))
-        if lengths[k] <= NEEDLE_REL * max(lengths):  # a needle: its short edge goes
-            new = _collapse(f, *edges[k])
+        short = _needle_edge(p32, tri)
+        if short is not None:  # a needle: its short edge goes
+            new = _collapse(f, *short)
         if new is None:  # a cap (or a needle that cannot collapse): flip the long edge
             k = int(np.argmax(lengths))
             a, b = edges[k]
@@ -126,17 +139,13 @@ def collapse_needles(v: np.ndarray, f: np.ndarray, faces: np.ndarray
     vertices are unchanged and faces keep their winding."""
     f = np.array(f, dtype=np.int64, copy=True)
     p32 = v.astype(np.float32).astype(np.float64)
-    edges = []
-    for i in np.unique(np.asarray(faces, np.int64)):
-        tri = [int(x) for x in f[i]]
-        pairs = [(tri[k], tri[(k + 1) % 3]) for k in range(3)]
-        lengths = [float(np.linalg.norm(p32[a] - p32[b])) for a, b in pairs]
-        k = int(np.argmin(lengths))
-        if lengths[k] <= NEEDLE_REL * max(lengths):
-            edges.append(pairs[k])
+    edges = [_needle_edge(p32, [int(x) for x in f[i]])
+             for i in np.unique(np.asarray(faces, np.int64))]
     done = 0
-    for a, b in edges:
-        new = _collapse(f, a, b)  # None too when an earlier collapse took a or b
+    for edge in edges:
+        if edge is None:
+            continue
+        new = _collapse(f, *edge)  # None too when an earlier collapse took a or b
         if new is not None:
             f, done = new, done + 1
     return f, done

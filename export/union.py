@@ -83,10 +83,10 @@ def clean_arrays(result: m3.Manifold, float32: bool = False
             # merges them when it reads the file back
             p32 = v.astype(np.float32).astype(np.float64)
             first, remap = merge_identical(p32)
-            for _ in range(NEEDLE_ROUNDS):
+            for rnd in range(NEEDLE_ROUNDS + 1):  # the last round only tests
                 pairs, crossing, _ = intersecting_pairs(p32[first], remap[f])
                 left = int(crossing)
-                if left == 0:
+                if left == 0 or rnd == NEEDLE_ROUNDS:
                     break
                 f, collapsed = collapse_needles(v, f, pairs.ravel())
                 if collapsed == 0:
