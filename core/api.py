@@ -492,7 +492,8 @@ def _assemble(container: MeshSource, scene: _Scene, approx: _Approximation, run:
         + run_warnings([t.name for t in objtypes], q, np.bincount(typ, minlength=len(q)),
                        float(metrics["tvd"]), inputs.options.cavity.max_tvd,
                        run.best.phase1, inputs.time_budget, stop.reason or None,
-                       inputs.options.attempts.count, len(run.attempts)))
+                       inputs.options.attempts.count, len(run.attempts),
+                       extra_passes_ran=bool(run.best.extra_passes)))
     return Packing(
         container_path=_source_name(container, scene.container),
         container_sha256=scene.container.sha256, frame_from_file=scene.frame_from_file,

@@ -21,11 +21,12 @@ MIX_WARN_SLACK = 0.01
 def run_warnings(names: Sequence[str], shares: np.ndarray, counts: np.ndarray, tvd: float,
                  max_tvd: float, phase1: PhaseStats, time_budget: float | None,
                  stopped: str | None, attempts_asked: int | None,
-                 attempts_run: int) -> list[str]:
+                 attempts_run: int, extra_passes_ran: bool = True) -> list[str]:
     """Warnings for a packing of counts (T,) objects per type against shares (T,) summing
     to 1, whose TVD is `tvd` (the mix tolerance `max_tvd`); `phase1` is the kept attempt's
-    first phase; `stopped` the run's stop reason ("deadline", "cancelled" or None);
-    `attempts_asked` None when the count of attempts was left to the budget."""
+    first phase and `extra_passes_ran` whether any of its extra cavity passes started;
+    `stopped` the run's stop reason ("deadline", "cancelled" or None); `attempts_asked`
+    None when the count of attempts was left to the budget."""
     out = []
     missing = [i for i, (s, c) in enumerate(zip(shares, counts, strict=True))
                if s > 0 and c == 0]
@@ -47,6 +48,12 @@ def run_warnings(names: Sequence[str], shares: np.ndarray, counts: np.ndarray, t
             f"the time budget ({time_budget:g} s) ended while the first objects were still "
             f"growing: {phase1.grown} of {phase1.inserted} grew, and the cavity passes did not "
             "run, so the container is far from full. Give a larger --time-budget, or none.")
+    elif stopped == "deadline" and not extra_passes_ran:
+        out.append(
+            f"the time budget ({time_budget:g} s) ended before the cavity passes ran: the "
+            f"first objects grew ({phase1.grown} of {phase1.inserted}), but the holes between "
+            "them were left unfilled, so the container is far from full. Give a larger "
+            "--time-budget, or none.")
     if stopped == "deadline" and attempts_asked is not None \
             and attempts_run < attempts_asked:
         out.append(

@@ -13,9 +13,10 @@ NAMES = ["apple", "plum"]
 HALF = np.array([0.5, 0.5])
 
 
-def _warn(counts, tvd=0.0, phase1=None, budget=None, stopped=None, asked=None, ran=1):
+def _warn(counts, tvd=0.0, phase1=None, budget=None, stopped=None, asked=None, ran=1,
+          extra=True):
     return run_warnings(NAMES, HALF, np.array(counts), tvd, 0.04, phase1 or PhaseStats(),
-                        budget, stopped, asked, ran)
+                        budget, stopped, asked, ran, extra_passes_ran=extra)
 
 
 def test_a_full_run_with_the_mix_kept_warns_about_nothing():
@@ -42,6 +43,44 @@ def test_a_budget_ending_in_phase_1_and_attempts_cut_short():
     assert w[1].startswith("1 of the 3 attempts")
     # cancelled, not the budget: the command line says it was interrupted instead
     assert _warn([100, 101], stopped="cancelled", asked=3, ran=1) == []
+
+
+def test_a_budget_ending_before_the_cavity_passes():
+    # a sweep's scene (non-convex polytopes in Spot, 20 s): phase 1 grew 130 of 310 objects
+    # (19%) in 18.5 s, the budget ended in phase 2, and nothing said the holes were unfilled
+    grown = PhaseStats(inserted=310, grown=130)
+    (w,) = _warn([66, 67], phase1=grown, budget=20.0, stopped="deadline", extra=False)
+    assert "ended before the cavity passes ran" in w and "130 of 310" in w
+    assert "--time-budget" in w
+    # once the passes started, the budget ending them is how a budget works: no warning
+    assert _warn([66, 67], phase1=grown, budget=20.0, stopped="deadline", extra=True) == []
+    # phase 1 cut short says so once, not twice
+    cut = PhaseStats(inserted=310, grown=100, stopped="deadline")
+    assert len(_warn([50, 50], phase1=cut, budget=20.0, stopped="deadline",
+                     extra=False)) == 1
+
+
+def test_pack_warns_when_the_budget_ends_before_the_cavity_passes(tmp_path, monkeypatch):
+    # the clock is made to run out right after the paper's phase 2, as a 20 s budget did
+    import time
+
+    from jampacked.core import placement
+
+    paper_phase2 = placement.phase2
+
+    def phase2_then_deadline(solver, q, spacing, rng, stop, **kw):
+        st = paper_phase2(solver, q, spacing, rng, stop, **kw)
+        stop.deadline = time.perf_counter() - 1.0
+        return st
+
+    monkeypatch.setattr(placement, "phase2", phase2_then_deadline)
+    ball = tmp_path / "ball.stl"
+    trimesh.creation.icosphere(2, radius=2.0).export(ball)
+    p = pack("box:14x14x14", [str(ball)], seed=1, time_budget=600.0)
+    assert p.certificate["certified"] and p.report.stopped == "deadline"
+    assert p.report.extra_passes == []
+    warned = [w for w in p.report.warnings if "before the cavity passes ran" in w]
+    assert len(warned) == 1 and "600 s" in warned[0]
 
 
 def test_pack_warns_when_a_type_fits_nowhere(tmp_path):
