@@ -18,7 +18,7 @@ import bpy
 import numpy as np
 from bpy.props import EnumProperty, FloatProperty, IntProperty, StringProperty
 
-from . import bridge, engine, instances, live_view, repair, results, worker
+from . import bridge, engine, instances, live_view, repair, results, summary, worker
 from .props import axis_name
 
 #: seconds between progress updates
@@ -243,7 +243,7 @@ class JobRunner:
         self.report({level}, message)
 
     def _fail(self, context: bpy.types.Context, message: str) -> None:
-        self._note(context, 'ERROR', message[:1].upper() + message[1:])
+        self._note(context, 'ERROR', summary.in_blender_words(message))
 
 
 class PackRunner(JobRunner):
@@ -288,7 +288,13 @@ class PackRunner(JobRunner):
         text = (f"Packed {p.n} objects into '{coll.name}': density {m.get('density', 0):.1%}, "
                 f"TVD {m.get('tvd', 0):.3f}, NNI {'-' if nni is None else f'{nni:.2f}'}, "
                 f"{'certified' if cert.get('certified') else 'NOT certified'}.")
-        self._note(context, 'INFO' if cert.get("certified") else 'WARNING', text)
+        warned = summary.warnings(coll)
+        for w in warned:  # each in the Info log; the panel's Result shows them all
+            self.report({'WARNING'}, w)
+        if warned:
+            text += f" {len(warned)} warning(s): see Result in the panel."
+        self._note(context, 'INFO' if cert.get("certified") and not warned else 'WARNING',
+                   text)
         return {'FINISHED'}
 
 

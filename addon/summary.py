@@ -4,7 +4,8 @@ The result collection of a Pack carries these custom properties (``jampacked_`` 
 count, count_per_type, type_names, target_shares, density, tvd, nni_mean, nni_per_type
 (-1 where a type has fewer than two objects), certified, worst_overlap, worst_outside,
 min_pair_gap and min_wall_gap (with a clearance), clearance, seed, fidelity, stopped,
-time_s, plus the packing JSON (``jampacked_packing``). Definitions: DESIGN.md.
+time_s, warnings (when the run has any), plus the packing JSON (``jampacked_packing``).
+Definitions: DESIGN.md.
 """
 
 from __future__ import annotations
@@ -42,6 +43,8 @@ DESCRIPTIONS = {
     "stopped": "Why placement stopped early (deadline: time budget; cancelled: finished "
                "early), empty when it ran to the end",
     "time_s": "Seconds the packing took",
+    "warnings": "What the run warns about (a type never placed, a mix off its shares, a "
+                "time budget that ended early), one sentence each",
 }
 
 
@@ -81,11 +84,42 @@ def collection_properties(packing: Packing) -> dict[str, Any]:
             out[key] = value
     if summ.total_seconds is not None:
         out["time_s"] = summ.total_seconds
+    if packing.report.warnings:
+        out["warnings"] = [in_blender_words(str(w)) for w in packing.report.warnings]
     return out
 
 
 def _get(props: Mapping[str, Any], key: str, default: Any = None) -> Any:
     return props.get(PREFIX + key, default)
+
+
+#: the engine's messages name the command line's options; in Blender the same advice is
+#: about the scene's objects and the panel's fields (longest first)
+_BLENDER_WORDS = (
+    (" (CLI: --type FILE[=SHARE])", ""),
+    ("--type-scale / type_scale", "the type objects' scale"),
+    ("--container-size / container_size", "the container object's scale"),
+    ("--type-scale", "the type objects' scale"),
+    ("--container-size", "the container object's scale"),
+    ("--time-budget", "Time Budget"),
+    ("--mix-tolerance", "Mix Tolerance"),
+    ("--clearance", "Clearance"),
+    ("--fidelity", "Fidelity"),
+)
+
+
+def in_blender_words(message: str) -> str:
+    """An engine message with the command line's option names replaced by what a Blender
+    user changes instead, first letter upper case."""
+    for cli, blender in _BLENDER_WORDS:
+        message = message.replace(cli, blender)
+    return message[:1].upper() + message[1:]
+
+
+def warnings(props: Mapping[str, Any]) -> list[str]:
+    """The run's warnings stored on a result collection (none for results made before
+    they were stored)."""
+    return [str(w) for w in _get(props, "warnings", [])]
 
 
 def panel_lines(props: Mapping[str, Any]) -> list[tuple[str, str]]:

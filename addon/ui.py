@@ -130,6 +130,10 @@ class JAMPACKED_PT_result(_Sidebar, bpy.types.Panel):
             row = col.row()
             row.label(text=label)
             row.label(text=value)
+        for warning in summary.warnings(coll):
+            box = layout.box().column(align=True)
+            for i, line in enumerate(_wrap(warning, 44)):
+                box.label(text=line, icon='ERROR' if i == 0 else 'BLANK1')
         points = instances.points_object(coll)
         if points is not None:
             box = layout.box()

@@ -142,3 +142,29 @@ def drive(run, context, *, events=(), timeout: float = 120.0) -> set:
             return result
         time.sleep(0.05)
     raise AssertionError("the job did not end in time")
+
+
+class Layout:
+    """A stand-in for bpy.types.UILayout that checks what panels ask for: every property
+    drawn exists on its data, every operator is registered."""
+
+    def __init__(self, calls: list) -> None:
+        self.calls = calls
+
+    def __getattr__(self, name: str):
+        def method(*args, **kwargs):
+            self.calls.append((name, args, kwargs))
+            if name == "prop":
+                data, prop = args[0], args[1]
+                assert prop in data.bl_rna.properties, f"{type(data).__name__}.{prop}"
+            if name == "operator":
+                import bpy
+
+                category, op = args[0].split(".")
+                assert hasattr(bpy.types, f"{category.upper()}_OT_{op}"), args[0]
+                return SimpleNamespace()
+            if name == "template_list":
+                assert hasattr(__import__("bpy").types, args[0]), args[0]
+            return Layout(self.calls)
+
+        return method

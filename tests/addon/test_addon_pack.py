@@ -5,6 +5,7 @@ from __future__ import annotations
 import json
 import threading
 import time
+from types import SimpleNamespace
 
 import numpy as np
 import pytest
@@ -16,6 +17,7 @@ from addon_helpers import (  # noqa: E402
     CUBE_FACES,
     LONG_BUDGET,
     Event,
+    Layout,
     cube_object,
     drive,
     runner,
@@ -96,6 +98,28 @@ def test_mix_tolerance_reaches_the_engine(bpy, addon, scene):
     scene.settings.mix_tolerance = 0.0
     assert bpy.ops.jampacked.pack() == {'FINISHED'}
     assert _packing(addon, scene.settings.result).inputs.options.cavity.max_tvd == 0.0
+
+
+def test_the_runs_warnings_reach_the_user(bpy, addon, scene):
+    """A type that fits nowhere is left out with a warning: Blender shows it in the status,
+    the Info log and the Result panel, and keeps it on the result (it used to say only
+    "Packed ... certified")."""
+    rod = cube_object(bpy, "Rod", location=(0.0, 60.0, 0.0), scale=(30.0, 0.6, 0.6))
+    item = scene.settings.types.add()
+    item.object, item.share = rod, 1.0
+    assert bpy.ops.jampacked.pack() == {'FINISHED'}
+    coll = scene.settings.result
+    (warning,) = addon.summary.warnings(coll)
+    assert warning.startswith("Type Rod (share 25%) was not placed at all")
+    # in the words of the scene and the panel, not of the command line
+    assert "the type objects' scale" in warning and "--" not in warning
+    state = bpy.context.window_manager.jampacked_job
+    assert state.last_level == 'WARNING'
+    assert "certified" in state.last_message and "1 warning(s)" in state.last_message
+    calls: list = []
+    addon.ui.JAMPACKED_PT_result.draw(SimpleNamespace(layout=Layout(calls)), bpy.context)
+    shown = " ".join(kw.get("text", "") for name, _a, kw in calls if name == "label")
+    assert "Type Rod (share 25%) was not placed at all" in shown
 
 
 def test_modal_path_and_second_pack_blocked(bpy, addon, scene):

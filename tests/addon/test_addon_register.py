@@ -8,6 +8,8 @@ import pytest
 
 pytest.importorskip("bpy")
 
+from addon_helpers import Layout  # noqa: E402
+
 
 def _registered(bpy) -> dict[str, bool]:
     return {
@@ -32,32 +34,6 @@ def test_register_and_unregister_twice(bpy, addon):
         "jampacked.pack", "jampacked.export", "jampacked.cancel", "jampacked.type_add",
         "jampacked.type_remove", "jampacked.type_move", "jampacked.validate",
         "jampacked.select_defects", "jampacked.make_manifold", "jampacked.make_real"}
-
-
-class Layout:
-    """A stand-in for bpy.types.UILayout that checks what panels ask for: every property
-    drawn exists on its data, every operator is registered."""
-
-    def __init__(self, calls: list) -> None:
-        self.calls = calls
-
-    def __getattr__(self, name: str):
-        def method(*args, **kwargs):
-            self.calls.append((name, args, kwargs))
-            if name == "prop":
-                data, prop = args[0], args[1]
-                assert prop in data.bl_rna.properties, f"{type(data).__name__}.{prop}"
-            if name == "operator":
-                import bpy
-
-                category, op = args[0].split(".")
-                assert hasattr(bpy.types, f"{category.upper()}_OT_{op}"), args[0]
-                return SimpleNamespace()
-            if name == "template_list":
-                assert hasattr(__import__("bpy").types, args[0]), args[0]
-            return Layout(self.calls)
-
-        return method
 
 
 def _draw_all(bpy, addon) -> list:

@@ -132,6 +132,21 @@ def test_collection_properties_and_panel_lines():
     assert len(colours) == 8
 
 
+def test_engine_messages_in_blender_words():
+    # the engine's advice names command-line options; Blender users change objects and fields
+    text = ("type rod (share 50%) was not placed at all: ... Scale the objects down "
+            "(--type-scale), the container up (--container-size), or remove the type.")
+    assert summary.in_blender_words(text) == (
+        "Type rod (share 50%) was not placed at all: ... Scale the objects down (the type "
+        "objects' scale), the container up (the container object's scale), or remove the "
+        "type.")
+    assert summary.in_blender_words("give a larger --time-budget, or none.") == \
+        "Give a larger Time Budget, or none."
+    assert summary.in_blender_words("Scale the objects down (--type-scale / type_scale, "
+                                    "0.5)") == "Scale the objects down (the type objects' " \
+        "scale, 0.5)"
+
+
 def test_export_options_from_the_panel():
     engine = load_standalone("engine")
     opts = engine.export_options("PARTS", 2.0, "PLANE", "+z", 0.7, 0.0, 1.0, 0.0, 0.0, True)
