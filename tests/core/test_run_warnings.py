@@ -2,9 +2,12 @@
 
 from __future__ import annotations
 
+import time
+
 import numpy as np
 import trimesh
 
+from jampacked.core import placement
 from jampacked.core.api import pack
 from jampacked.core.report import PhaseStats
 from jampacked.core.run_warnings import run_warnings
@@ -62,10 +65,6 @@ def test_a_budget_ending_before_the_cavity_passes():
 
 def test_pack_warns_when_the_budget_ends_before_the_cavity_passes(tmp_path, monkeypatch):
     # the clock is made to run out right after the paper's phase 2, as a 20 s budget did
-    import time
-
-    from jampacked.core import placement
-
     paper_phase2 = placement.phase2
 
     def phase2_then_deadline(solver, q, spacing, rng, stop, **kw):
