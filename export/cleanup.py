@@ -16,6 +16,11 @@ A needle need not have zero area to fold over its neighbour once its positions a
 to float32: `collapse_needles` collapses the short edges of the needles among given faces
 (those a float32 self-intersection test names).
 
+Where two surfaces touch along an edge or at a point (two objects that only kiss),
+manifold3d keeps them apart by index at one position; a file merges them there into a
+non-manifold edge or vertex. `separate_pinches` moves each such vertex into its own solid
+by a step far below any printer's resolution.
+
 Positions are tested as given and as float32 (the coarsest format written); faces keep
 their winding.
 """
@@ -25,6 +30,7 @@ from __future__ import annotations
 import numpy as np
 
 from .validate import DEGENERATE_REL
+from .validation_topology import merge_identical
 
 #: a zero-area face whose shortest edge is at most this fraction of its longest is a needle
 #: (collapsing that edge moves the surface by that edge's length at most)
@@ -149,3 +155,27 @@ def collapse_needles(v: np.ndarray, f: np.ndarray, faces: np.ndarray
         if new is not None:
             f, done = new, done + 1
     return f, done
+
+
+def separate_pinches(v: np.ndarray, f: np.ndarray, positions: np.ndarray, step: float
+                     ) -> tuple[np.ndarray, int]:
+    """Vertices that share a position (in `positions`: v, or v rounded as a file stores
+    it) with another vertex moved by `step` against their own area-weighted normal, into
+    their solid, so that no two are merged when the file is read. Returns (vertices,
+    vertices moved); faces are unchanged."""
+    first, remap = merge_identical(positions)
+    if len(first) == len(positions):
+        return v, 0
+    shared = np.flatnonzero(np.bincount(remap)[remap] > 1)
+    near = f[np.isin(f, shared).any(axis=1)]
+    tri = v[near]
+    normals = np.cross(tri[:, 1] - tri[:, 0], tri[:, 2] - tri[:, 0])
+    vn = np.zeros_like(v)
+    for k in range(3):
+        np.add.at(vn, near[:, k], normals)
+    n = vn[shared]
+    length = np.linalg.norm(n, axis=1, keepdims=True)
+    v = v.copy()
+    v[shared] -= step * n / np.where(length > 0, length, 1.0)
+    return v, len(shared)
+

@@ -74,9 +74,11 @@ def write_mesh(
         if require_valid and not report.passed:
             raise MeshError(f"the mesh written to '{path_str}' is not watertight, so it "
                             f"was not saved: {report.summary()}. Check the input meshes with "
-                            "`jampacked validate`; with a clearance of 0, touching objects "
-                            "can fuse into non-manifold edges: re-pack with --clearance, or "
-                            "export with --mode union or connect.")
+                            "`jampacked validate`; parts (--mode parts) of a packing without "
+                            "a clearance can touch along non-manifold edges: re-pack with "
+                            "--clearance, or export with --mode union or connect. A union or "
+                            "connect export that fails here is a defect: report it with the "
+                            "packing file.")
         reports.append(report)
 
     write_mesh_file(path_str, vertices, faces, names=names, protect=protect,

@@ -594,6 +594,39 @@ def test_collapse_needles_removes_a_needle_and_keeps_the_surface_closed():
     assert collapse_needles(v, f2, np.array([other]))[1] == 0
 
 
+def test_surfaces_that_kiss_along_an_edge_are_written_apart():
+    """Two cubes that share only an edge: manifold3d's union keeps that edge twice, at one
+    position, and a file merged it into an edge of four faces (a rook filled with fruit,
+    connect mode: its 3MF and STL refused). The shared vertices now move into their own
+    cube, a fraction of a micrometre, and the result validates in float64 and float32."""
+    from jampacked.export.cleanup import separate_pinches
+    from jampacked.export.union import PINCH_STEP_REL, clean_arrays
+    from jampacked.export.validate import validate_arrays
+
+    a = m3.Manifold.cube([10.0, 10.0, 10.0])
+    b = m3.Manifold.cube([10.0, 10.0, 10.0]).translate([10.0, 10.0, 0.0])
+    for float32 in (False, True):
+        v, f, left = clean_arrays(a + b, float32=float32)
+        stored = v.astype(np.float32).astype(np.float64) if float32 else v
+        assert left == 0 and validate_arrays(stored, f).passed
+    mesh = (a + b).to_mesh()
+    raw_v = np.asarray(mesh.vert_properties, np.float64)[:, :3]
+    raw_f = np.asarray(mesh.tri_verts, np.int64)
+    step = PINCH_STEP_REL * float(np.linalg.norm(np.ptp(raw_v, axis=0)))
+    moved_v, moved = separate_pinches(raw_v, raw_f, raw_v, step)
+    assert moved == 4  # the edge's two ends, once per cube
+    shift = np.linalg.norm(moved_v - raw_v, axis=1)
+    assert np.count_nonzero(shift) == 4 and np.allclose(shift[shift > 0], step)
+    # off the edge (x = y = 10) diagonally, two into a (x, y < 10) and two into b
+    off = moved_v[shift > 0, :2] - 10.0
+    assert np.all(np.sign(off[:, 0]) == np.sign(off[:, 1]))
+    assert sorted(np.sign(off[:, 0])) == [-1.0, -1.0, 1.0, 1.0]
+    # nothing shared: nothing moved
+    cube = m3.Manifold.cube([1.0, 1.0, 1.0]).to_mesh()
+    cv = np.asarray(cube.vert_properties, np.float64)[:, :3]
+    assert separate_pinches(cv, np.asarray(cube.tri_verts, np.int64), cv, 0.1)[1] == 0
+
+
 # --------------------------------------------------------------------------- inputs refused
 # (issue 20: what export did with packings and options it cannot honour)
 
