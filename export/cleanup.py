@@ -178,4 +178,3 @@ def separate_pinches(v: np.ndarray, f: np.ndarray, positions: np.ndarray, step: 
     v = v.copy()
     v[shared] -= step * n / np.where(length > 0, length, 1.0)
     return v, len(shared)
-

@@ -71,7 +71,8 @@ def union_arrays(pieces: list[m3.Manifold], shell: m3.Manifold | None,
 
 def clean_arrays(result: m3.Manifold, float32: bool = False
                  ) -> tuple[np.ndarray, np.ndarray, int]:
-    """The result's arrays without zero-area faces (see export/cleanup.py), and how many
+    """The result's arrays without zero-area faces (see export/cleanup.py), with the
+    vertices of surfaces that only touch moved apart (`separate_pinches`), and how many
     faces are left bad. With `float32` (an STL or PLY will be written) a face that
     intersects another once the positions are rounded to float32 is bad too: slivers
     from the booleans, a thousandth of a millimetre wide, can fold over there: the
