@@ -30,7 +30,6 @@ from __future__ import annotations
 import numpy as np
 
 from .validate import DEGENERATE_REL
-from .validation_topology import merge_identical
 
 #: a zero-area face whose shortest edge is at most this fraction of its longest is a needle
 #: (collapsing that edge moves the surface by that edge's length at most)
@@ -157,16 +156,15 @@ def collapse_needles(v: np.ndarray, f: np.ndarray, faces: np.ndarray
     return f, done
 
 
-def separate_pinches(v: np.ndarray, f: np.ndarray, positions: np.ndarray, step: float
+def separate_pinches(v: np.ndarray, f: np.ndarray, remap: np.ndarray, step: float
                      ) -> tuple[np.ndarray, int]:
-    """Vertices that share a position (in `positions`: v, or v rounded as a file stores
-    it) with another vertex moved by `step` against their own area-weighted normal, into
-    their solid, so that no two are merged when the file is read. Returns (vertices,
-    vertices moved); faces are unchanged."""
-    first, remap = merge_identical(positions)
-    if len(first) == len(positions):
-        return v, 0
+    """Vertices that share a position with another (remap: each vertex's merged index, from
+    `merge_identical` of the positions as a file stores them) moved by `step` against their
+    own area-weighted normal, into their solid, so that no two are merged when the file is
+    read. Returns (vertices, vertices moved); faces are unchanged."""
     shared = np.flatnonzero(np.bincount(remap)[remap] > 1)
+    if len(shared) == 0:
+        return v, 0
     near = f[np.isin(f, shared).any(axis=1)]
     tri = v[near]
     normals = np.cross(tri[:, 1] - tri[:, 0], tri[:, 2] - tri[:, 0])

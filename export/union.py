@@ -82,15 +82,19 @@ def clean_arrays(result: m3.Manifold, float32: bool = False
 
     def cleaned(m: m3.Manifold) -> tuple[np.ndarray, np.ndarray, int]:
         v, f, left = remove_degenerate_faces(*solid_arrays(m))
-        if left == 0 and len(f):
-            stored = v.astype(np.float32).astype(np.float64) if float32 else v
-            step = PINCH_STEP_REL * float(np.linalg.norm(np.ptp(v, axis=0)))
-            v, _ = separate_pinches(v, f, stored, step)
-        if float32 and left == 0 and len(f):
-            # positions that round to the same float32 are one vertex, as the validator
-            # merges them when it reads the file back
-            p32 = v.astype(np.float32).astype(np.float64)
-            first, remap = merge_identical(p32)
+        if left > 0 or len(f) == 0:
+            return v, f, left
+        # positions as the file stores them; those that coincide are one vertex there, as
+        # the validator merges them when it reads the file back
+        stored = v.astype(np.float32).astype(np.float64) if float32 else v
+        first, remap = merge_identical(stored)
+        step = PINCH_STEP_REL * float(np.linalg.norm(np.ptp(v, axis=0)))
+        v, moved = separate_pinches(v, f, remap, step)
+        if float32:
+            p32 = stored
+            if moved:
+                p32 = v.astype(np.float32).astype(np.float64)
+                first, remap = merge_identical(p32)
             for rnd in range(NEEDLE_ROUNDS + 1):  # the last round only tests
                 pairs, crossing, _ = intersecting_pairs(p32[first], remap[f])
                 left = int(crossing)

@@ -601,7 +601,7 @@ def test_surfaces_that_kiss_along_an_edge_are_written_apart():
     cube, a fraction of a micrometre, and the result validates in float64 and float32."""
     from jampacked.export.cleanup import separate_pinches
     from jampacked.export.union import PINCH_STEP_REL, clean_arrays
-    from jampacked.export.validate import validate_arrays
+    from jampacked.export.validate import merge_identical, validate_arrays
 
     a = m3.Manifold.cube([10.0, 10.0, 10.0])
     b = m3.Manifold.cube([10.0, 10.0, 10.0]).translate([10.0, 10.0, 0.0])
@@ -613,7 +613,7 @@ def test_surfaces_that_kiss_along_an_edge_are_written_apart():
     raw_v = np.asarray(mesh.vert_properties, np.float64)[:, :3]
     raw_f = np.asarray(mesh.tri_verts, np.int64)
     step = PINCH_STEP_REL * float(np.linalg.norm(np.ptp(raw_v, axis=0)))
-    moved_v, moved = separate_pinches(raw_v, raw_f, raw_v, step)
+    moved_v, moved = separate_pinches(raw_v, raw_f, merge_identical(raw_v)[1], step)
     assert moved == 4  # the edge's two ends, once per cube
     shift = np.linalg.norm(moved_v - raw_v, axis=1)
     assert np.count_nonzero(shift) == 4 and np.allclose(shift[shift > 0], step)
@@ -624,7 +624,8 @@ def test_surfaces_that_kiss_along_an_edge_are_written_apart():
     # nothing shared: nothing moved
     cube = m3.Manifold.cube([1.0, 1.0, 1.0]).to_mesh()
     cv = np.asarray(cube.vert_properties, np.float64)[:, :3]
-    assert separate_pinches(cv, np.asarray(cube.tri_verts, np.int64), cv, 0.1)[1] == 0
+    assert separate_pinches(cv, np.asarray(cube.tri_verts, np.int64),
+                            merge_identical(cv)[1], 0.1)[1] == 0
 
 
 # --------------------------------------------------------------------------- inputs refused
