@@ -599,6 +599,7 @@ def test_surfaces_that_kiss_along_an_edge_are_written_apart():
     position, and a file merged it into an edge of four faces (a rook filled with fruit,
     connect mode: its 3MF and STL refused). The shared vertices now move into their own
     cube, a fraction of a micrometre, and the result validates in float64 and float32."""
+    from jampacked.core.solids import solid_arrays
     from jampacked.export.cleanup import separate_pinches
     from jampacked.export.union import PINCH_STEP_REL, clean_arrays
     from jampacked.export.validate import merge_identical, validate_arrays
@@ -609,9 +610,7 @@ def test_surfaces_that_kiss_along_an_edge_are_written_apart():
         v, f, left = clean_arrays(a + b, float32=float32)
         stored = v.astype(np.float32).astype(np.float64) if float32 else v
         assert left == 0 and validate_arrays(stored, f).passed
-    mesh = (a + b).to_mesh()
-    raw_v = np.asarray(mesh.vert_properties, np.float64)[:, :3]
-    raw_f = np.asarray(mesh.tri_verts, np.int64)
+    raw_v, raw_f = solid_arrays(a + b)
     step = PINCH_STEP_REL * float(np.linalg.norm(np.ptp(raw_v, axis=0)))
     moved_v, moved = separate_pinches(raw_v, raw_f, merge_identical(raw_v)[1], step)
     assert moved == 4  # the edge's two ends, once per cube
@@ -622,10 +621,8 @@ def test_surfaces_that_kiss_along_an_edge_are_written_apart():
     assert np.all(np.sign(off[:, 0]) == np.sign(off[:, 1]))
     assert sorted(np.sign(off[:, 0])) == [-1.0, -1.0, 1.0, 1.0]
     # nothing shared: nothing moved
-    cube = m3.Manifold.cube([1.0, 1.0, 1.0]).to_mesh()
-    cv = np.asarray(cube.vert_properties, np.float64)[:, :3]
-    assert separate_pinches(cv, np.asarray(cube.tri_verts, np.int64),
-                            merge_identical(cv)[1], 0.1)[1] == 0
+    cv, cf = solid_arrays(m3.Manifold.cube([1.0, 1.0, 1.0]))
+    assert separate_pinches(cv, cf, merge_identical(cv)[1], 0.1)[1] == 0
 
 
 # --------------------------------------------------------------------------- inputs refused
