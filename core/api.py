@@ -149,7 +149,7 @@ def pack(container: MeshSource, types: Sequence[MeshSource],
 
     report(0.9, "certifying on the real meshes")
     cert, repair = _certify(run.best.solver, approx, q, inputs.clearance, inputs.options,
-                            stop)
+                            stop, lambda f, m: report(0.9 + 0.09 * f, m))
     t_cert = time.perf_counter()
 
     timings = {"load": t_load - t_start, "approximate": t_approx - t_load,
@@ -438,9 +438,11 @@ def _place(scene: _Scene, approx: _Approximation, q: np.ndarray, seed: int,
 
 
 def _certify(solver: Solver, approx: _Approximation, q: np.ndarray, clearance: float,
-             options: PackOptions, stop: Stop) -> tuple[dict, RepairStats]:
+             options: PackOptions, stop: Stop,
+             progress: Callable[[float, str], None]) -> tuple[dict, RepairStats]:
     """Certify on the real meshes and repair (never skipped, also after cancel); objects
-    not grown to full size are dropped first. q: (T,) target shares, summing to 1."""
+    not grown to full size are dropped first. q: (T,) target shares, summing to 1;
+    progress(fraction of a check, message)."""
     state = solver.s
     state.alive[: state.n] &= (state.scale[: state.n] >= 1.0).astype(np.uint8)
     objtypes = approx.types
@@ -450,7 +452,8 @@ def _certify(solver: Solver, approx: _Approximation, q: np.ndarray, clearance: f
     return certify_and_repair(
         solver, certifier, clearance, options.repair,
         lambda: bool(stop.should_cancel is not None and stop.should_cancel()),
-        timed=stop.deadline is not None, shares=q, max_tvd=options.cavity.max_tvd)
+        timed=stop.deadline is not None, shares=q, max_tvd=options.cavity.max_tvd,
+        progress=progress)
 
 
 def _assemble(container: MeshSource, scene: _Scene, approx: _Approximation, run: _Placed,

@@ -16,6 +16,8 @@ the wall).
 
 from __future__ import annotations
 
+import time
+from collections.abc import Callable
 from dataclasses import dataclass, field
 
 import numpy as np
@@ -33,6 +35,8 @@ CHUNK_VERTICES = 1 << 20
 #: min_gap's search distance over the clearance: gaps beyond it read as this much, and
 #: manifold3d's cost grows steeply with it (docs/notes-core.md)
 GAP_SEARCH = 1.25
+#: seconds between a certification's progress calls
+PROGRESS_SECONDS = 0.5
 
 
 @dataclass
@@ -92,82 +96,132 @@ class Certifier:
         self.max_edge = np.asarray(type_max_edge, np.float64)
 
     def certify(self, typ: np.ndarray, matrices: np.ndarray, clearance: float = 0.0,
-                tol: float = DEFAULT_TOL, subset: np.ndarray | None = None) -> CertifyReport:
+                tol: float = DEFAULT_TOL, subset: np.ndarray | None = None, *,
+                memo: CheckMemo | None = None, ids: np.ndarray | None = None,
+                progress: Callable[[int, int], None] | None = None) -> CertifyReport:
         """Check objects (typ (N,), matrices (N,4,4) local -> container frame, scale 1).
 
         subset: only pairs and walls involving these indices are checked (others trusted).
+        memo: results of earlier certifications of the same objects, read and extended:
+        a check whose objects (ids (N,), stable between calls; default 0..N-1) have the
+        same type and placement as when it ran is not run again. The report is the same
+        as without it. progress(done, total) is called now and then with the checks done.
         """
         n = len(typ)
         lo, hi, depth = self._bounds_and_depth(typ, matrices)
         vol = self.volumes[typ] if n else np.zeros(0)
         check = np.ones(n, bool) if subset is None else np.isin(np.arange(n), subset)
+        ids = np.arange(n) if ids is None else np.asarray(ids, np.int64)
+        if memo is None:
+            memo = CheckMemo()
+        memo.update(ids, typ, matrices, clearance, tol)
 
         solid = _PlacedSolids(self.types, typ, matrices)
 
         rep = CertifyReport(True, tol, clearance, 0.0, None, 0.0, None,
                             None, None)
-        # --- pairs
+        pairs = np.zeros((0, 2), np.int64)
         if n >= 2:
             centre = (lo + hi) / 2
             half = (hi - lo) / 2
             reach = 2 * float(np.linalg.norm(half, axis=1).max()) + clearance
             tree = cKDTree(centre)
-            for i, j in _near_first(tree, tree.query_pairs(reach, output_type="ndarray")):
-                if not (check[i] or check[j]):
-                    continue
-                if np.any(lo[i] > hi[j] + clearance) or np.any(lo[j] > hi[i] + clearance):
-                    continue
-                rep.pairs_checked += 1
-                oi, oj = solid(i), solid(j)
-                bad = False
-                if clearance > 0:
-                    gap = oi.min_gap(oj, GAP_SEARCH * clearance)
-                    rep.min_pair_gap = gap if rep.min_pair_gap is None else min(
-                        rep.min_pair_gap, gap)
-                    if gap < clearance * (1 - 1e-6):
-                        bad = True
-                        rep.pair_shortfall[(int(i), int(j))] = clearance - gap
-                if clearance <= 0 or bad:  # a gap of at least c > 0: no intersection
-                    ratio = (oi ^ oj).volume() / min(vol[i], vol[j])
-                    bad = bad or ratio > tol
-                    if ratio > rep.worst_overlap:
-                        rep.worst_overlap = ratio
-                        rep.worst_overlap_pair = (int(i), int(j))
-                if bad:
-                    rep.bad_pairs.append((int(i), int(j)))
-        # --- wall
+            pairs = _near_first(tree, tree.query_pairs(reach, output_type="ndarray"))
         g = self.container.grid
         grid_err = 0.5 * g.spacing
-        for i in np.flatnonzero(check):
-            if depth[i] >= clearance + self.max_edge[typ[i]] + grid_err:
+        walls = [i for i in np.flatnonzero(check)
+                 if depth[i] < clearance + self.max_edge[typ[i]] + grid_err]
+        ticker = _Ticker(progress, len(pairs) + len(walls))
+        # --- pairs
+        for i, j in pairs:
+            ticker.step()
+            if not (check[i] or check[j]):
                 continue
+            if np.any(lo[i] > hi[j] + clearance) or np.any(lo[j] > hi[i] + clearance):
+                continue
+            rep.pairs_checked += 1
+            key = (int(min(ids[i], ids[j])), int(max(ids[i], ids[j])))
+            found = memo.pairs.get(key)
+            if found is None:
+                found = memo.add_pair(key, *self._pair(solid(i), solid(j), vol[i], vol[j],
+                                                       clearance))
+            gap, ratio = found
+            bad = False
+            if gap is not None:
+                rep.min_pair_gap = gap if rep.min_pair_gap is None else min(
+                    rep.min_pair_gap, gap)
+                if gap < clearance * (1 - 1e-6):
+                    bad = True
+                    rep.pair_shortfall[(int(i), int(j))] = clearance - gap
+            if ratio is not None:
+                bad = bad or ratio > tol
+                if ratio > rep.worst_overlap:
+                    rep.worst_overlap = ratio
+                    rep.worst_overlap_pair = (int(i), int(j))
+            if bad:
+                rep.bad_pairs.append((int(i), int(j)))
+        # --- wall
+        for i in walls:
+            ticker.step()
             rep.walls_checked += 1
-            if np.any(hi[i] < self.outside_box[0]) or np.any(lo[i] > self.outside_box[1]):
+            key = int(ids[i])
+            found = memo.walls.get(key)
+            if found is None:
+                found = memo.add_wall(key, *self._wall(solid, i, lo[i], hi[i], vol[i],
+                                                       clearance))
+            gap, ratio, beyond = found
+            if beyond:
                 rep.worst_outside = 1.0
                 rep.worst_outside_object = int(i)
                 rep.bad_wall.append(int(i))
                 if clearance > 0:
                     rep.wall_shortfall[int(i)] = clearance
                 continue
-            oi = solid(i)
             bad = False
-            if clearance > 0:
-                gap = oi.min_gap(self.outside, GAP_SEARCH * clearance)
+            if gap is not None:
                 rep.min_wall_gap = gap if rep.min_wall_gap is None else min(
                     rep.min_wall_gap, gap)
                 if gap < clearance * (1 - 1e-6):
                     bad = True
                     rep.wall_shortfall[int(i)] = clearance - gap
-            if clearance <= 0 or bad:
-                ratio = (oi ^ self.outside).volume() / vol[i]
+            if ratio is not None:
                 bad = bad or ratio > tol
                 if ratio > rep.worst_outside:
                     rep.worst_outside = ratio
                     rep.worst_outside_object = int(i)
             if bad:
                 rep.bad_wall.append(int(i))
+        ticker.finish()
         rep.certified = not rep.bad_pairs and not rep.bad_wall
         return rep
+
+    @staticmethod
+    def _pair(oi, oj, vi: float, vj: float, clearance: float
+              ) -> tuple[float | None, float | None]:
+        """(min gap (with a clearance, else None), intersection volume over the smaller
+        volume (None where a gap of at least the clearance proves the two apart))."""
+        gap = None
+        if clearance > 0:
+            gap = oi.min_gap(oj, GAP_SEARCH * clearance)
+            if gap >= clearance * (1 - 1e-6):  # a gap of at least c > 0: no intersection
+                return gap, None
+        return gap, (oi ^ oj).volume() / min(vi, vj)
+
+    def _wall(self, solid: _PlacedSolids, i: int, lo: np.ndarray, hi: np.ndarray,
+              vol: float, clearance: float
+              ) -> tuple[float | None, float | None, bool]:
+        """(gap to the wall (with a clearance, else None), volume outside over the
+        object's (None where the gap proves it inside), whether it lies wholly beyond the
+        outside's bounds: wholly outside, nothing measured)."""
+        if np.any(hi < self.outside_box[0]) or np.any(lo > self.outside_box[1]):
+            return None, None, True
+        oi = solid(i)
+        gap = None
+        if clearance > 0:
+            gap = oi.min_gap(self.outside, GAP_SEARCH * clearance)
+            if gap >= clearance * (1 - 1e-6):
+                return gap, None, False
+        return gap, (oi ^ self.outside).volume() / vol, False
 
     def _bounds_and_depth(self, typ: np.ndarray, matrices: np.ndarray
                           ) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
@@ -227,3 +281,82 @@ class _PlacedSolids:
                 self.kept_faces -= self.faces[self.typ[old]]
         self.kept[i] = got
         return got
+
+
+class CheckMemo:
+    """The exact checks' results for one packing across its certifications, by object id,
+    with the type and placement each object had when checked: manifold3d's checks are
+    deterministic, so a check whose objects are where they were need not run again, and a
+    certification after a repair costs the checks of what moved."""
+
+    def __init__(self):
+        self.key: tuple[float, float] | None = None  # (clearance, tol) the results are for
+        self.run = 0  # checks run (pairs and walls)
+        self._clear()
+
+    def _clear(self) -> None:
+        self.typ = np.zeros(0, np.int64)
+        self.placed = np.zeros((0, 3, 4))
+        # (gap or None, overlap ratio or None) by (smaller id, larger id)
+        self.pairs: dict[tuple[int, int], tuple[float | None, float | None]] = {}
+        # (gap or None, outside ratio or None, wholly beyond the outside's bounds) by id
+        self.walls: dict[int, tuple[float | None, float | None, bool]] = {}
+        self._partners: dict[int, list[int]] = {}
+
+    def update(self, ids: np.ndarray, typ: np.ndarray, matrices: np.ndarray,
+               clearance: float, tol: float) -> None:
+        """Forget the checks of every object (ids (N,)) whose type or placement (matrices
+        (N,4,4)) is not the one recorded, then record these."""
+        if (clearance, tol) != self.key:
+            self._clear()
+            self.key = (clearance, tol)
+        if len(ids) == 0:
+            return
+        need = int(ids.max()) + 1
+        if need > len(self.typ):
+            self.typ = np.concatenate([self.typ, np.full(need - len(self.typ), -1)])
+            self.placed = np.concatenate([self.placed,
+                                          np.full((need - len(self.placed), 3, 4), np.nan)])
+        now = matrices[:, :3, :4]
+        same = (self.typ[ids] == typ) & np.all(self.placed[ids] == now, axis=(1, 2))
+        for k in ids[~same]:
+            self._forget(int(k))
+        self.typ[ids] = typ
+        self.placed[ids] = now
+
+    def _forget(self, k: int) -> None:
+        self.walls.pop(k, None)
+        for other in self._partners.pop(k, []):
+            self.pairs.pop((min(k, other), max(k, other)), None)
+
+    def add_pair(self, key: tuple[int, int], gap: float | None, ratio: float | None
+                 ) -> tuple[float | None, float | None]:
+        self.run += 1
+        self.pairs[key] = (gap, ratio)
+        self._partners.setdefault(key[0], []).append(key[1])
+        self._partners.setdefault(key[1], []).append(key[0])
+        return gap, ratio
+
+    def add_wall(self, key: int, gap: float | None, ratio: float | None, beyond: bool
+                 ) -> tuple[float | None, float | None, bool]:
+        self.run += 1
+        self.walls[key] = (gap, ratio, beyond)
+        return gap, ratio, beyond
+
+
+class _Ticker:
+    """Calls progress(done, total) at most every PROGRESS_SECONDS, and once at the end."""
+
+    def __init__(self, progress: Callable[[int, int], None] | None, total: int):
+        self.progress, self.total, self.count = progress, total, 0
+        self.next = time.perf_counter() + PROGRESS_SECONDS
+
+    def step(self) -> None:
+        self.count += 1
+        if self.progress is not None and time.perf_counter() >= self.next:
+            self.progress(self.count, self.total)
+            self.next = time.perf_counter() + PROGRESS_SECONDS
+
+    def finish(self) -> None:
+        if self.progress is not None:
+            self.progress(self.total, self.total)

@@ -14,7 +14,7 @@ from collections.abc import Callable, Sequence
 
 import numpy as np
 
-from .certify import DEFAULT_TOL, Certifier, CertifyReport
+from .certify import DEFAULT_TOL, Certifier, CertifyReport, CheckMemo
 from .metrics import best_tvd, tvd_of_counts
 from .options import RepairOptions
 from .report import RepairStats
@@ -52,27 +52,39 @@ def shortfalls(rep: CertifyReport, idx: np.ndarray) -> dict[int, float]:
 def certify_and_repair(solver: Solver, certifier: Certifier, clearance: float,
                        options: RepairOptions, cancelled: Callable[[], bool], *,
                        timed: bool = True, shares: np.ndarray | None = None,
-                       max_tvd: float = 0.0) -> tuple[dict, RepairStats]:
+                       max_tvd: float = 0.0,
+                       progress: Callable[[float, str], None] | None = None
+                       ) -> tuple[dict, RepairStats]:
     """Certify the solver's alive objects; push failing objects apart for up to
     `options.rounds` rounds and, when `timed` (the run has a time budget),
     `options.seconds` from the first push (a first certification of detailed meshes can
     take longer than that); remove what still fails, minding the type mix (`shares`, (T,)
     summing to 1): the removals do not leave the mix's TVD more than MIX_SLACK above
     `max_tvd` or the placement's own, whichever is larger (`offenders_kept`, `mix_trim`).
-    Mutates the solver's state. Returns (the final certificate as a dict, repair
-    statistics)."""
+    Mutates the solver's state. A check whose objects have not moved since it ran is not
+    run again (`CheckMemo`). progress(fraction of this check, message) is called now and
+    then while checking.
+    Returns (the final certificate as a dict, repair statistics)."""
     s = solver.s
     stats = RepairStats()
     target = 0.0 if shares is None else mix_target(s.typ[s.alive_indices()], shares, max_tvd)
     deadline = None  # from the first push: certifying is not push-apart work
     subset = None
     moved_ever: set[int] = set()
+    memo = CheckMemo()
+
+    def certify(idx: np.ndarray, subset: np.ndarray | None = None) -> CertifyReport:
+        mats = placement_matrices(s.quat[idx], s.pos[idx], s.scale[idx])
+        tick = None if progress is None else (
+            lambda done, total: progress(done / max(total, 1),
+                                         "certifying on the real meshes: "
+                                         f"{done:,} of {total:,} near pairs and walls"))
+        return certifier.certify(s.typ[idx], mats, clearance, DEFAULT_TOL, subset=subset,
+                                 memo=memo, ids=idx, progress=tick)
+
     for rnd in range(options.rounds + 1):
         idx = s.alive_indices()
-        mats = placement_matrices(s.quat[idx], s.pos[idx], s.scale[idx])
-        rep = certifier.certify(s.typ[idx], mats, clearance, DEFAULT_TOL,
-                                subset=None if subset is None else np.flatnonzero(
-                                    np.isin(idx, subset)))
+        rep = certify(idx, None if subset is None else np.flatnonzero(np.isin(idx, subset)))
         if stats.first is None:
             stats.first = rep.as_dict()
         bad = idx[sorted(rep.bad_objects())]
@@ -106,8 +118,7 @@ def certify_and_repair(solver: Solver, certifier: Certifier, clearance: float,
     stats.moved = len(moved_ever)
     while True:  # removal only removes violations; loop in case a check was trusted wrongly
         idx = s.alive_indices()
-        mats = placement_matrices(s.quat[idx], s.pos[idx], s.scale[idx])
-        final = certifier.certify(s.typ[idx], mats, clearance, DEFAULT_TOL)
+        final = certify(idx)
         if final.certified:
             return final.as_dict(), stats
         _removed(stats, remove_offenders(solver, idx, final, shares, target))

@@ -165,3 +165,67 @@ def test_an_object_wholly_beyond_the_outside_solid_fails(certifier, clearance):
     assert not rep.certified and rep.bad_wall == [1]
     assert rep.worst_outside == 1.0 and rep.worst_outside_object == 1
     assert rep.wall_shortfall == ({1: clearance} if clearance else {})
+
+
+def _dense_scene(rng, n=40, spread=8.0):
+    """Objects of both types packed closely enough that many pairs touch or overlap, and
+    some poke through the wall."""
+    typ = rng.integers(0, 2, n)
+    return typ, _matrices(rng, rng.uniform(-spread, spread, (n, 3)) * [1.0, 1.0, 1.8])
+
+
+def _same_report(a, b):
+    assert a.as_dict() == b.as_dict()
+    assert a.bad_pairs == b.bad_pairs and a.bad_wall == b.bad_wall
+    assert a.pair_shortfall == b.pair_shortfall and a.wall_shortfall == b.wall_shortfall
+
+
+@pytest.mark.parametrize("clearance", [0.0, 0.5])
+def test_a_memo_reruns_only_the_checks_of_what_moved_and_reports_the_same(certifier,
+                                                                         clearance):
+    rng = np.random.default_rng(21)
+    typ, m = _dense_scene(rng)
+    ids = np.arange(100, 100 + len(typ))  # ids other than the positions
+    memo = certify.CheckMemo()
+    first = certifier.certify(typ, m, clearance, memo=memo, ids=ids)
+    _same_report(first, certifier.certify(typ, m, clearance))
+    assert not first.certified and first.bad_pairs and first.bad_wall
+    assert memo.run == first.pairs_checked + first.walls_checked
+    # nothing moved: no check runs again, the report is the same
+    _same_report(certifier.certify(typ, m, clearance, memo=memo, ids=ids), first)
+    assert memo.run == first.pairs_checked + first.walls_checked
+    # move one object and drop another (as a repair does): only the moved one's checks run
+    m2 = m.copy()
+    m2[3, :3, 3] += [0.7, -0.4, 0.2]
+    keep = np.delete(np.arange(len(typ)), 8)
+    before = memo.run
+    got = certifier.certify(typ[keep], m2[keep], clearance, memo=memo, ids=ids[keep])
+    fresh = certifier.certify(typ[keep], m2[keep], clearance)
+    _same_report(got, fresh)
+    k = 3  # object 3 keeps its position in keep (8 > 3)
+    lo, hi, depth = certifier._bounds_and_depth(typ[keep], m2[keep])
+    touching = sum(1 for j in range(len(keep)) if j != k
+                   and not (np.any(lo[k] > hi[j] + clearance)
+                            or np.any(lo[j] > hi[k] + clearance)))
+    walls = int(depth[k] < clearance + certifier.max_edge[typ[keep][k]]
+                + 0.5 * certifier.container.grid.spacing)
+    assert memo.run - before == touching + walls > 0
+    # a changed type or a changed clearance is not taken from the memo
+    typ3 = typ[keep].copy()
+    typ3[k] = 1 - typ3[k]
+    _same_report(certifier.certify(typ3, m2[keep], clearance, memo=memo, ids=ids[keep]),
+                 certifier.certify(typ3, m2[keep], clearance))
+    other = 0.25 if clearance else 0.5
+    _same_report(certifier.certify(typ3, m2[keep], other, memo=memo, ids=ids[keep]),
+                 certifier.certify(typ3, m2[keep], other))
+
+
+def test_certify_reports_progress_up_to_every_check(certifier, monkeypatch):
+    monkeypatch.setattr(certify, "PROGRESS_SECONDS", 0.0)
+    rng = np.random.default_rng(22)
+    typ, m = _dense_scene(rng)
+    calls = []
+    rep = certifier.certify(typ, m, progress=lambda done, total: calls.append((done, total)))
+    total = calls[-1][1]
+    assert calls[-1] == (total, total) and total >= rep.pairs_checked + rep.walls_checked
+    assert [d for d, _ in calls] == sorted(d for d, _ in calls) and len(calls) > total // 2

@@ -241,3 +241,54 @@ def test_mix_trim_removes_the_type_in_excess_last_first_until_the_target():
     assert len(mix_trim(typ, vols, np.array([0.5, 0.5]), 0.0)) < 8
     # one type: nothing to trim whatever the target
     assert mix_trim(np.zeros(5, int), np.array([1.0]), np.array([1.0]), 0.0).tolist() == []
+
+
+def test_certification_runs_no_check_twice_on_objects_that_did_not_move(monkeypatch):
+    """A packing that passes at once was checked twice over (the final certification ran
+    every boolean again); after a repair the final certificate is still the one a fresh
+    certification of every object gives."""
+    from jampacked.core import certify as certify_module
+    from jampacked.core.options import RepairOptions
+    from jampacked.core.repair import certify_and_repair
+
+    types = _ball_types((3.0,))
+    r = float(np.linalg.norm(types[0].vertices, axis=1).max())
+    step = (2 * r + 0.1) / np.sqrt(2)  # a diagonal row 0.1 apart: the bounds overlap
+    placed = [(0, step * (i - 1.5), step * (i - 1.5)) for i in range(4)]
+    solver, cert = _ball_scene(types, placed, (30.0, 30.0, 8 * r))
+    made = []
+    solid = certify_module._PlacedSolids.__call__
+    monkeypatch.setattr(certify_module._PlacedSolids, "__call__",
+                        lambda self, i: made.append(i) or solid(self, i))
+    final, stats = certify_and_repair(solver, cert, 0.0, RepairOptions(), lambda: False,
+                                      timed=False)
+    assert final["certified"] and stats.rounds == 0
+    assert final["pairs_checked"] == 3 and len(made) == 2 * 3 + final["walls_checked"]
+
+    c = 0.2
+    solver, cert = _jammed_pair(c, c - 0.003, 0.035)
+    final, stats = certify_and_repair(solver, cert, c, RepairOptions(), lambda: False,
+                                      timed=False)
+    assert stats.moved >= 1 and final["certified"]
+    assert final == cert.certify(solver.s.typ[:2], _matrices(solver), c).as_dict()
+
+
+def test_certification_reports_its_progress(monkeypatch):
+    """Certifying 100,000 objects takes minutes: the progress said 'certifying' once and
+    nothing more until the end."""
+    import re
+
+    from jampacked.core import certify as certify_module
+
+    monkeypatch.setattr(certify_module, "PROGRESS_SECONDS", 0.0)
+    calls = []
+    p = _pack(progress=lambda f, m: calls.append((f, m)))
+    counts = [(f, m) for f, m in calls if m.startswith("certifying on the real meshes: ")]
+    assert len(counts) > 3 and calls[-1][0] == 1.0
+    done = [tuple(int(x.replace(",", "")) for x in re.findall(r"[\d,]+", m)[:2])
+            for _, m in counts]
+    assert all(0 <= d <= t for d, t in done) and done[0][0] < done[0][1]
+    first = done[: next(i for i, (d, t) in enumerate(done) if d == t) + 1]
+    assert [d for d, _ in first] == sorted(d for d, _ in first)
+    assert all(0.9 <= f <= 0.99 for f, _ in counts)
+    assert max(t for _, t in done) >= p.certificate["pairs_checked"]
