@@ -20,7 +20,9 @@ class PhaseOptions:
 
     phase1_density: float = 0.5  # lattice spacing = (mean type volume / this)^(1/3)
     phase1_iterations: int = 30  # solver iterations per growth step (paper: 25-30)
-    phase1_growth_steps: int = 30  # growth steps from scale 0 to 1 (the paper: 30)
+    # growth steps from scale 0 to 1; None: the paper's 30, or 10 with many objects
+    # (`phases.phase1_growth_steps`)
+    phase1_growth_steps: int | None = None
     phase2_spacing: float = 0.5  # phase 2 lattice spacing, fraction of phase 1's
     phase2_iterations: int = 80  # per growth step (paper: 55-150)
     phase2_retries: int = 2  # random smaller types tried after a failure

@@ -14,6 +14,7 @@ from collections.abc import Callable
 import numpy as np
 
 from .container import interior_points
+from .fidelity import MANY_OBJECTS
 from .kernels import sample_grid_many
 from .metrics import best_tvd, density, equivalent_radius, tvd_of_counts
 from .report import PhaseStats
@@ -23,6 +24,10 @@ from .type_spread import TypeSpread
 
 START_SCALE = 0.05
 GROWTH_STEPS = 30
+#: phase 1's growth steps where its lattice holds more than MANY_OBJECTS objects: as dense
+#: a phase 1 in a third of the time (docs/notes-core.md), and at that count phase 1 is a
+#: large share of a run
+MANY_OBJECTS_STEPS = 10
 #: phase 1's spread window is at most its lattice objects over this
 SPREAD_QUEUE = 8
 
@@ -93,15 +98,23 @@ def grow(solver: Solver, k: int, start: float, iters: int, stop: Stop,
     return True
 
 
+def phase1_growth_steps(requested: int | None, lattice_objects: int) -> int:
+    """Phase 1's growth steps: `requested`, or by default the paper's GROWTH_STEPS, and
+    MANY_OBJECTS_STEPS where the lattice holds more than MANY_OBJECTS objects."""
+    if requested is not None:
+        return int(requested)
+    return MANY_OBJECTS_STEPS if lattice_objects > MANY_OBJECTS else GROWTH_STEPS
+
+
 def phase1(solver: Solver, shares: np.ndarray, spacing: float, rng: np.random.Generator,
            stop: Stop, *, iters: int = 30, margin: np.ndarray,
-           growth_steps: int = GROWTH_STEPS, spread_window: int = 1,
+           growth_steps: int | None = None, spread_window: int = 1,
            progress: Callable[[float, str], None] | None = None) -> PhaseStats:
     """Place one shrunken object per interior lattice point and grow them one at a time.
 
     spacing: lattice spacing (container units). shares: (T,) target shares by count.
     margin: (T,) per-type safety margin (container units). growth_steps: steps from scale 0
-    to 1 (the paper: 30).
+    to 1; None: `phase1_growth_steps` of the lattice's size.
     The next object to grow takes the largest type that is below its target share (or, when
     none is, the type furthest below it); it is the first ungrown one, or with
     spread_window > 1 the one of the next spread_window (at most a SPREAD_QUEUE-th of the
@@ -113,6 +126,8 @@ def phase1(solver: Solver, shares: np.ndarray, spacing: float, rng: np.random.Ge
     n_types = len(shares)
     min_depth = START_SCALE * table.radius.max() + solver.p.clearance + margin.max()
     pts = interior_points(solver.c, spacing, min_depth, rng)
+    growth_steps = phase1_growth_steps(growth_steps, len(pts))
+    st.extra["growth_steps"] = growth_steps
     rng.shuffle(pts)
     types = rng.choice(n_types, size=len(pts), p=shares)
     quats = random_quaternions(rng, len(pts))
