@@ -146,19 +146,14 @@ class Certifier:
                 found = memo.add_pair(key, *self._pair(solid(i), solid(j), vol[i], vol[j],
                                                        clearance))
             gap, ratio = found
-            bad = False
-            if gap is not None:
-                rep.min_pair_gap = gap if rep.min_pair_gap is None else min(
-                    rep.min_pair_gap, gap)
-                if gap < clearance * (1 - 1e-6):
-                    bad = True
-                    rep.pair_shortfall[(int(i), int(j))] = clearance - gap
-            if ratio is not None:
-                bad = bad or ratio > tol
-                if ratio > rep.worst_overlap:
-                    rep.worst_overlap = ratio
-                    rep.worst_overlap_pair = (int(i), int(j))
-            if bad:
+            rep.min_pair_gap = _least(rep.min_pair_gap, gap)
+            short = _shortfall(gap, clearance)
+            if short is not None:
+                rep.pair_shortfall[(int(i), int(j))] = short
+            if ratio is not None and ratio > rep.worst_overlap:
+                rep.worst_overlap = ratio
+                rep.worst_overlap_pair = (int(i), int(j))
+            if short is not None or (ratio is not None and ratio > tol):
                 rep.bad_pairs.append((int(i), int(j)))
         # --- wall
         for i in walls:
@@ -177,19 +172,14 @@ class Certifier:
                 if clearance > 0:
                     rep.wall_shortfall[int(i)] = clearance
                 continue
-            bad = False
-            if gap is not None:
-                rep.min_wall_gap = gap if rep.min_wall_gap is None else min(
-                    rep.min_wall_gap, gap)
-                if gap < clearance * (1 - 1e-6):
-                    bad = True
-                    rep.wall_shortfall[int(i)] = clearance - gap
-            if ratio is not None:
-                bad = bad or ratio > tol
-                if ratio > rep.worst_outside:
-                    rep.worst_outside = ratio
-                    rep.worst_outside_object = int(i)
-            if bad:
+            rep.min_wall_gap = _least(rep.min_wall_gap, gap)
+            short = _shortfall(gap, clearance)
+            if short is not None:
+                rep.wall_shortfall[int(i)] = short
+            if ratio is not None and ratio > rep.worst_outside:
+                rep.worst_outside = ratio
+                rep.worst_outside_object = int(i)
+            if short is not None or (ratio is not None and ratio > tol):
                 rep.bad_wall.append(int(i))
         ticker.finish()
         rep.certified = not rep.bad_pairs and not rep.bad_wall
@@ -203,7 +193,7 @@ class Certifier:
         gap = None
         if clearance > 0:
             gap = oi.min_gap(oj, GAP_SEARCH * clearance)
-            if gap >= clearance * (1 - 1e-6):  # a gap of at least c > 0: no intersection
+            if _shortfall(gap, clearance) is None:  # a gap of at least c > 0: no intersection
                 return gap, None
         return gap, (oi ^ oj).volume() / min(vi, vj)
 
@@ -219,7 +209,7 @@ class Certifier:
         gap = None
         if clearance > 0:
             gap = oi.min_gap(self.outside, GAP_SEARCH * clearance)
-            if gap >= clearance * (1 - 1e-6):
+            if _shortfall(gap, clearance) is None:
                 return gap, None, False
         return gap, (oi ^ self.outside).volume() / vol, False
 
@@ -244,6 +234,19 @@ class Certifier:
                 d = sample_grid_many(g.values, g.origin, g.spacing, world.reshape(-1, 3))
                 depth[part] = d.reshape(len(part), -1).min(axis=1)
         return lo, hi, depth
+
+
+def _least(a: float | None, b: float | None) -> float | None:
+    """The smaller of two gaps, either of which may be unmeasured (None)."""
+    return b if a is None else a if b is None else min(a, b)
+
+
+def _shortfall(gap: float | None, clearance: float) -> float | None:
+    """How far a measured gap falls short of the clearance (None: unmeasured or not short;
+    a relative 1e-6 of slack for manifold3d's rounding)."""
+    if gap is None or gap >= clearance * (1 - 1e-6):
+        return None
+    return clearance - gap
 
 
 def _near_first(tree: cKDTree, pairs: np.ndarray) -> np.ndarray:

@@ -73,13 +73,13 @@ def certify_and_repair(solver: Solver, certifier: Certifier, clearance: float,
     moved_ever: set[int] = set()
     memo = CheckMemo()
 
-    def certify(idx: np.ndarray, subset: np.ndarray | None = None) -> CertifyReport:
+    def certify(idx: np.ndarray, only: np.ndarray | None = None) -> CertifyReport:
         mats = placement_matrices(s.quat[idx], s.pos[idx], s.scale[idx])
         tick = None if progress is None else (
             lambda done, total: progress(done / max(total, 1),
                                          "certifying on the real meshes: "
                                          f"{done:,} of {total:,} near pairs and walls"))
-        return certifier.certify(s.typ[idx], mats, clearance, DEFAULT_TOL, subset=subset,
+        return certifier.certify(s.typ[idx], mats, clearance, DEFAULT_TOL, subset=only,
                                  memo=memo, ids=idx, progress=tick)
 
     for rnd in range(options.rounds + 1):
