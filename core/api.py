@@ -446,14 +446,15 @@ def _certify(solver: Solver, approx: _Approximation, q: np.ndarray, clearance: f
     state = solver.s
     state.alive[: state.n] &= (state.scale[: state.n] >= 1.0).astype(np.uint8)
     objtypes = approx.types
-    certifier = Certifier(approx.container, [t.vertices for t in objtypes],
-                          [t.faces for t in objtypes], solver.t.volume,
-                          np.array([t.max_edge for t in objtypes]))
-    return certify_and_repair(
-        solver, certifier, clearance, options.repair,
-        lambda: bool(stop.should_cancel is not None and stop.should_cancel()),
-        timed=stop.deadline is not None, shares=q, max_tvd=options.cavity.max_tvd,
-        progress=progress)
+    with Certifier(approx.container, [t.vertices for t in objtypes],
+                   [t.faces for t in objtypes], solver.t.volume,
+                   np.array([t.max_edge for t in objtypes]),
+                   processes=options.repair.processes) as certifier:
+        return certify_and_repair(
+            solver, certifier, clearance, options.repair,
+            lambda: bool(stop.should_cancel is not None and stop.should_cancel()),
+            timed=stop.deadline is not None, shares=q, max_tvd=options.cavity.max_tvd,
+            progress=progress)
 
 
 def _assemble(container: MeshSource, scene: _Scene, approx: _Approximation, run: _Placed,

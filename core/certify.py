@@ -16,6 +16,7 @@ the wall).
 
 from __future__ import annotations
 
+import logging
 import time
 from collections.abc import Callable
 from dataclasses import dataclass, field
@@ -23,20 +24,26 @@ from dataclasses import dataclass, field
 import numpy as np
 from scipy.spatial import cKDTree
 
+from .check_pool import CheckPool, usable_processes
 from .container import Container
+from .exact_checks import PlacedSolids, run_checks, shortfall
 from .kernels import sample_grid_many
 from .solids import outside_of, to_solid
 
+log = logging.getLogger(__name__)
+
 DEFAULT_TOL = 1e-4
-#: triangles of placed solids one certification keeps for its next checks
-KEPT_FACES = 500_000
 #: vertices placed at once when bounding and depth-testing objects
 CHUNK_VERTICES = 1 << 20
-#: min_gap's search distance over the clearance: gaps beyond it read as this much, and
-#: manifold3d's cost grows steeply with it (docs/notes-core.md)
-GAP_SEARCH = 1.25
 #: seconds between a certification's progress calls
 PROGRESS_SECONDS = 0.5
+#: checks run here between looks at whether worker processes would pay
+PROBE_CHECKS = 16
+#: checks run here for at least this long (s) before the rate is taken as known ...
+POOL_PROBE_SECONDS = 0.5
+#: ... and worker processes start only where the rest would take this long (s) here:
+#: spawning them costs about a second (docs/notes-core.md)
+POOL_MIN_SECONDS = 3.0
 
 
 @dataclass
@@ -79,11 +86,14 @@ class CertifyReport:
 
 
 class Certifier:
-    """Holds the manifolds of the container's outside and of each type (local frame)."""
+    """Holds the manifolds of the container's outside and of each type (local frame), and
+    the worker processes of long certifications once started: close it to end them."""
 
     def __init__(self, container: Container, type_vertices: list[np.ndarray],
                  type_faces: list[np.ndarray], type_volumes: np.ndarray,
-                 type_max_edge: np.ndarray):
+                 type_max_edge: np.ndarray, *, processes: int = 1):
+        """processes: worker processes a long certification may use (`check_pool`);
+        0: one per core (`check_pool.usable_processes`); 1: none."""
         self.container = container
         # intersections with it are volume outside, and min_gap to it is the wall gap
         self.outside = outside_of(container.vertices, container.faces, double=False)
@@ -92,6 +102,10 @@ class Certifier:
         self.types = [to_solid(v, f, double=False)
                       for v, f in zip(type_vertices, type_faces, strict=True)]
         self.vertices = type_vertices
+        self.faces = type_faces
+        self.processes = usable_processes(processes)
+        self._pool: CheckPool | None = None
+        self._pool_broken = False
         self.volumes = np.asarray(type_volumes, np.float64)
         self.max_edge = np.asarray(type_max_edge, np.float64)
 
@@ -105,113 +119,166 @@ class Certifier:
         memo: results of earlier certifications of the same objects, read and extended:
         a check whose objects (ids (N,), stable between calls; default 0..N-1) have the
         same type and placement as when it ran is not run again. The report is the same
-        as without it. progress(done, total) is called now and then with the checks done.
+        as without it. progress(done, total) is called now and then with the exact checks
+        run so far and the number this call runs.
         """
+        typ = np.asarray(typ, np.int64)
         n = len(typ)
-        lo, hi, depth = self._bounds_and_depth(typ, matrices)
-        vol = self.volumes[typ] if n else np.zeros(0)
+        vol = self.volumes[typ]
         check = np.ones(n, bool) if subset is None else np.isin(np.arange(n), subset)
         ids = np.arange(n) if ids is None else np.asarray(ids, np.int64)
         if memo is None:
             memo = CheckMemo()
-        memo.update(ids, typ, matrices, clearance, tol)
-
-        solid = _PlacedSolids(self.types, typ, matrices)
-
-        rep = CertifyReport(True, tol, clearance, 0.0, None, 0.0, None,
-                            None, None)
-        pairs = np.zeros((0, 2), np.int64)
-        if n >= 2:
-            centre = (lo + hi) / 2
-            half = (hi - lo) / 2
-            reach = 2 * float(np.linalg.norm(half, axis=1).max()) + clearance
-            tree = cKDTree(centre)
-            pairs = _near_first(tree, tree.query_pairs(reach, output_type="ndarray"))
+        known = memo.update(ids, typ, matrices, clearance, tol)
+        if not known.all():
+            memo.set_bounds(ids[~known], *self._bounds_and_depth(typ[~known],
+                                                                matrices[~known]))
+        lo, hi, depth = memo.lo[ids], memo.hi[ids], memo.depth[ids]
+        pairs = self._touching_pairs(lo, hi, check, clearance)
         g = self.container.grid
-        grid_err = 0.5 * g.spacing
-        walls = [i for i in np.flatnonzero(check)
-                 if depth[i] < clearance + self.max_edge[typ[i]] + grid_err]
-        ticker = _Ticker(progress, len(pairs) + len(walls))
-        # --- pairs
-        for i, j in pairs:
-            ticker.step()
-            if not (check[i] or check[j]):
-                continue
-            if np.any(lo[i] > hi[j] + clearance) or np.any(lo[j] > hi[i] + clearance):
-                continue
-            rep.pairs_checked += 1
-            key = (int(min(ids[i], ids[j])), int(max(ids[i], ids[j])))
-            found = memo.pairs.get(key)
-            if found is None:
-                found = memo.add_pair(key, *self._pair(solid(i), solid(j), vol[i], vol[j],
-                                                       clearance))
-            gap, ratio = found
+        walls = np.flatnonzero(check & (depth < clearance + self.max_edge[typ] + 0.5 * g.spacing))
+        # an object wholly beyond the outside solid's box misses it: outside entirely
+        beyond = (np.any(hi[walls] < self.outside_box[0], axis=1)
+                  | np.any(lo[walls] > self.outside_box[1], axis=1))
+        pair_keys = [(int(min(a, b)), int(max(a, b))) for a, b in ids[pairs]]
+        for i in walls[beyond]:
+            if int(ids[i]) not in memo.walls:
+                memo.add_wall(int(ids[i]), None, None, True)
+        run_pairs = [k for k, key in enumerate(pair_keys) if key not in memo.pairs]
+        run_walls = [i for i in walls[~beyond] if int(ids[i]) not in memo.walls]
+        checks = np.concatenate([pairs[run_pairs].reshape(-1, 2),
+                                 np.stack([np.asarray(run_walls, np.int64),
+                                           np.full(len(run_walls), -1, np.int64)], axis=1)])
+        found = self._run(typ, matrices, vol, checks, clearance, progress)
+        for k, (gap, ratio) in zip(run_pairs, found[:len(run_pairs)], strict=True):
+            memo.add_pair(pair_keys[k], _value(gap), _value(ratio))
+        for i, (gap, ratio) in zip(run_walls, found[len(run_pairs):], strict=True):
+            memo.add_wall(int(ids[i]), _value(gap), _value(ratio), False)
+        return self._report(pairs, pair_keys, walls, ids, memo, clearance, tol)
+
+    @staticmethod
+    def _report(pairs: np.ndarray, pair_keys: list[tuple[int, int]], walls: np.ndarray,
+                ids: np.ndarray, memo: CheckMemo, clearance: float, tol: float
+                ) -> CertifyReport:
+        """The report of checks (pairs (P, 2) with their memo keys, walls (W,)) whose
+        results are all in the memo, in the order of the checks."""
+        rep = CertifyReport(True, tol, clearance, 0.0, None, 0.0, None, None, None,
+                            pairs_checked=len(pairs), walls_checked=len(walls))
+        for (i, j), key in zip(pairs.tolist(), pair_keys, strict=True):
+            gap, ratio = memo.pairs[key]
             rep.min_pair_gap = _least(rep.min_pair_gap, gap)
-            short = _shortfall(gap, clearance)
+            short = shortfall(gap, clearance)
             if short is not None:
-                rep.pair_shortfall[(int(i), int(j))] = short
+                rep.pair_shortfall[(i, j)] = short
             if ratio is not None and ratio > rep.worst_overlap:
                 rep.worst_overlap = ratio
-                rep.worst_overlap_pair = (int(i), int(j))
+                rep.worst_overlap_pair = (i, j)
             if short is not None or (ratio is not None and ratio > tol):
-                rep.bad_pairs.append((int(i), int(j)))
-        # --- wall
-        for i in walls:
-            ticker.step()
-            rep.walls_checked += 1
-            key = int(ids[i])
-            found = memo.walls.get(key)
-            if found is None:
-                found = memo.add_wall(key, *self._wall(solid, i, lo[i], hi[i], vol[i],
-                                                       clearance))
-            gap, ratio, beyond = found
+                rep.bad_pairs.append((i, j))
+        for i in walls.tolist():
+            gap, ratio, beyond = memo.walls[int(ids[i])]
             if beyond:
                 rep.worst_outside = 1.0
-                rep.worst_outside_object = int(i)
-                rep.bad_wall.append(int(i))
+                rep.worst_outside_object = i
+                rep.bad_wall.append(i)
                 if clearance > 0:
-                    rep.wall_shortfall[int(i)] = clearance
+                    rep.wall_shortfall[i] = clearance
                 continue
             rep.min_wall_gap = _least(rep.min_wall_gap, gap)
-            short = _shortfall(gap, clearance)
+            short = shortfall(gap, clearance)
             if short is not None:
-                rep.wall_shortfall[int(i)] = short
+                rep.wall_shortfall[i] = short
             if ratio is not None and ratio > rep.worst_outside:
                 rep.worst_outside = ratio
-                rep.worst_outside_object = int(i)
+                rep.worst_outside_object = i
             if short is not None or (ratio is not None and ratio > tol):
-                rep.bad_wall.append(int(i))
-        ticker.finish()
+                rep.bad_wall.append(i)
         rep.certified = not rep.bad_pairs and not rep.bad_wall
         return rep
 
     @staticmethod
-    def _pair(oi, oj, vi: float, vj: float, clearance: float
-              ) -> tuple[float | None, float | None]:
-        """(min gap (with a clearance, else None), intersection volume over the smaller
-        volume (None where a gap of at least the clearance proves the two apart))."""
-        gap = None
-        if clearance > 0:
-            gap = oi.min_gap(oj, GAP_SEARCH * clearance)
-            if _shortfall(gap, clearance) is None:  # a gap of at least c > 0: no intersection
-                return gap, None
-        return gap, (oi ^ oj).volume() / min(vi, vj)
+    def _touching_pairs(lo: np.ndarray, hi: np.ndarray, check: np.ndarray,
+                        clearance: float) -> np.ndarray:
+        """The pairs (P, 2) whose bounding boxes (lo, hi (N, 3)) come within the clearance
+        of each other and that involve an object to check (N,), near ones together."""
+        if len(lo) < 2:
+            return np.zeros((0, 2), np.int64)
+        centre = (lo + hi) / 2
+        reach = 2 * float(np.linalg.norm((hi - lo) / 2, axis=1).max()) + clearance
+        tree = cKDTree(centre)
+        pairs = _near_first(tree, tree.query_pairs(reach, output_type="ndarray"))
+        i, j = pairs[:, 0], pairs[:, 1]
+        apart = (np.any(lo[i] > hi[j] + clearance, axis=1)
+                 | np.any(lo[j] > hi[i] + clearance, axis=1))
+        return pairs[(check[i] | check[j]) & ~apart].astype(np.int64)
 
-    def _wall(self, solid: _PlacedSolids, i: int, lo: np.ndarray, hi: np.ndarray,
-              vol: float, clearance: float
-              ) -> tuple[float | None, float | None, bool]:
-        """(gap to the wall (with a clearance, else None), volume outside over the
-        object's (None where the gap proves it inside), whether it lies wholly beyond the
-        outside's bounds: wholly outside, nothing measured)."""
-        if np.any(hi < self.outside_box[0]) or np.any(lo > self.outside_box[1]):
-            return None, None, True
-        oi = solid(i)
-        gap = None
-        if clearance > 0:
-            gap = oi.min_gap(self.outside, GAP_SEARCH * clearance)
-            if _shortfall(gap, clearance) is None:
-                return gap, None, False
-        return gap, (oi ^ self.outside).volume() / vol, False
+    def _run(self, typ: np.ndarray, matrices: np.ndarray, vol: np.ndarray,
+             checks: np.ndarray, clearance: float,
+             progress: Callable[[int, int], None] | None) -> np.ndarray:
+        """`exact_checks.run_checks` on these objects: here for the first
+        POOL_PROBE_SECONDS, then, where the rest would take POOL_MIN_SECONDS or more at
+        that rate (or the workers run already) and more than one process may run, in
+        worker processes (`check_pool`), or here again should they fail."""
+        ticker = _Ticker(progress, len(checks))
+        out = np.empty((len(checks), 2))
+        solid = PlacedSolids(self.types, typ, matrices)
+        start = time.perf_counter()
+        done = 0
+        while done < len(checks):
+            if self._pool_worth(done, len(checks), time.perf_counter() - start):
+                try:
+                    pool = self._open_pool()
+                    out[done:] = pool.run(typ, matrices, vol, checks[done:], clearance,
+                                          ticker.advance)
+                    done = len(checks)
+                    break
+                except Exception as exc:  # a check's own error comes again here
+                    self._pool_failed(exc)
+                    ticker.count = done
+            part = checks[done:done + PROBE_CHECKS]
+            out[done:done + len(part)] = run_checks(solid, self.outside, vol, part,
+                                                    clearance, ticker.step)
+            done += len(part)
+        ticker.finish()
+        return out
+
+    def _pool_worth(self, done: int, total: int, seconds: float) -> bool:
+        """Whether to hand the rest of a run's checks to the workers, after `done` of
+        `total` took `seconds` here."""
+        if self._pool_broken or self.processes < 2 or done == 0:
+            return False
+        if self._pool is not None:  # started for an earlier certification: no start-up
+            return True
+        if seconds < POOL_PROBE_SECONDS:
+            return False
+        return seconds / done * (total - done) >= POOL_MIN_SECONDS
+
+    def _open_pool(self) -> CheckPool:
+        if self._pool is None:
+            self._pool = CheckPool(self.processes,
+                                   (self.container.vertices, self.container.faces),
+                                   list(zip(self.vertices, self.faces, strict=True)))
+        return self._pool
+
+    def _pool_failed(self, exc: BaseException) -> None:
+        """Worker processes failed (none could start, or one died): the checks run here
+        from now on, with the same results."""
+        log.warning("certification's worker processes failed (%s); checking in this "
+                    "process", exc)
+        self._pool_broken = True
+        self.close()
+
+    def close(self) -> None:
+        """End the worker processes, if any were started."""
+        if self._pool is not None:
+            pool, self._pool = self._pool, None
+            pool.close()
+
+    def __enter__(self) -> Certifier:
+        return self
+
+    def __exit__(self, *exc) -> None:
+        self.close()
 
     def _bounds_and_depth(self, typ: np.ndarray, matrices: np.ndarray
                           ) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
@@ -227,7 +294,7 @@ class Certifier:
             for c in range(0, len(idx), step):
                 part = idx[c:c + step]
                 m = matrices[part]
-                world = (np.einsum("kij,vj->kvi", m[:, :3, :3], verts)
+                world = (np.matmul(verts, m[:, :3, :3].transpose(0, 2, 1))
                          + m[:, None, :3, 3])  # (k, V, 3)
                 lo[part] = world.min(axis=1)
                 hi[part] = world.max(axis=1)
@@ -241,12 +308,9 @@ def _least(a: float | None, b: float | None) -> float | None:
     return b if a is None else a if b is None else min(a, b)
 
 
-def _shortfall(gap: float | None, clearance: float) -> float | None:
-    """How far a measured gap falls short of the clearance (None: unmeasured or not short;
-    a relative 1e-6 of slack for manifold3d's rounding)."""
-    if gap is None or gap >= clearance * (1 - 1e-6):
-        return None
-    return clearance - gap
+def _value(x: float) -> float | None:
+    """A check's measured value, or None where it was not measured (NaN)."""
+    return None if np.isnan(x) else float(x)
 
 
 def _near_first(tree: cKDTree, pairs: np.ndarray) -> np.ndarray:
@@ -258,32 +322,6 @@ def _near_first(tree: cKDTree, pairs: np.ndarray) -> np.ndarray:
     rank[tree.indices] = np.arange(len(tree.indices))
     r = np.sort(rank[pairs], axis=1)
     return pairs[np.lexsort((r[:, 1], r[:, 0]))]
-
-
-class _PlacedSolids:
-    """Object i's solid in the container frame, made when a check needs it and kept while
-    the kept ones hold at most KEPT_FACES triangles (the latest one always), least recently
-    used out first: making (transforming) a solid costs several times a gap query with it,
-    and holding every object's would grow memory by a mesh per object."""
-
-    def __init__(self, types: list, typ: np.ndarray, matrices: np.ndarray):
-        self.types, self.typ, self.matrices = types, typ, matrices
-        self.faces = [s.num_tri() for s in types]
-        self.kept: dict[int, object] = {}  # insertion order is use order
-        self.kept_faces = 0
-
-    def __call__(self, i: int):
-        i = int(i)
-        got = self.kept.pop(i, None)
-        if got is None:
-            got = self.types[self.typ[i]].transform(self.matrices[i, :3, :4].tolist())
-            self.kept_faces += self.faces[self.typ[i]]
-            while self.kept and self.kept_faces > KEPT_FACES:
-                old = next(iter(self.kept))
-                del self.kept[old]
-                self.kept_faces -= self.faces[self.typ[old]]
-        self.kept[i] = got
-        return got
 
 
 class CheckMemo:
@@ -300,6 +338,8 @@ class CheckMemo:
     def _clear(self) -> None:
         self.typ = np.zeros(0, np.int64)
         self.placed = np.zeros((0, 3, 4))
+        # each object's bounding box and least vertex depth at its recorded placement
+        self.lo, self.hi, self.depth = np.zeros((0, 3)), np.zeros((0, 3)), np.zeros(0)
         # (gap or None, overlap ratio or None) by (smaller id, larger id)
         self.pairs: dict[tuple[int, int], tuple[float | None, float | None]] = {}
         # (gap or None, outside ratio or None, wholly beyond the outside's bounds) by id
@@ -307,25 +347,35 @@ class CheckMemo:
         self._partners: dict[int, list[int]] = {}
 
     def update(self, ids: np.ndarray, typ: np.ndarray, matrices: np.ndarray,
-               clearance: float, tol: float) -> None:
-        """Forget the checks of every object (ids (N,)) whose type or placement (matrices
-        (N,4,4)) is not the one recorded, then record these."""
+               clearance: float, tol: float) -> np.ndarray:
+        """Forget the checks and bounds of every object (ids (N,)) whose type or placement
+        (matrices (N,4,4)) is not the one recorded, then record these. Returns (N,) whether
+        each object's bounds are known (`set_bounds`)."""
         if (clearance, tol) != self.key:
             self._clear()
             self.key = (clearance, tol)
         if len(ids) == 0:
-            return
+            return np.zeros(0, bool)
         need = int(ids.max()) + 1
         if need > len(self.typ):
-            self.typ = np.concatenate([self.typ, np.full(need - len(self.typ), -1)])
-            self.placed = np.concatenate([self.placed,
-                                          np.full((need - len(self.placed), 3, 4), np.nan)])
+            more = need - len(self.typ)
+            self.typ = np.concatenate([self.typ, np.full(more, -1)])
+            self.placed = np.concatenate([self.placed, np.full((more, 3, 4), np.nan)])
+            self.lo = np.concatenate([self.lo, np.zeros((more, 3))])
+            self.hi = np.concatenate([self.hi, np.zeros((more, 3))])
+            self.depth = np.concatenate([self.depth, np.zeros(more)])
         now = matrices[:, :3, :4]
         same = (self.typ[ids] == typ) & np.all(self.placed[ids] == now, axis=(1, 2))
         for k in ids[~same]:
             self._forget(int(k))
         self.typ[ids] = typ
         self.placed[ids] = now
+        return same
+
+    def set_bounds(self, ids: np.ndarray, lo: np.ndarray, hi: np.ndarray,
+                   depth: np.ndarray) -> None:
+        """Record objects' bounds (N,3) and least vertex depths (N,) at their placements."""
+        self.lo[ids], self.hi[ids], self.depth[ids] = lo, hi, depth
 
     def _forget(self, k: int) -> None:
         self.walls.pop(k, None)
@@ -355,7 +405,10 @@ class _Ticker:
         self.next = time.perf_counter() + PROGRESS_SECONDS
 
     def step(self) -> None:
-        self.count += 1
+        self.advance(1)
+
+    def advance(self, count: int) -> None:
+        self.count += count
         if self.progress is not None and time.perf_counter() >= self.next:
             self.progress(self.count, self.total)
             self.next = time.perf_counter() + PROGRESS_SECONDS

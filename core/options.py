@@ -108,6 +108,9 @@ class RepairOptions:
     # iterations: one that jams the whole packing then costs what 100 iterations did
     settle_every: int = 100
     seconds: float = 20.0  # push-apart cap with a time budget; what still fails is removed
+    # worker processes for a long certification's exact checks (`core/check_pool.py`):
+    # 0 one per core, 1 none; the results are the same either way
+    processes: int = 0
 
 
 @dataclass(frozen=True)

@@ -62,8 +62,8 @@ def certify_and_repair(solver: Solver, certifier: Certifier, clearance: float,
     summing to 1): the removals do not leave the mix's TVD more than MIX_SLACK above
     `max_tvd` or the placement's own, whichever is larger (`offenders_kept`, `mix_trim`).
     Mutates the solver's state. A check whose objects have not moved since it ran is not
-    run again (`CheckMemo`). progress(fraction of this check, message) is called now and
-    then while checking.
+    run again (`CheckMemo`). progress(fraction, message) is called now and then while
+    checking; the fraction (of the first certification's checks) never falls.
     Returns (the final certificate as a dict, repair statistics)."""
     s = solver.s
     stats = RepairStats()
@@ -73,14 +73,19 @@ def certify_and_repair(solver: Solver, certifier: Certifier, clearance: float,
     moved_ever: set[int] = set()
     memo = CheckMemo()
 
+    high = 0.0  # the first certification fills the bar; a repair's later ones never
+    # run it backwards (their checks, of what moved, are in the message)
+
+    def tick(done: int, total: int) -> None:
+        nonlocal high
+        high = max(high, done / total if total else 1.0)
+        progress(high, f"certifying on the real meshes: {done:,} of {total:,} exact checks")
+
     def certify(idx: np.ndarray, only: np.ndarray | None = None) -> CertifyReport:
         mats = placement_matrices(s.quat[idx], s.pos[idx], s.scale[idx])
-        tick = None if progress is None else (
-            lambda done, total: progress(done / max(total, 1),
-                                         "certifying on the real meshes: "
-                                         f"{done:,} of {total:,} near pairs and walls"))
         return certifier.certify(s.typ[idx], mats, clearance, DEFAULT_TOL, subset=only,
-                                 memo=memo, ids=idx, progress=tick)
+                                 memo=memo, ids=idx,
+                                 progress=None if progress is None else tick)
 
     for rnd in range(options.rounds + 1):
         idx = s.alive_indices()

@@ -494,3 +494,27 @@ def test_circles_of_the_live_view_lie_on_the_spheres(addon):
     assert pts.shape == (2, 3 * 8 * 2, 3)
     for c, r, p in zip(centres, radii, pts, strict=True):
         np.testing.assert_allclose(np.linalg.norm(p - c, axis=1), r, rtol=1e-5)
+
+
+def test_a_long_certification_runs_on_worker_processes_from_blender(bpy, addon, scene,
+                                                                     monkeypatch):
+    """A long certification spawns worker processes from the add-on's engine thread
+    (`core/check_pool.py`): they must start inside Blender, give a certified packing and
+    be gone afterwards."""
+    import multiprocessing
+
+    from jampacked.core import certify, check_pool
+
+    monkeypatch.setattr(certify, "POOL_PROBE_SECONDS", 0.0)
+    monkeypatch.setattr(certify, "POOL_MIN_SECONDS", 0.0)
+    monkeypatch.setattr(check_pool, "CHUNK_CHECKS", 4)
+    monkeypatch.setattr(certify, "usable_processes", lambda requested: 2)  # any machine
+    runs = []
+    run_here = check_pool.CheckPool.run
+    monkeypatch.setattr(check_pool.CheckPool, "run",
+                        lambda self, *a, **k: runs.append(self.processes)
+                        or run_here(self, *a, **k))
+    assert bpy.ops.jampacked.pack() == {'FINISHED'}
+    packing = _packing(addon, scene.settings.result)
+    assert runs and set(runs) == {2} and packing.certificate["certified"] is True
+    assert packing.n > 5 and multiprocessing.active_children() == []

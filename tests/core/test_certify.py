@@ -7,7 +7,7 @@ import numpy as np
 import pytest
 import trimesh
 
-from jampacked.core import certify
+from jampacked.core import certify, exact_checks
 from jampacked.core.certify import Certifier
 from jampacked.core.container import build_container
 from jampacked.core.kernels import sample_grid_many
@@ -111,10 +111,10 @@ def _clearance_scene():
     return typ, m
 
 
-@pytest.mark.parametrize("kept_faces", [certify.KEPT_FACES, 0])  # solids kept, or remade
+@pytest.mark.parametrize("kept_faces", [exact_checks.KEPT_FACES, 0])  # solids kept, or remade
 def test_clearance_checks_match_the_every_boolean_reference(certifier, monkeypatch,
                                                             kept_faces):
-    monkeypatch.setattr(certify, "KEPT_FACES", kept_faces)
+    monkeypatch.setattr(exact_checks, "KEPT_FACES", kept_faces)
     typ, m = _clearance_scene()
     pairs, walls, overlap, gap = _reference(certifier, typ, m, 0.5)
     rep = certifier.certify(typ, m, clearance=0.5)
@@ -140,17 +140,17 @@ def test_near_first_orders_every_pair_once():
 def test_placed_solids_stay_within_the_face_budget_and_match_fresh_ones(certifier,
                                                                        monkeypatch):
     faces = [s.num_tri() for s in certifier.types]
-    monkeypatch.setattr(certify, "KEPT_FACES", 3 * max(faces))
+    monkeypatch.setattr(exact_checks, "KEPT_FACES", 3 * max(faces))
     rng = np.random.default_rng(5)
     typ = rng.integers(0, 2, 12)
     m = _matrices(rng, rng.uniform(-10, 10, (12, 3)))
-    solids = certify._PlacedSolids(certifier.types, typ, m)
+    solids = exact_checks.PlacedSolids(certifier.types, typ, m)
     for i in rng.integers(0, 12, 60):
         s = solids(i)
         fresh = certifier.types[typ[i]].transform(m[i, :3, :4].tolist())
         assert (s ^ fresh).volume() == pytest.approx(s.volume(), rel=1e-9)
         assert solids.kept_faces == sum(faces[typ[k]] for k in solids.kept)
-        assert solids.kept_faces <= certify.KEPT_FACES and int(i) in solids.kept
+        assert solids.kept_faces <= exact_checks.KEPT_FACES and int(i) in solids.kept
     assert 1 < len(solids.kept) <= 3
 
 
@@ -182,24 +182,32 @@ def _same_report(a, b):
 
 @pytest.mark.parametrize("clearance", [0.0, 0.5])
 def test_a_memo_reruns_only_the_checks_of_what_moved_and_reports_the_same(certifier,
-                                                                         clearance):
+                                                                         clearance,
+                                                                         monkeypatch):
     rng = np.random.default_rng(21)
     typ, m = _dense_scene(rng)
     ids = np.arange(100, 100 + len(typ))  # ids other than the positions
     memo = certify.CheckMemo()
+    bounded = []  # objects whose bounds and depths were computed, call by call
+    bounds = certifier._bounds_and_depth
+    monkeypatch.setattr(certifier, "_bounds_and_depth",
+                        lambda t, mats: bounded.append(len(t)) or bounds(t, mats))
     first = certifier.certify(typ, m, clearance, memo=memo, ids=ids)
+    assert bounded == [len(typ)]
     _same_report(first, certifier.certify(typ, m, clearance))
     assert not first.certified and first.bad_pairs and first.bad_wall
     assert memo.run == first.pairs_checked + first.walls_checked
-    # nothing moved: no check runs again, the report is the same
+    # nothing moved: no check runs again, no bounds are computed, the report is the same
+    bounded.clear()
     _same_report(certifier.certify(typ, m, clearance, memo=memo, ids=ids), first)
-    assert memo.run == first.pairs_checked + first.walls_checked
+    assert memo.run == first.pairs_checked + first.walls_checked and bounded == []
     # move one object and drop another (as a repair does): only the moved one's checks run
     m2 = m.copy()
     m2[3, :3, 3] += [0.7, -0.4, 0.2]
     keep = np.delete(np.arange(len(typ)), 8)
     before = memo.run
     got = certifier.certify(typ[keep], m2[keep], clearance, memo=memo, ids=ids[keep])
+    assert bounded == [1]  # the moved one's
     fresh = certifier.certify(typ[keep], m2[keep], clearance)
     _same_report(got, fresh)
     k = 3  # object 3 keeps its position in keep (8 > 3)

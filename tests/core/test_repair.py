@@ -247,7 +247,7 @@ def test_certification_runs_no_check_twice_on_objects_that_did_not_move(monkeypa
     """A packing that passes at once was checked twice over (the final certification ran
     every boolean again); after a repair the final certificate is still the one a fresh
     certification of every object gives."""
-    from jampacked.core import certify as certify_module
+    from jampacked.core import exact_checks
     from jampacked.core.options import RepairOptions
     from jampacked.core.repair import certify_and_repair
 
@@ -257,8 +257,8 @@ def test_certification_runs_no_check_twice_on_objects_that_did_not_move(monkeypa
     placed = [(0, step * (i - 1.5), step * (i - 1.5)) for i in range(4)]
     solver, cert = _ball_scene(types, placed, (30.0, 30.0, 8 * r))
     made = []
-    solid = certify_module._PlacedSolids.__call__
-    monkeypatch.setattr(certify_module._PlacedSolids, "__call__",
+    solid = exact_checks.PlacedSolids.__call__
+    monkeypatch.setattr(exact_checks.PlacedSolids, "__call__",
                         lambda self, i: made.append(i) or solid(self, i))
     final, stats = certify_and_repair(solver, cert, 0.0, RepairOptions(), lambda: False,
                                       timed=False)

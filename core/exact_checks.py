@@ -1,0 +1,82 @@
+"""The exact checks of a certification, on placed manifold3d solids: pairs and walls.
+
+A check is a row (a, b) of object indices: a pair of objects, or with b < 0 object a against
+the container's wall (the `outside` solid, `solids.outside_of`). Its result is (gap, ratio):
+the minimum gap (only with a clearance c > 0, else NaN) and the intersection volume over
+the smaller object's (with the wall: the volume outside over the object's), NaN where a gap
+of at least c proves the two apart and no boolean ran. The certifier runs checks here or in
+worker processes (`check_pool`), with the same results: manifold3d is deterministic.
+Frames and units: container frame, container units.
+
+This module imports only numpy and manifold3d, so that worker processes start quickly.
+"""
+
+from __future__ import annotations
+
+from collections.abc import Callable
+
+import numpy as np
+
+#: triangles of placed solids one run of checks keeps for its next checks
+KEPT_FACES = 500_000
+#: min_gap's search distance over the clearance: gaps beyond it read as this much, and
+#: manifold3d's cost grows steeply with it (docs/notes-core.md)
+GAP_SEARCH = 1.25
+
+
+def shortfall(gap: float | None, clearance: float) -> float | None:
+    """How far a measured gap falls short of the clearance (None: unmeasured or not short;
+    a relative 1e-6 of slack for manifold3d's rounding)."""
+    if gap is None or gap >= clearance * (1 - 1e-6):
+        return None
+    return clearance - gap
+
+
+class PlacedSolids:
+    """Object i's solid in the container frame, made when a check needs it and kept while
+    the kept ones hold at most KEPT_FACES triangles (the latest one always), least recently
+    used out first: making (transforming) a solid costs several times a gap query with it,
+    and holding every object's would grow memory by a mesh per object."""
+
+    def __init__(self, types: list, typ: np.ndarray, matrices: np.ndarray):
+        self.types, self.typ, self.matrices = types, typ, matrices
+        self.faces = [s.num_tri() for s in types]
+        self.kept: dict[int, object] = {}  # insertion order is use order
+        self.kept_faces = 0
+
+    def __call__(self, i: int):
+        i = int(i)
+        got = self.kept.pop(i, None)
+        if got is None:
+            got = self.types[self.typ[i]].transform(self.matrices[i, :3, :4].tolist())
+            self.kept_faces += self.faces[self.typ[i]]
+            while self.kept and self.kept_faces > KEPT_FACES:
+                old = next(iter(self.kept))
+                del self.kept[old]
+                self.kept_faces -= self.faces[self.typ[old]]
+        self.kept[i] = got
+        return got
+
+
+def run_checks(solid: Callable[[int], object], outside, volume: np.ndarray,
+               checks: np.ndarray, clearance: float,
+               tick: Callable[[], None] | None = None) -> np.ndarray:
+    """Run checks (K, 2) (module doc) on solid(i) (object i placed) and `outside`; volume
+    (N,) each object's volume. Returns (K, 2): gap and ratio of each, NaN where not
+    measured. tick() is called after each check."""
+    out = np.full((len(checks), 2), np.nan)
+    for k, (a, b) in enumerate(checks):
+        sa = solid(a)
+        other = outside if b < 0 else solid(b)
+        least = volume[a] if b < 0 else min(volume[a], volume[b])
+        if clearance > 0:
+            gap = sa.min_gap(other, GAP_SEARCH * clearance)
+            out[k, 0] = gap
+            if shortfall(gap, clearance) is None:  # a gap of at least c > 0: apart
+                if tick is not None:
+                    tick()
+                continue
+        out[k, 1] = (sa ^ other).volume() / least
+        if tick is not None:
+            tick()
+    return out
