@@ -167,11 +167,14 @@ def run_record(container: str, types: list[str], seed: int, kwargs: dict,
         if m:
             trace.append((time.perf_counter() - t0, float(m.group(1)) / 100))
 
+    before = resource.getrusage(resource.RUSAGE_CHILDREN)
+    worker_cpu0 = before.ru_utime + before.ru_stime
     t0 = time.perf_counter()
     c0 = time.process_time()
     p = pack(container, type_paths, seed=seed, options=options, progress=progress, **kwargs)
     wall = time.perf_counter() - t0
     cpu = time.process_time() - c0
+    children = resource.getrusage(resource.RUSAGE_CHILDREN)
     rep, run = asdict(p.report.repair), p.report
     return {
         "seed": seed, "wall_seconds": wall, "timings": p.timings,
@@ -193,6 +196,10 @@ def run_record(container: str, types: list[str], seed: int, kwargs: dict,
         "density_trace": trace,
         # the process's peak resident memory so far (Linux reports KiB), MiB
         "peak_rss_mb": resource.getrusage(resource.RUSAGE_SELF).ru_maxrss / 1024,
+        # certification's worker processes (`core/check_pool.py`), once ended: the
+        # largest one's peak, MiB, and their CPU time together, s
+        "worker_peak_rss_mb": children.ru_maxrss / 1024,
+        "worker_cpu_seconds": children.ru_utime + children.ru_stime - worker_cpu0,
     }
 
 
