@@ -102,8 +102,7 @@ def main(argv: list[str] | None = None) -> int:
                 runs.append(rec)
                 print(f"target {n}: {rec['metrics']['count']} objects, "
                       f"{rec['wall_seconds']:.1f} s, density {rec['metrics']['density']:.1%}, "
-                      f"peak {rec['peak_rss_mb']:.0f} MiB (each certification worker "
-                      f"{rec['worker_peak_rss_mb']:.0f}), load {rec['load'][0]:.1f}"
+                      f"peak {rec['peak_rss_mb']:.0f} MiB, load {rec['load'][0]:.1f}"
                       f"{', stopped by the cap' if rec['stopped'] else ''}", flush=True)
                 # each size is saved as it ends: the large ones take long
                 write_json(out, {"method": a.method, "types": TYPES,

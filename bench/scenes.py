@@ -196,9 +196,8 @@ def run_record(container: str, types: list[str], seed: int, kwargs: dict,
         "density_trace": trace,
         # the process's peak resident memory so far (Linux reports KiB), MiB
         "peak_rss_mb": resource.getrusage(resource.RUSAGE_SELF).ru_maxrss / 1024,
-        # certification's worker processes (`core/check_pool.py`), once ended: the
-        # largest one's peak, MiB, and their CPU time together, s
-        "worker_peak_rss_mb": children.ru_maxrss / 1024,
+        # certification's worker processes' CPU time together, s (`core/check_pool.py`;
+        # not their memory: a spawned child's ru_maxrss starts at its parent's)
         "worker_cpu_seconds": children.ru_utime + children.ru_stime - worker_cpu0,
     }
 
