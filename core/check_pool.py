@@ -13,6 +13,7 @@ no main guard would pack again in each of them.
 from __future__ import annotations
 
 import contextlib
+import math
 import multiprocessing
 import os
 import signal
@@ -21,6 +22,7 @@ import time
 from collections import deque
 from collections.abc import Callable, Iterator
 from concurrent.futures import Future, ProcessPoolExecutor
+from pathlib import Path
 
 import numpy as np
 
@@ -36,21 +38,38 @@ AHEAD = 4
 #: anyway, and ends the others)
 START_SECONDS = 60.0
 
+#: cgroup v2's CPU quota for this process's container: "max", or "<quota> <period>" (us)
+CPU_MAX = Path("/sys/fs/cgroup/cpu.max")
+
 _WORKER: dict = {}
 
 
 def usable_processes(requested: int) -> int:
     """Worker processes a certification may use: `requested`, or with 0 one per core this
-    process may run on; 1 where this process cannot have children (a daemonic process,
-    such as a Dask worker's: its scenes already run side by side)."""
+    process may run on (within its container's CPU quota); 1 where this process cannot
+    have children (a daemonic process, such as a Dask worker's: its scenes already run
+    side by side)."""
     if multiprocessing.current_process().daemon:
         return 1
     if requested > 0:
         return requested
     try:
-        return len(os.sched_getaffinity(0))
+        cores = len(os.sched_getaffinity(0))
     except AttributeError:  # not on Linux
-        return os.cpu_count() or 1
+        cores = os.cpu_count() or 1
+    quota = _cpu_quota()
+    return cores if quota is None else min(cores, quota)
+
+
+def _cpu_quota() -> int | None:
+    """The cores a container's CPU quota allows (cgroup v2), rounded up; None where there
+    is no quota or it cannot be read. A container limited to 2 CPUs on a 64-core host
+    still sees all 64 in its affinity."""
+    try:
+        quota, period = CPU_MAX.read_text().split()[:2]
+        return None if quota == "max" else max(1, math.ceil(int(quota) / int(period)))
+    except (OSError, ValueError, ZeroDivisionError):
+        return None
 
 
 def _start(container: tuple[np.ndarray, np.ndarray], types: list[tuple], counter) -> None:

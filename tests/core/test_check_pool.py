@@ -130,6 +130,22 @@ def test_short_certifications_and_daemonic_processes_start_no_workers(monkeypatc
     assert check_pool.usable_processes(0) == 1 and check_pool.usable_processes(4) == 1
 
 
+@pytest.mark.parametrize(("cpu_max", "cores"), [("150000 100000\n", 2), ("50000 100000", 1),
+                                                ("max 100000", 64), ("garbled", 64),
+                                                (None, 64)])
+def test_a_containers_cpu_quota_bounds_the_workers(monkeypatch, tmp_path, cpu_max, cores):
+    """A container limited to a few CPUs still sees every host core in its affinity: one
+    worker per host core would crowd its quota."""
+    path = tmp_path / "cpu.max"
+    if cpu_max is not None:
+        path.write_text(cpu_max)
+    monkeypatch.setattr(check_pool, "CPU_MAX", path)
+    monkeypatch.setattr(check_pool.os, "sched_getaffinity", lambda pid: set(range(64)),
+                        raising=False)
+    assert check_pool.usable_processes(0) == cores
+    assert check_pool.usable_processes(3) == 3  # asked for: as asked
+
+
 def test_a_packing_certified_on_workers_is_the_same(eager_pool, monkeypatch):
     runs = []
     run_here = check_pool.CheckPool.run
