@@ -22,7 +22,7 @@ import time
 from collections import deque
 from collections.abc import Callable, Iterator
 from concurrent.futures import Future, ProcessPoolExecutor
-from pathlib import Path
+from pathlib import Path, PureWindowsPath
 
 import numpy as np
 
@@ -48,8 +48,8 @@ def usable_processes(requested: int) -> int:
     """Worker processes a certification may use: `requested`, or with 0 one per core this
     process may run on (within its container's CPU quota); 1 where this process cannot
     have children (a daemonic process, such as a Dask worker's: its scenes already run
-    side by side)."""
-    if multiprocessing.current_process().daemon:
+    side by side) or would not spawn a Python interpreter."""
+    if multiprocessing.current_process().daemon or not _spawns_python():
         return 1
     if requested > 0:
         return requested
@@ -59,6 +59,17 @@ def usable_processes(requested: int) -> int:
         cores = os.cpu_count() or 1
     quota = _cpu_quota()
     return cores if quota is None else min(cores, quota)
+
+
+def _spawns_python() -> bool:
+    """Whether spawned workers would start a Python interpreter: an application that
+    embeds Python may name itself as `sys.executable` (Blender did before 2.91), and
+    spawning it would open the application again."""
+    from multiprocessing import spawn
+
+    # either separator: the name is all that matters, and Windows paths use both
+    name = PureWindowsPath(os.fsdecode(spawn.get_executable() or "")).name.lower()
+    return name.startswith(("python", "pypy"))
 
 
 def _cpu_quota() -> int | None:

@@ -130,6 +130,21 @@ def test_short_certifications_and_daemonic_processes_start_no_workers(monkeypatc
     assert check_pool.usable_processes(0) == 1 and check_pool.usable_processes(4) == 1
 
 
+@pytest.mark.parametrize(("executable", "python"), [
+    ("/usr/bin/python3.11", True), ("C:\\Python311\\pythonw.exe", True),
+    ("/opt/blender-4.2/4.2/python/bin/python3.11", True), ("/usr/bin/pypy3", True),
+    (b"/usr/bin/python3", True),  # POSIX: bytes
+    ("/opt/blender-2.90/blender", False), ("/Applications/Some App", False)])
+def test_workers_start_only_where_spawn_runs_python(monkeypatch, executable, python):
+    """An application embedding Python may give its own binary as the executable:
+    spawning it would start the application again, not a worker."""
+    from multiprocessing import spawn
+
+    monkeypatch.setattr(spawn, "get_executable", lambda: executable)
+    assert check_pool._spawns_python() is python
+    assert (check_pool.usable_processes(3) == 3) is python
+
+
 @pytest.mark.parametrize(("cpu_max", "cores"), [("150000 100000\n", 2), ("50000 100000", 1),
                                                 ("max 100000", 64), ("garbled", 64),
                                                 (None, 64)])
