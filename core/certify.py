@@ -42,7 +42,8 @@ PROBE_CHECKS = 16
 #: checks run here for at least this long (s) before the rate is taken as known ...
 POOL_PROBE_SECONDS = 0.5
 #: ... and worker processes start only where the rest would take this long (s) here:
-#: spawning them costs about a second (docs/notes-core.md)
+#: starting two took 0.2 s on a warm machine, more where imports are cold
+#: (docs/notes-core.md)
 POOL_MIN_SECONDS = 3.0
 
 
