@@ -26,9 +26,8 @@ from scipy.spatial import cKDTree
 
 from .check_pool import CheckPool, usable_processes
 from .container import Container
-from .exact_checks import PlacedSolids, run_checks, shortfall
+from .exact_checks import PlacedSolids, check_solids, run_checks, shortfall
 from .kernels import sample_grid_many
-from .solids import outside_of, to_solid
 
 log = logging.getLogger(__name__)
 
@@ -96,12 +95,12 @@ class Certifier:
         """processes: worker processes a long certification may use (`check_pool`);
         0: one per core (`check_pool.usable_processes`); 1: none."""
         self.container = container
-        # intersections with it are volume outside, and min_gap to it is the wall gap
-        self.outside = outside_of(container.vertices, container.faces, double=False)
+        # intersections with `outside` are volume outside, and min_gap to it is the wall gap
+        self.outside, self.types = check_solids(
+            (container.vertices, container.faces),
+            list(zip(type_vertices, type_faces, strict=True)))
         # an object wholly beyond this box misses `outside` too: it is outside entirely
         self.outside_box = np.asarray(self.outside.bounding_box(), np.float64).reshape(2, 3)
-        self.types = [to_solid(v, f, double=False)
-                      for v, f in zip(type_vertices, type_faces, strict=True)]
         self.vertices = type_vertices
         self.faces = type_faces
         self.processes = usable_processes(processes)
@@ -384,18 +383,16 @@ class CheckMemo:
             self.pairs.pop((min(k, other), max(k, other)), None)
 
     def add_pair(self, key: tuple[int, int], gap: float | None, ratio: float | None
-                 ) -> tuple[float | None, float | None]:
+                 ) -> None:
         self.run += 1
         self.pairs[key] = (gap, ratio)
         self._partners.setdefault(key[0], []).append(key[1])
         self._partners.setdefault(key[1], []).append(key[0])
-        return gap, ratio
 
     def add_wall(self, key: int, gap: float | None, ratio: float | None, beyond: bool
-                 ) -> tuple[float | None, float | None, bool]:
+                 ) -> None:
         self.run += 1
         self.walls[key] = (gap, ratio, beyond)
-        return gap, ratio, beyond
 
 
 class _Ticker:

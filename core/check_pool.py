@@ -2,12 +2,12 @@
 
 manifold3d's calls hold the GIL, so threads do not run checks side by side
 (docs/notes-core.md); processes do. Each worker builds the container's outside solid and
-the types' solids once, from arrays (the same calls as the certifier's, so the same
-solids), then runs chunks of checks (`exact_checks.run_checks`) and sends back their
-results, which are the ones the certifier's own process would get. Workers are spawned,
-not forked (the caller may be a thread of Blender or hold numba's threads), and without the
-caller's main script: spawned workers import it again, so a script that calls `pack` with
-no main guard would pack again in each of them.
+the types' solids once, from arrays, with the certifier's own call
+(`exact_checks.check_solids`), then runs chunks of checks (`exact_checks.run_checks`) and
+sends back their results, which are the ones the certifier's process would get. Workers
+are spawned, not forked (the caller may be a thread of Blender or hold numba's threads),
+and without the caller's main script: spawned workers import it again, so a script that
+calls `pack` with no main guard would pack again in each of them.
 """
 
 from __future__ import annotations
@@ -26,8 +26,7 @@ from pathlib import Path, PureWindowsPath
 
 import numpy as np
 
-from .exact_checks import PlacedSolids, run_checks
-from .solids import outside_of, to_solid
+from .exact_checks import PlacedSolids, check_solids, run_checks
 
 #: checks sent to a worker at a time: tens of milliseconds of booleans against a
 #: fraction of one to pickle the chunk; consecutive checks share objects
@@ -96,8 +95,7 @@ def _start(container: tuple[np.ndarray, np.ndarray], types: list[tuple], counter
     if hasattr(os, "sched_setaffinity"):
         cores = sorted(os.sched_getaffinity(0))
         os.sched_setaffinity(0, {cores[k % len(cores)]})
-    _WORKER["outside"] = outside_of(*container, double=False)
-    _WORKER["types"] = [to_solid(v, f, double=False) for v, f in types]
+    _WORKER["outside"], _WORKER["types"] = check_solids(container, types)
 
 
 def _ready(processes: int) -> bool:

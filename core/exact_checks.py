@@ -8,7 +8,8 @@ of at least c proves the two apart and no boolean ran. The certifier runs checks
 worker processes (`check_pool`), with the same results: manifold3d is deterministic.
 Frames and units: container frame, container units.
 
-This module imports only numpy and manifold3d, so that worker processes start quickly.
+This module imports only numpy and manifold3d (through `solids`), so that worker
+processes start quickly.
 """
 
 from __future__ import annotations
@@ -17,11 +18,23 @@ from collections.abc import Callable
 
 import numpy as np
 
+from .solids import outside_of, to_solid
+
 #: triangles of placed solids one run of checks keeps for its next checks
 KEPT_FACES = 500_000
 #: min_gap's search distance over the clearance: gaps beyond it read as this much, and
 #: manifold3d's cost grows steeply with it (docs/notes-core.md)
 GAP_SEARCH = 1.25
+
+
+def check_solids(container: tuple[np.ndarray, np.ndarray],
+                 types: list[tuple[np.ndarray, np.ndarray]]) -> tuple[object, list]:
+    """The solids every check reads: the container's outside (from its (V, 3) vertices and
+    (F, 3) faces) and each type's solid (local frame), in float32 as certification uses
+    them. The certifier and its workers both build them here, so they check the same
+    solids."""
+    return (outside_of(*container, double=False),
+            [to_solid(v, f, double=False) for v, f in types])
 
 
 def shortfall(gap: float | None, clearance: float) -> float | None:
