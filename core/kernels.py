@@ -860,47 +860,59 @@ def _cell_distances(px, py, pz, c, best, grid, typ, pos, quat, scale, alive, rad
 
 
 @njit(cache=True)
-def free_distances_near(points, grid, typ, pos, quat, scale, alive, radius, g_off, g_vals,
-                        g_shape, g_origin, g_h, c_vals, c_origin, c_h):
-    """`free_distances` through the cell grid (`cellgrid`): for each point (M,3), cells in
-    shells of growing Chebyshev distance r from its cell, until no object centre beyond
-    shell r (at least (r - 1) h away) can come nearer than the best distance so far. Equal
-    to `free_distances` (a minimum does not depend on the order of its terms)."""
+def _free_distance_near(px, py, pz, floor, grid, typ, pos, quat, scale, alive, radius, g_off,
+                        g_vals, g_shape, g_origin, g_h, c_flat, c_shape, c_origin, c_h):
+    """`free_distances_near` for one point."""
     origin, hs, dims, _, _, _, _ = grid
     h = hs[0]
     r_max = radius.max()
-    nx_, ny_, nz_ = c_vals.shape
+    best, _, _, _ = trilinear(c_flat, 0, c_shape[0], c_shape[1], c_shape[2], c_origin[0],
+                              c_origin[1], c_origin[2], c_h, px, py, pz)
+    if best < floor:
+        return best
+    ci = min(max(int(np.floor((px - origin[0]) / h)), 0), dims[0] - 1)
+    cj = min(max(int(np.floor((py - origin[1]) / h)), 0), dims[1] - 1)
+    ck = min(max(int(np.floor((pz - origin[2]) / h)), 0), dims[2] - 1)
+    for r in range(max(dims[0], max(dims[1], dims[2]))):
+        if (r - 1) * h - r_max >= best:
+            break
+        for i in range(max(ci - r, 0), min(ci + r + 1, dims[0])):
+            edge_i = i == ci - r or i == ci + r
+            for j in range(max(cj - r, 0), min(cj + r + 1, dims[1])):
+                if edge_i or j == cj - r or j == cj + r:
+                    k_step = 1
+                    k_lo = max(ck - r, 0)
+                    k_hi = min(ck + r + 1, dims[2])
+                else:  # inside the shell's faces in i and j: only its two k faces
+                    k_step = 2 * r
+                    k_lo = ck - r
+                    k_hi = ck + r + 1
+                for k in range(k_lo, k_hi, k_step):
+                    if k < 0 or k >= dims[2]:
+                        continue
+                    best = _cell_distances(px, py, pz, (i * dims[1] + j) * dims[2] + k, best,
+                                           grid, typ, pos, quat, scale, alive, radius, g_off,
+                                           g_vals, g_shape, g_origin, g_h)
+                    if best < floor:
+                        return best
+    return best
+
+
+@njit(cache=True)
+def free_distances_near(points, floor, grid, typ, pos, quat, scale, alive, radius, g_off,
+                        g_vals, g_shape, g_origin, g_h, c_vals, c_origin, c_h):
+    """`free_distances` through the cell grid (`cellgrid`): for each point (M,3), cells in
+    shells of growing Chebyshev distance r from its cell, until no object centre beyond
+    shell r (at least (r - 1) h away) can come nearer than the best distance so far. Equal
+    to `free_distances` where that is at least `floor`; elsewhere some value below `floor`
+    (the search stops at the first one: a phase that keeps only points with room >= floor
+    needs no more, and most points of its lattice lie inside objects). floor = -inf: equal
+    everywhere (a minimum does not depend on the order of its terms)."""
+    c_shape = np.array(c_vals.shape, np.int64)
     c_flat = c_vals.ravel()
     out = np.empty(points.shape[0])
-    n_shells = max(dims[0], max(dims[1], dims[2]))
     for m in range(points.shape[0]):
-        px = points[m, 0]
-        py = points[m, 1]
-        pz = points[m, 2]
-        best, _, _, _ = trilinear(c_flat, 0, nx_, ny_, nz_, c_origin[0], c_origin[1],
-                                  c_origin[2], c_h, px, py, pz)
-        ci = min(max(int(np.floor((px - origin[0]) / h)), 0), dims[0] - 1)
-        cj = min(max(int(np.floor((py - origin[1]) / h)), 0), dims[1] - 1)
-        ck = min(max(int(np.floor((pz - origin[2]) / h)), 0), dims[2] - 1)
-        for r in range(n_shells):
-            if (r - 1) * h - r_max >= best:
-                break
-            for i in range(max(ci - r, 0), min(ci + r + 1, dims[0])):
-                edge_i = i == ci - r or i == ci + r
-                for j in range(max(cj - r, 0), min(cj + r + 1, dims[1])):
-                    if edge_i or j == cj - r or j == cj + r:
-                        for k in range(max(ck - r, 0), min(ck + r + 1, dims[2])):
-                            best = _cell_distances(px, py, pz, (i * dims[1] + j) * dims[2] + k,
-                                                   best, grid, typ, pos, quat, scale, alive,
-                                                   radius, g_off, g_vals, g_shape, g_origin,
-                                                   g_h)
-                    else:  # inside the shell's faces in i and j: only its two k faces
-                        for k in (ck - r, ck + r):
-                            if 0 <= k < dims[2]:
-                                best = _cell_distances(px, py, pz,
-                                                       (i * dims[1] + j) * dims[2] + k, best,
-                                                       grid, typ, pos, quat, scale, alive,
-                                                       radius, g_off, g_vals, g_shape,
-                                                       g_origin, g_h)
-        out[m] = best
+        out[m] = _free_distance_near(points[m, 0], points[m, 1], points[m, 2], floor, grid,
+                                     typ, pos, quat, scale, alive, radius, g_off, g_vals,
+                                     g_shape, g_origin, g_h, c_flat, c_shape, c_origin, c_h)
     return out

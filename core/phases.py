@@ -236,7 +236,7 @@ def phase2(solver: Solver, shares: np.ndarray, spacing: float, rng: np.random.Ge
     if len(pts) == 0:
         st.seconds = time.perf_counter() - t0
         return st
-    d = solver.free_distances(pts)
+    d = solver.free_distances(pts, at_least=threshold)
     keep = d >= threshold
     pts, d = pts[keep], d[keep]
     order = np.argsort(-d, kind="stable")
@@ -253,7 +253,7 @@ def phase2(solver: Solver, shares: np.ndarray, spacing: float, rng: np.random.Ge
         if patience is not None and misses >= patience:
             st.stopped = "patience"
             break
-        dist = float(solver.free_distances(p[None])[0])
+        dist = float(solver.free_distances(p[None], at_least=threshold)[0])
         if dist < threshold:
             continue
         fits = [int(t) for t in by_size if fit_factor * f[t] < dist]

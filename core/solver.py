@@ -205,16 +205,22 @@ class Solver:
                                         self.container_arrays(),
                                         p.clearance, p.tol, p.wall_margin)
 
-    def free_distances(self, points: np.ndarray) -> np.ndarray:
+    def free_distances(self, points: np.ndarray, at_least: float = -np.inf) -> np.ndarray:
         """The room at each point (M,3): its distance to the nearest object or the wall,
         less the clearance (M,): an object there must keep the clearance from both, so it
         is what the phases compare an object's size with (a hole judged by the bare distance
-        took growth attempts that could not succeed: docs/notes-core.md)."""
+        took growth attempts that could not succeed: docs/notes-core.md). Exact where it
+        is at least `at_least` (container units); elsewhere some value below it, found
+        sooner."""
         typ, pos, quat, scale, alive, _, _ = self.s.view()
         t, c = self.t, self.c.grid
         grid = self.cells.sync(self.s, np.zeros(0, np.int64))
+        # a hair below, so that rounding in adding the clearance cannot cut short a point
+        # whose room is at_least to the last bit
+        floor = float(at_least) + self.p.clearance
+        floor -= 1e-9 * max(1.0, abs(floor)) if np.isfinite(floor) else 0.0
         d = kernels.free_distances_near(
-            np.ascontiguousarray(points, np.float64), grid, typ, pos, quat, scale, alive,
-            t.radius, t.g_off, t.g_vals, t.g_shape, t.g_origin, t.g_h, c.values, c.origin,
-            c.spacing)
+            np.ascontiguousarray(points, np.float64), floor,
+            grid, typ, pos, quat, scale, alive, t.radius, t.g_off, t.g_vals, t.g_shape,
+            t.g_origin, t.g_h, c.values, c.origin, c.spacing)
         return d - self.p.clearance if self.p.clearance > 0 else d

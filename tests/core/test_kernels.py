@@ -1074,6 +1074,19 @@ def test_free_distances_through_cells_equal_every_object(table, container):
                                  table.g_vals, table.g_shape, table.g_origin, table.g_h,
                                  g.values, g.origin, g.spacing)
     np.testing.assert_array_equal(got, ref)
+    # with a floor: exact where the room reaches it, below it elsewhere, with and without a
+    # clearance (the floor is on the room, the distance less the clearance)
+    for clearance in (0.0, 0.3):
+        sv_c = solver.Solver(container, table, state, solver.SolverParams(clearance=clearance))
+        room = ref - clearance if clearance else ref
+        for floor in np.percentile(room, [10, 50, 90]):
+            cut = sv_c.free_distances(points, at_least=floor)
+            reach = room >= floor
+            assert 0 < reach.sum() < len(points)
+            np.testing.assert_array_equal(cut[reach], room[reach])
+            assert (cut[~reach] < floor).all()
+            assert (cut[~reach] >= room[~reach]).all()  # a distance found, not made up
+        _cells_consistent(sv_c)
     # an empty state: the container's distance alone
     empty = solver.Solver(container, table, solver.PackState(), solver.SolverParams())
     np.testing.assert_array_equal(
