@@ -25,9 +25,9 @@ from .type_spread import TypeSpread
 START_SCALE = 0.05
 GROWTH_STEPS = 30
 #: phase 1's growth steps where its lattice holds more than MANY_OBJECTS objects: as dense
-#: a phase 1 in a third of the time (docs/notes-core.md), and at that count phase 1 is a
-#: large share of a run
-MANY_OBJECTS_STEPS = 10
+#: a phase 1 in a fifth to a third of the time (docs/notes-core.md), and at that count
+#: phase 1 is a large share of a run
+MANY_OBJECTS_STEPS = 6
 #: phase 1's spread window is at most its lattice objects over this
 SPREAD_QUEUE = 8
 

@@ -16,7 +16,7 @@ FRUIT = [str(mesh_path(f"fruit/ycb_lowpoly/{n}.obj")) for n in ("017_orange", "0
 def test_the_steps_follow_the_lattice_size_unless_given():
     many = phases.MANY_OBJECTS
     assert phases.phase1_growth_steps(None, many) == phases.GROWTH_STEPS == 30
-    assert phases.phase1_growth_steps(None, many + 1) == phases.MANY_OBJECTS_STEPS == 10
+    assert phases.phase1_growth_steps(None, many + 1) == phases.MANY_OBJECTS_STEPS == 6
     assert phases.phase1_growth_steps(20, many + 1) == 20
     assert phases.phase1_growth_steps(30, 5) == 30
 
@@ -28,7 +28,7 @@ def _phase1(**flat):
     return p.report.phase1
 
 
-@pytest.mark.parametrize("many,given,steps", [(10_000, None, 30), (5, None, 10), (5, 30, 30)])
+@pytest.mark.parametrize("many,given,steps", [(10_000, None, 30), (5, None, 6), (5, 30, 30)])
 def test_phase1_grows_in_the_steps_chosen(monkeypatch, many, given, steps):
     monkeypatch.setattr(phases, "MANY_OBJECTS", many)
     calls = []
