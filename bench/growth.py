@@ -1,6 +1,6 @@
 """Growth: time and peak memory against the number of objects, per phase, on log-log axes.
 
-    python bench/growth.py [--method full|paper] [--counts N ...] [--fit-from N]
+    python bench/growth.py [--method full|paper|budgeted] [--counts N ...] [--fit-from N]
 
 The scene: oranges and lemons (YCB low-poly, x100: 6-7 mm) in a cube whose side is chosen
 for about N objects, automatic fidelity, one attempt; above 1500 expected objects auto uses
@@ -16,6 +16,10 @@ growth.png (with the paper method's total for comparison when growth_paper.json 
 --method paper: the paper's two phases only (no extra passes), with --cap as pack's time
 budget (a run that passes it is stopped and marked); writes growth_paper.json and
 growth_paper.png.
+--method budgeted: the whole method with a time budget per size (--budgets, one per count;
+default `BUDGETS`), as a user runs a large packing: the passes fill holes until the budget
+ends, attempts as pack chooses them; writes growth_budgeted.json and growth_budgeted.png.
+Its times follow the budgets, so its fits say little; the densities are the point.
 """
 
 from __future__ import annotations
@@ -39,9 +43,15 @@ TYPE_SCALE = 100.0
 SIDE_60_COUNT = 646
 PHASES = {"full": ("approximate", "phase1", "phase2", "extra", "certify", "total"),
           "paper": ("approximate", "phase1", "phase2", "certify", "total")}
+PHASES["budgeted"] = PHASES["full"]
 #: per method: (default target counts, default --fit-from)
 DEFAULTS = {"full": ([100, 200, 400, 800], 100),
-            "paper": ([1000, 3000, 10000, 30000, 100000], 100)}
+            "paper": ([1000, 3000, 10000, 30000, 100000], 100),
+            "budgeted": ([5000, 10000, 30000, 100000], 1000)}
+#: budgeted method: default placement budget (s) per target count; 100,000 objects get
+#: 400 s, so that with certification the run fits issue 21's 10 minutes
+BUDGETS = {5000: 240.0, 10000: 240.0, 30000: 300.0, 100000: 400.0}
+STEMS = {"full": "growth", "paper": "growth_paper", "budgeted": "growth_budgeted"}
 COLORS = {"approximate": "tab:gray", "phase1": "tab:blue", "phase2": "tab:green",
           "extra": "tab:orange", "certify": "tab:purple", "total": "k"}
 
@@ -61,9 +71,12 @@ def main(argv: list[str] | None = None) -> int:
                     help="target object counts (default: full " +
                          " ".join(map(str, DEFAULTS["full"][0])) + "; paper " +
                          " ".join(map(str, DEFAULTS["paper"][0])) + ")")
-    ap.add_argument("--method", choices=("full", "paper"), default="full")
+    ap.add_argument("--method", choices=("full", "paper", "budgeted"), default="full")
     ap.add_argument("--cap", type=float, default=900.0,
                     help="paper method: placement time budget per run, seconds (default 900)")
+    ap.add_argument("--budgets", type=float, nargs="+",
+                    help="budgeted method: placement budget (s) per count, in --counts' "
+                         "order (default: BUDGETS, the nearest count's)")
     ap.add_argument("--fit-from", type=int,
                     help="fit the runs with at least this many objects (default: full "
                          f"{DEFAULTS['full'][1]}, paper {DEFAULTS['paper'][1]})")
@@ -74,7 +87,11 @@ def main(argv: list[str] | None = None) -> int:
     counts, fit_from = DEFAULTS[a.method]
     a.counts = a.counts or counts
     a.fit_from = fit_from if a.fit_from is None else a.fit_from
-    stem = "growth" if a.method == "full" else "growth_paper"
+    if a.budgets is not None and len(a.budgets) != len(a.counts):
+        ap.error(f"--budgets gives {len(a.budgets)} budgets for {len(a.counts)} counts")
+    budgets = a.budgets or [BUDGETS[min(BUDGETS, key=lambda c: abs(c - n))]
+                            for n in a.counts]
+    stem = STEMS[a.method]
     out = RESULTS / f"{stem}.json"
     if a.report_only:
         data = json.loads(out.read_text())
@@ -85,25 +102,29 @@ def main(argv: list[str] | None = None) -> int:
             run_in_child("box:20x20x20", TYPES, 0, {"type_scale": TYPE_SCALE,
                                                     "time_budget": 1.0}, env=env,
                          meshes=a.meshes)  # compile numba once
-            for n in a.counts:
+            for n, budget in zip(a.counts, budgets, strict=True):
                 side = 60.0 * (n / SIDE_60_COUNT) ** (1 / 3)
                 if a.method == "paper":
                     # one attempt: the cap is a budget, and a budget's spare time would go
                     # to more attempts, not to these phases
                     kwargs = {"type_scale": TYPE_SCALE, "time_budget": a.cap}
                     params = {"extra_passes": [], "max_attempts": 1}
+                elif a.method == "budgeted":
+                    kwargs, params = {"type_scale": TYPE_SCALE, "time_budget": budget}, {}
                 else:  # no budget: one attempt, its extra passes run to their end
                     kwargs, params = {"type_scale": TYPE_SCALE}, {}
                 rec = run_in_child(f"box:{side:.3f}x{side:.3f}x{side:.3f}", TYPES, a.seed,
                                    kwargs, params, env=env, meshes=a.meshes)
                 rec["target"] = n
                 rec["side"] = side
+                if a.method == "budgeted":
+                    rec["budget"] = budget
                 rec["load"] = os.getloadavg()
                 runs.append(rec)
                 print(f"target {n}: {rec['metrics']['count']} objects, "
                       f"{rec['wall_seconds']:.1f} s, density {rec['metrics']['density']:.1%}, "
                       f"peak {rec['peak_rss_mb']:.0f} MiB, load {rec['load'][0]:.1f}"
-                      f"{', stopped by the cap' if rec['stopped'] else ''}", flush=True)
+                      f"{_stop_note(rec)}", flush=True)
                 # each size is saved as it ends: the large ones take long
                 write_json(out, {"method": a.method, "types": TYPES,
                                  "type_scale": TYPE_SCALE, "cap": a.cap, "runs": runs})
@@ -131,6 +152,14 @@ def fits(data: dict, phases: tuple[str, ...], fit_from: int) -> dict:
         f = fit(n, np.array([r.get(key, 0.0) for r in runs], float))
         out[key] = None if f is None else {"exponent": f[0], "coefficient": f[1]}
     return out
+
+
+def _stop_note(rec: dict) -> str:
+    """What a run's end says beside its figures: its budget (budgeted method), or that the
+    paper method's cap stopped it."""
+    if "budget" in rec:
+        return f", {rec['budget']:.0f} s budget"
+    return ", stopped by the cap" if rec["stopped"] else ""
 
 
 def _chart(data: dict, path: Path, paper: dict | None = None) -> None:
@@ -163,13 +192,13 @@ def _chart(data: dict, path: Path, paper: dict | None = None) -> None:
     for r, x in zip(data["runs"], n, strict=True):
         # auto fidelity uses fewer spheres above MANY_OBJECTS expected objects
         note = f"{r['metrics']['density']:.1%}, {r['fidelity_detail']['spheres']} sph"
-        if r["stopped"]:
-            note += ", stopped by the cap"
+        note += _stop_note(r)
         ax.annotate(note, (x, r["timings"]["total"]), fontsize=7, xytext=(-20, 6),
                     textcoords="offset points")
     ax.set_xlabel("objects placed")
     ax.set_ylabel("wall time (s)")
-    title = ("the whole method, no budget" if method == "full" else "paper's phases")
+    title = {"full": "the whole method, no budget", "paper": "paper's phases",
+             "budgeted": "the whole method, time budget"}[method]
     ax.set_title(f"Growth: oranges and lemons in a cube ({title}, 2 cores)", fontsize=10)
     ax.legend(fontsize=8)
     ax.grid(True, which="both", alpha=0.3)

@@ -260,7 +260,10 @@ def write_table(summaries: list[dict], path: Path) -> None:
         "![speed against accuracy](fidelity.png)",
         "- growth (the whole method): [growth.json](growth.json), "
         "![time against objects](growth.png); the paper's two phases only: "
-        "[growth_paper.json](growth_paper.json), ![paper's phases](growth_paper.png)",
+        "[growth_paper.json](growth_paper.json), ![paper's phases](growth_paper.png); "
+        "the whole method with a time budget (up to 100,000 objects): "
+        "[growth_budgeted.json](growth_budgeted.json), "
+        "![budgeted](growth_budgeted.png)",
         "- the paper's tables beside ours: [paper.md](paper.md)",
         "- Blender rigid bodies as a peer: [peer_bullet.json](peer_bullet.json), "
         "![peer](peer_bullet.png)",
