@@ -68,9 +68,8 @@ def fit(n: np.ndarray, t: np.ndarray) -> tuple[float, float] | None:
 def main(argv: list[str] | None = None) -> int:
     ap = argparse.ArgumentParser(description=__doc__.splitlines()[0])
     ap.add_argument("--counts", type=int, nargs="+",
-                    help="target object counts (default: full " +
-                         " ".join(map(str, DEFAULTS["full"][0])) + "; paper " +
-                         " ".join(map(str, DEFAULTS["paper"][0])) + ")")
+                    help="target object counts (default: " + "; ".join(
+                        f"{m} {' '.join(map(str, DEFAULTS[m][0]))}" for m in DEFAULTS) + ")")
     ap.add_argument("--method", choices=("full", "paper", "budgeted"), default="full")
     ap.add_argument("--cap", type=float, default=900.0,
                     help="paper method: placement time budget per run, seconds (default 900)")
@@ -78,8 +77,8 @@ def main(argv: list[str] | None = None) -> int:
                     help="budgeted method: placement budget (s) per count, in --counts' "
                          "order (default: BUDGETS, the nearest count's)")
     ap.add_argument("--fit-from", type=int,
-                    help="fit the runs with at least this many objects (default: full "
-                         f"{DEFAULTS['full'][1]}, paper {DEFAULTS['paper'][1]})")
+                    help="fit the runs with at least this many objects (default: " +
+                         ", ".join(f"{m} {DEFAULTS[m][1]}" for m in DEFAULTS) + ")")
     ap.add_argument("--seed", type=int, default=1)
     ap.add_argument("--meshes", type=Path, default=MESHES)
     ap.add_argument("--report-only", action="store_true")
