@@ -860,12 +860,11 @@ def _cell_distances(px, py, pz, c, best, grid, typ, pos, quat, scale, alive, rad
 
 
 @njit(cache=True)
-def _free_distance_near(px, py, pz, floor, grid, typ, pos, quat, scale, alive, radius, g_off,
-                        g_vals, g_shape, g_origin, g_h, c_flat, c_shape, c_origin, c_h):
-    """`free_distances_near` for one point."""
+def _free_distance_near(px, py, pz, floor, grid, typ, pos, quat, scale, alive, radius, r_max,
+                        g_off, g_vals, g_shape, g_origin, g_h, c_flat, c_shape, c_origin, c_h):
+    """`free_distances_near` for one point; r_max: the largest bounding radius."""
     origin, hs, dims, _, _, _, _ = grid
     h = hs[0]
-    r_max = radius.max()
     best, _, _, _ = trilinear(c_flat, 0, c_shape[0], c_shape[1], c_shape[2], c_origin[0],
                               c_origin[1], c_origin[2], c_h, px, py, pz)
     if best < floor:
@@ -910,9 +909,11 @@ def free_distances_near(points, floor, grid, typ, pos, quat, scale, alive, radiu
     everywhere (a minimum does not depend on the order of its terms)."""
     c_shape = np.array(c_vals.shape, np.int64)
     c_flat = c_vals.ravel()
+    r_max = radius.max()
     out = np.empty(points.shape[0])
     for m in range(points.shape[0]):
         out[m] = _free_distance_near(points[m, 0], points[m, 1], points[m, 2], floor, grid,
-                                     typ, pos, quat, scale, alive, radius, g_off, g_vals,
-                                     g_shape, g_origin, g_h, c_flat, c_shape, c_origin, c_h)
+                                     typ, pos, quat, scale, alive, radius, r_max, g_off,
+                                     g_vals, g_shape, g_origin, g_h, c_flat, c_shape, c_origin,
+                                     c_h)
     return out
