@@ -3,13 +3,11 @@
 from __future__ import annotations
 
 import json
-import sys
 
 import pytest
-from testdata import MESHES, REPO
+from testdata import MESHES, bench_module
 
-sys.path.insert(0, str(REPO / "bench"))
-import growth  # noqa: E402
+growth = bench_module("growth", siblings=True)
 
 
 def test_budgeted_runs_the_whole_method_with_each_sizes_budget(tmp_path, monkeypatch):
