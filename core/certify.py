@@ -7,7 +7,10 @@ worst values, not only a flag. Frames: container frame, container units.
 
 Which checks run: every pair whose axis-aligned bounds (grown by c) touch gets an exact
 boolean intersection, or with c > 0 a min_gap first and the boolean only where the gap falls
-short (a gap of c > 0 proves the two apart). Every object gets the exact volume outside
+short (a gap of c > 0 proves the two apart), unless a plane proves the pair's convex hulls
+apart (`separation`): by more than min_gap's search distance with c > 0, when min_gap would
+read that distance, else by any margin, when the boolean would measure 0; the memo then
+holds the values those checks would have given. Every object gets the exact volume outside
 the container, except objects the container's distance grid proves deep inside: all its
 vertices at depth >= c + its longest edge + the grid's interpolation error (every surface
 point of a triangle lies within an edge length of a vertex, so the surface then cannot reach
@@ -26,8 +29,9 @@ from scipy.spatial import cKDTree
 
 from .check_pool import CheckPool, usable_processes
 from .container import Container
-from .exact_checks import PlacedSolids, check_solids, run_checks, shortfall
+from .exact_checks import GAP_SEARCH, PlacedSolids, check_solids, run_checks, shortfall
 from .kernels import sample_grid_many
+from .separation import apart_pairs, hull_points, hull_table
 
 log = logging.getLogger(__name__)
 
@@ -44,6 +48,9 @@ POOL_PROBE_SECONDS = 0.5
 #: starting two took 0.2 s on a warm machine, more where imports are cold
 #: (docs/notes-core.md)
 POOL_MIN_SECONDS = 3.0
+#: hulls proven apart by less than this, relative to the coordinates' size, still get
+#: their exact check: many times the rounding of the supports' and manifold3d's doubles
+APART_MARGIN = 1e-9
 
 
 @dataclass
@@ -108,6 +115,11 @@ class Certifier:
         self._pool_broken = False
         self.volumes = np.asarray(type_volumes, np.float64)
         self.max_edge = np.asarray(type_max_edge, np.float64)
+        # hulls of the solids' own (float32) vertices: the points the exact checks read
+        self.hulls = hull_table([hull_points(np.asarray(s.to_mesh().vert_properties)[:, :3])
+                                 for s in self.types])
+        self.coordinate_size = float(np.abs(container.vertices).max()
+                                     + np.linalg.norm(self.hulls[0], axis=1).max(initial=0.0))
 
     def certify(self, typ: np.ndarray, matrices: np.ndarray, clearance: float = 0.0,
                 tol: float = DEFAULT_TOL, subset: np.ndarray | None = None, *,
@@ -145,6 +157,8 @@ class Certifier:
             if int(ids[i]) not in memo.walls:
                 memo.add_wall(int(ids[i]), None, None, True)
         run_pairs = [k for k, key in enumerate(pair_keys) if key not in memo.pairs]
+        run_pairs = self._spare_apart(typ, matrices, pairs, pair_keys, run_pairs, clearance,
+                                      memo)
         run_walls = [i for i in walls[~beyond] if int(ids[i]) not in memo.walls]
         checks = np.concatenate([pairs[run_pairs].reshape(-1, 2),
                                  np.stack([np.asarray(run_walls, np.int64),
@@ -155,6 +169,21 @@ class Certifier:
         for i, (gap, ratio) in zip(run_walls, found[len(run_pairs):], strict=True):
             memo.add_wall(int(ids[i]), _value(gap), _value(ratio), False)
         return self._report(pairs, pair_keys, walls, ids, memo, clearance, tol)
+
+    def _spare_apart(self, typ: np.ndarray, matrices: np.ndarray, pairs: np.ndarray,
+                     pair_keys: list[tuple[int, int]], run_pairs: list[int], clearance: float,
+                     memo: CheckMemo) -> list[int]:
+        """The pairs to run (indices into pairs (P, 2)) less those a plane proves apart
+        (module doc), whose results go into the memo as their checks would give them."""
+        if not run_pairs:
+            return run_pairs
+        search = GAP_SEARCH * clearance if clearance > 0 else 0.0
+        margin = search + APART_MARGIN * self.coordinate_size
+        apart = apart_pairs(*self.hulls, typ, matrices, pairs[run_pairs], margin)
+        gap, ratio = (search, None) if clearance > 0 else (None, 0.0)
+        for k in np.asarray(run_pairs)[apart].tolist():
+            memo.add_pair(pair_keys[k], gap, ratio)
+        return np.asarray(run_pairs)[~apart].tolist()
 
     @staticmethod
     def _report(pairs: np.ndarray, pair_keys: list[tuple[int, int]], walls: np.ndarray,

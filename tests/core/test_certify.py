@@ -235,5 +235,53 @@ def test_certify_reports_progress_up_to_every_check(certifier, monkeypatch):
     calls = []
     rep = certifier.certify(typ, m, progress=lambda done, total: calls.append((done, total)))
     total = calls[-1][1]
-    assert calls[-1] == (total, total) and total >= rep.pairs_checked + rep.walls_checked
+    # every check not proven apart by a plane runs, and reports progress
+    assert calls[-1] == (total, total) and 0 < total <= rep.pairs_checked + rep.walls_checked
     assert [d for d, _ in calls] == sorted(d for d, _ in calls) and len(calls) > total // 2
+
+
+def _no_planes(pts, off, typ, matrices, pairs, margin):
+    return np.zeros(len(pairs), bool)
+
+
+@pytest.mark.parametrize("clearance", [0.0, 0.5])
+def test_pairs_a_plane_proves_apart_skip_their_checks_with_the_same_report(
+        certifier, monkeypatch, clearance):
+    rng = np.random.default_rng(23)
+    typ, m = _dense_scene(rng, n=60, spread=10.0)
+    runs = []
+    real = certify.run_checks
+    monkeypatch.setattr(certify, "run_checks",
+                        lambda solid, out, vol, checks, *a: runs.append(len(checks))
+                        or real(solid, out, vol, checks, *a))
+    with_planes = certifier.certify(typ, m, clearance)
+    spared = sum(runs)
+    runs.clear()
+    monkeypatch.setattr(certify, "apart_pairs", _no_planes)
+    without = certifier.certify(typ, m, clearance)
+    _same_report(with_planes, without)
+    assert not without.certified and without.bad_pairs
+    assert sum(runs) == without.pairs_checked + without.walls_checked > spared
+    assert sum(runs) - spared >= without.pairs_checked // 4  # a plane spared many
+
+
+def test_a_pair_in_a_hollow_gets_its_boolean():
+    # a cup (a box less a pocket) and a ball in its pocket: the hulls overlap, the solids
+    # do not; and the ball pushed into the cup's wall overlaps
+    box = trimesh.creation.box(extents=(40.0, 40.0, 40.0))
+    cont = build_container(box.vertices, box.faces, float(box.volume), 1.0)
+    cup = trimesh.creation.box(extents=(6.0, 6.0, 6.0)).difference(
+        trimesh.creation.box(extents=(4.0, 4.0, 8.0)).apply_translation([0, 0, 3.0]))
+    ball = trimesh.creation.icosphere(subdivisions=2, radius=1.5)
+    meshes = [cup, ball]
+    cert = Certifier(cont, [np.asarray(x.vertices) for x in meshes],
+                     [np.asarray(x.faces) for x in meshes], np.array([x.volume for x in meshes]),
+                     np.array([x.edges_unique_length.max() for x in meshes]))
+    m = np.tile(np.eye(4), (2, 1, 1))
+    m[1, :3, 3] = [0.0, 0.0, 1.5]  # in the pocket, whose floor is at z = -1
+    typ = np.array([0, 1])
+    rep = cert.certify(typ, m)
+    assert rep.certified and rep.pairs_checked == 1 and rep.worst_overlap == 0.0
+    m[1, :3, 3] = [1.5, 0.0, 1.5]  # 0.5 into the pocket's side
+    rep = cert.certify(typ, m)
+    assert rep.bad_pairs == [(0, 1)] and rep.worst_overlap > 1e-3
