@@ -164,6 +164,8 @@ def _closest_on_simplex(W, m, v, keep):
 @njit(cache=True)
 def _apart(pts, sa, ea, ma, sb, eb, mb, margin):
     """Whether placed hulls A and B are proven more than margin apart (module doc)."""
+    if sa == ea or sb == eb:  # a type without points proves nothing
+        return False
     pa = np.empty(3)
     pb = np.empty(3)
     w = np.empty(3)

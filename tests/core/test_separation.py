@@ -77,3 +77,6 @@ def test_apart_pairs_of_touching_coincident_and_flat_hulls():
     assert apart_pairs(pts, off, typ, m, pairs, 1e-6).tolist() == [False, False, True, True]
     assert not apart_pairs(pts, off, typ, m, pairs, 2e-3).any()
     assert apart_pairs(pts, off, typ, m, pairs[:0], 1e-6).shape == (0,)
+    # a type without points (an empty solid) proves nothing
+    pts, off = hull_table([hull_points(cube), hull_points(np.zeros((0, 3)))])
+    assert apart_pairs(pts, off, typ, m, pairs, 1e-6).tolist() == [False, False, True, False]
