@@ -179,11 +179,12 @@ class Certifier:
             return run_pairs
         search = GAP_SEARCH * clearance if clearance > 0 else 0.0
         margin = search + APART_MARGIN * self.coordinate_size
-        apart = apart_pairs(*self.hulls, typ, matrices, pairs[run_pairs], margin)
+        run = np.asarray(run_pairs, np.int64)
+        apart = apart_pairs(*self.hulls, typ, matrices, pairs[run], margin)
         gap, ratio = (search, None) if clearance > 0 else (None, 0.0)
-        for k in np.asarray(run_pairs)[apart].tolist():
+        for k in run[apart].tolist():
             memo.add_pair(pair_keys[k], gap, ratio)
-        return np.asarray(run_pairs)[~apart].tolist()
+        return run[~apart].tolist()
 
     @staticmethod
     def _report(pairs: np.ndarray, pair_keys: list[tuple[int, int]], walls: np.ndarray,
