@@ -17,6 +17,8 @@ import numpy as np
 from numba import njit, prange
 from scipy.spatial import ConvexHull, QhullError
 
+from .kernels import _rotate, _unrotate
+
 #: GJK iterations before a pair is left to the boolean
 MAX_ITERATIONS = 48
 
@@ -62,9 +64,7 @@ def _apart_pairs(pts, off, typ, matrices, pairs, margin):
 @njit(cache=True)
 def _support(pts, start, end, m, dx, dy, dz, out):
     """out[:] = the placed hull's (rows start:end, placed by m) point furthest along d."""
-    lx = m[0, 0] * dx + m[1, 0] * dy + m[2, 0] * dz
-    ly = m[0, 1] * dx + m[1, 1] * dy + m[2, 1] * dz
-    lz = m[0, 2] * dx + m[1, 2] * dy + m[2, 2] * dz
+    lx, ly, lz = _unrotate(m, dx, dy, dz)  # m's top-left 3x3 is its rotation
     best = -np.inf
     k = start
     for i in range(start, end):
@@ -72,9 +72,8 @@ def _support(pts, start, end, m, dx, dy, dz, out):
         if s > best:
             best = s
             k = i
-    for r in range(3):
-        out[r] = (m[r, 0] * pts[k, 0] + m[r, 1] * pts[k, 1] + m[r, 2] * pts[k, 2]
-                  + m[r, 3])
+    x, y, z = _rotate(m, pts[k, 0], pts[k, 1], pts[k, 2])
+    out[0], out[1], out[2] = x + m[0, 3], y + m[1, 3], z + m[2, 3]
 
 
 @njit(cache=True)
