@@ -19,6 +19,12 @@ class PhaseOptions:
     """Phase 1 (place & grow) and phase 2 (fill cavities), as in the paper."""
 
     phase1_density: float = 0.5  # lattice spacing = (mean type volume / this)^(1/3)
+    # phase 1's lattice: "cubic" (the paper's, at phase1_density), "fcc" (face-centred
+    # cubic at phase1_fcc_density), or None: cubic, and fcc where the cubic lattice holds
+    # more than MANY_OBJECTS objects (`phases.phase1_lattice`). An fcc lattice keeps the
+    # objects further apart at a higher count, so they grow without long pushes there
+    phase1_lattice: str | None = None
+    phase1_fcc_density: float = 0.55  # the fcc lattice's objects' volume / container volume
     phase1_iterations: int = 30  # solver iterations per growth step (paper: 25-30)
     # growth steps from scale 0 to 1; None: the paper's 30, or 10 with many objects
     # (`phases.phase1_growth_steps`)
@@ -30,6 +36,11 @@ class PhaseOptions:
     # objects of the type it takes (1: the paper's random order, which left each type's
     # clumping index near the bar; docs/notes-core.md)
     spread_window: int = 8
+
+    def __post_init__(self) -> None:
+        if self.phase1_lattice not in (None, "cubic", "fcc"):
+            raise InputError(f"phase1_lattice must be 'cubic', 'fcc' or None (by the "
+                             f"lattice's size), got {self.phase1_lattice!r}")
 
 
 @dataclass(frozen=True)

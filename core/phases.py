@@ -28,6 +28,8 @@ GROWTH_STEPS = 30
 #: a phase 1 in a fifth to a third of the time (docs/notes-core.md), and at that count
 #: phase 1 is a large share of a run
 MANY_OBJECTS_STEPS = 6
+#: the lattice phase 1 uses where its cubic lattice holds more than MANY_OBJECTS objects
+MANY_OBJECTS_LATTICE = "fcc"
 #: phase 1's spread window is at most its lattice objects over this
 SPREAD_QUEUE = 8
 
@@ -106,15 +108,26 @@ def phase1_growth_steps(requested: int | None, lattice_objects: int) -> int:
     return MANY_OBJECTS_STEPS if lattice_objects > MANY_OBJECTS else GROWTH_STEPS
 
 
+def phase1_lattice(requested: str | None, lattice_objects: int) -> str:
+    """Phase 1's lattice: `requested`, or by default "cubic" (the paper's), and
+    MANY_OBJECTS_LATTICE where the cubic lattice holds more than MANY_OBJECTS objects."""
+    if requested is not None:
+        return requested
+    return MANY_OBJECTS_LATTICE if lattice_objects > MANY_OBJECTS else "cubic"
+
+
 def phase1(solver: Solver, shares: np.ndarray, spacing: float, rng: np.random.Generator,
            stop: Stop, *, iters: int = 30, margin: np.ndarray,
            growth_steps: int | None = None, spread_window: int = 1,
+           lattice: str | None = None, fcc_spacing: float | None = None,
            progress: Callable[[float, str], None] | None = None) -> PhaseStats:
     """Place one shrunken object per interior lattice point and grow them one at a time.
 
-    spacing: lattice spacing (container units). shares: (T,) target shares by count.
-    margin: (T,) per-type safety margin (container units). growth_steps: steps from scale 0
-    to 1; None: `phase1_growth_steps` of the lattice's size.
+    spacing: the cubic lattice's spacing (container units). shares: (T,) target shares by
+    count. margin: (T,) per-type safety margin (container units). growth_steps: steps from
+    scale 0 to 1; None: `phase1_growth_steps` of the cubic lattice's size. lattice: "cubic",
+    "fcc" (one point per fcc_spacing^3, default spacing: `container.interior_points`), or
+    None: `phase1_lattice` of the cubic lattice's size.
     The next object to grow takes the largest type that is below its target share (or, when
     none is, the type furthest below it); it is the first ungrown one, or with
     spread_window > 1 the one of the next spread_window (at most a SPREAD_QUEUE-th of the
@@ -127,7 +140,14 @@ def phase1(solver: Solver, shares: np.ndarray, spacing: float, rng: np.random.Ge
     min_depth = START_SCALE * table.radius.max() + solver.p.clearance + margin.max()
     pts = interior_points(solver.c, spacing, min_depth, rng)
     growth_steps = phase1_growth_steps(growth_steps, len(pts))
+    lattice = phase1_lattice(lattice, len(pts))
+    nearest = spacing  # between lattice points
+    if lattice == "fcc":
+        fcc_spacing = spacing if fcc_spacing is None else fcc_spacing
+        pts = interior_points(solver.c, fcc_spacing, min_depth, rng, lattice="fcc")
+        nearest = fcc_spacing * 4.0 ** (1.0 / 3.0) / math.sqrt(2.0)
     st.extra["growth_steps"] = growth_steps
+    st.extra["lattice"] = lattice
     rng.shuffle(pts)
     types = rng.choice(n_types, size=len(pts), p=shares)
     quats = random_quaternions(rng, len(pts))
@@ -141,7 +161,7 @@ def phase1(solver: Solver, shares: np.ndarray, spacing: float, rng: np.random.Ge
     # it (100000 lattice objects took a minute otherwise); none once the budget is spent.
     focus = np.asarray(queue, np.int64)
     r0 = START_SCALE * table.radius.max()
-    if len(pts) and 2 * (r0 + margin.max()) + solver.p.clearance < spacing:
+    if len(pts) and 2 * (r0 + margin.max()) + solver.p.clearance < nearest:
         g = solver.c.grid
         depth = sample_grid_many(g.values, g.origin, g.spacing, pts)
         # trilinear depth changes by at most sqrt(3) per unit length: 2 * r0 covers it

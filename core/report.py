@@ -33,7 +33,8 @@ class PhaseStats:
     failed: int = 0
     seconds: float = 0.0
     stopped: str = ""  # "", "deadline", "cancelled" or "patience"
-    extra: dict = field(default_factory=dict)  # phase 1: growth_steps; 2: candidates, threshold
+    # phase 1: growth_steps, lattice; phase 2: candidates, threshold
+    extra: dict = field(default_factory=dict)
 
 
 @dataclass

@@ -1,0 +1,106 @@
+"""Phase 1's lattice: the paper's cubic one, or face-centred cubic where the cubic one holds
+many objects (docs/notes-core.md)."""
+
+from __future__ import annotations
+
+import math
+
+import numpy as np
+import pytest
+from scipy.spatial import cKDTree
+from testdata import mesh_path
+
+from jampacked.core import phases
+from jampacked.core.api import pack
+from jampacked.core.container import build_container, interior_points
+from jampacked.core.errors import InputError
+from jampacked.core.kernels import sample_grid_many
+from jampacked.core.meshes import box_mesh
+from jampacked.core.options import PackOptions, PhaseOptions
+
+FRUIT = [str(mesh_path(f"fruit/ycb_lowpoly/{n}.obj")) for n in ("017_orange", "014_lemon")]
+
+
+def _box():
+    m = box_mesh([30.0, 20.0, 40.0])
+    return build_container(m.vertices, m.faces, m.volume, 1.0)
+
+
+@pytest.mark.parametrize("seed", [1, 2])
+def test_fcc_points_are_a_face_centred_lattice_of_the_same_point_density(seed):
+    c, spacing, depth = _box(), 1.0, 2.0
+    fcc = interior_points(c, spacing, depth, np.random.default_rng(seed), lattice="fcc")
+    cubic = interior_points(c, spacing, depth, np.random.default_rng(seed))
+    # about as many points as the cubic lattice (up to a row of cells at each face, which
+    # the random offset decides); the cell below fixes the density exactly
+    inside = (30.0 - 2 * depth) * (20.0 - 2 * depth) * (40.0 - 2 * depth)
+    assert len(fcc) == pytest.approx(inside / spacing ** 3, rel=0.15)
+    assert len(fcc) == pytest.approx(len(cubic), rel=0.15)
+    g = c.grid
+    assert sample_grid_many(g.values, g.origin, g.spacing, fcc).min() >= depth
+    # each point away from the lattice's edge has its 12 nearest at a / sqrt(2) and the
+    # next at a, a the cell's side: 4 points per a^3 = spacing^3 (none nearer: the four
+    # sublattices never coincide)
+    a = spacing * 4.0 ** (1.0 / 3.0)
+    d, _ = cKDTree(fcc).query(fcc, k=14)
+    assert d[:, 1].min() == pytest.approx(a / math.sqrt(2.0), rel=1e-9)
+    lo, hi = fcc.min(axis=0) + a, fcc.max(axis=0) - a
+    deep = np.all((fcc > lo) & (fcc < hi), axis=1)
+    assert deep.sum() > 100
+    np.testing.assert_allclose(d[deep, 1:13], a / math.sqrt(2.0), rtol=1e-9)
+    assert d[deep, 13].min() == pytest.approx(a, rel=1e-9)
+
+
+def test_an_unknown_lattice_is_refused():
+    with pytest.raises(ValueError, match="unknown lattice 'hex'"):
+        interior_points(_box(), 1.0, 1.0, lattice="hex")
+    with pytest.raises(InputError, match="phase1_lattice must be 'cubic', 'fcc' or None"):
+        PhaseOptions(phase1_lattice="hex")
+    with pytest.raises(InputError, match="phase1_lattice"):
+        PackOptions.from_flat({"phase1_lattice": "hex"})
+
+
+def test_the_lattice_follows_the_cubic_lattice_size_unless_given():
+    many = phases.MANY_OBJECTS
+    assert phases.phase1_lattice(None, many) == "cubic"
+    assert phases.phase1_lattice(None, many + 1) == phases.MANY_OBJECTS_LATTICE == "fcc"
+    assert phases.phase1_lattice("cubic", many + 1) == "cubic"
+    assert phases.phase1_lattice("fcc", 5) == "fcc"
+
+
+def _phase1(monkeypatch, **flat):
+    """Phase 1 of a small box of fruit; returns its stats and the lattices it asked for
+    as (spacing, lattice, points)."""
+    calls = []
+
+    def spy(container, spacing, min_depth, rng=None, lattice="cubic"):
+        pts = interior_points(container, spacing, min_depth, rng, lattice)
+        calls.append((spacing, lattice, len(pts)))
+        return pts
+
+    monkeypatch.setattr(phases, "interior_points", spy)
+    options = PackOptions.from_flat({"extra_passes": [], "max_attempts": 1, **flat})
+    p = pack("box:40x40x40", FRUIT, seed=1, type_scale=100.0, fidelity="low",
+             options=options)
+    return p.report.phase1, calls  # phase 1's first, then phase 2's
+
+
+def test_phase1_on_many_objects_grows_an_fcc_lattice_at_its_own_density(monkeypatch):
+    cubic, calls = _phase1(monkeypatch)
+    assert cubic.extra["lattice"] == "cubic"
+    (spacing, lattice, n), = calls[:1]
+    assert lattice == "cubic" and cubic.inserted == n
+    # the same scene as if its lattice held many objects: the cubic lattice is counted,
+    # then phase 1 grows the fcc lattice of phase1_fcc_density (0.55 against 0.5)
+    monkeypatch.setattr(phases, "MANY_OBJECTS", 5)
+    fcc, calls = _phase1(monkeypatch)
+    assert fcc.extra["lattice"] == "fcc"
+    assert [c[:2] for c in calls[:2]] == [(spacing, "cubic"),
+                                          (pytest.approx(spacing * (0.5 / 0.55) ** (1 / 3)),
+                                           "fcc")]
+    assert fcc.inserted == calls[1][2] and fcc.grown >= 0.9 * fcc.inserted
+    # asked for explicitly, whatever the size
+    monkeypatch.setattr(phases, "MANY_OBJECTS", 10_000)
+    forced, calls = _phase1(monkeypatch, phase1_lattice="fcc", phase1_fcc_density=0.6)
+    assert forced.extra["lattice"] == "fcc" and forced.inserted == calls[1][2] > 0
+    assert calls[1][0] == pytest.approx(spacing * (0.5 / 0.6) ** (1 / 3))
