@@ -26,7 +26,7 @@ class PhaseOptions:
     phase1_lattice: str | None = None
     phase1_fcc_density: float = 0.55  # the fcc lattice's objects' volume / container volume
     phase1_iterations: int = 30  # solver iterations per growth step (paper: 25-30)
-    # growth steps from scale 0 to 1; None: the paper's 30, or 10 with many objects
+    # growth steps from scale 0 to 1; None: the paper's 30, or 6 with many objects
     # (`phases.phase1_growth_steps`)
     phase1_growth_steps: int | None = None
     phase2_spacing: float = 0.5  # phase 2 lattice spacing, fraction of phase 1's
