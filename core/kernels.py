@@ -9,7 +9,9 @@ Flat type table (T types), built by `solver.TypeTable`:
 - pts (P,3): surface points, cluster by cluster: type t's clusters are rows
   pc_off[t]:pc_off[t+1] of pcl (C,4) (ball centre xyz, radius), cluster c's points rows
   pcl_off[c]:pcl_off[c+1] of pts
-- box (T,6): bounding box in the local frame, lo xyz then hi xyz
+- box (T,12): bounding box of the vertices in the local frame, lo xyz then hi xyz; then
+  the centre xyz and half extents xyz of a box (local frame) that holds the vertices, the
+  inner spheres and the surface points: everything a contact test reads
 - g_off (T+1,), g_vals (G,) flattened C-order grids, g_shape (T,3), g_origin (T,3), g_h (T,)
 Container grid: c_vals (nx,ny,nz), c_origin (3,), c_h; its min pyramid c_pyr, c_poff,
 c_pshape (`distance.min_pyramid`).
@@ -245,6 +247,56 @@ def _points_in_other(a, b, R_a, R_b, typ, pos, scale, radius, pc_off, pcl, pcl_o
 
 
 @njit(cache=True)
+def boxes_apart(R_a, ax, ay, az, ea, R_b, bx, by, bz, eb, gap):
+    """True if two oriented boxes are more than `gap` apart along one of their 15
+    separating axes (Gottschalk's test); False if they may be nearer. Box k: centre
+    (kx, ky, kz) and half extents e_k (3,) along the columns of R_k (container frame and
+    units). The cross axes are not normalised, so their gap test asks for more room than
+    `gap`, and every |R_a^T R_b| term is padded: both only make True rarer."""
+    eps = 1e-9
+    tx = bx - ax
+    ty = by - ay
+    tz = bz - az
+    t = np.empty(3)
+    r = np.empty((3, 3))
+    ar = np.empty((3, 3))
+    for i in range(3):
+        t[i] = R_a[0, i] * tx + R_a[1, i] * ty + R_a[2, i] * tz
+        for j in range(3):
+            r[i, j] = R_a[0, i] * R_b[0, j] + R_a[1, i] * R_b[1, j] + R_a[2, i] * R_b[2, j]
+            ar[i, j] = abs(r[i, j]) + eps
+    for i in range(3):  # a's axes
+        if abs(t[i]) > ea[i] + eb[0] * ar[i, 0] + eb[1] * ar[i, 1] + eb[2] * ar[i, 2] + gap:
+            return True
+    for j in range(3):  # b's axes
+        tb = t[0] * r[0, j] + t[1] * r[1, j] + t[2] * r[2, j]
+        if abs(tb) > ea[0] * ar[0, j] + ea[1] * ar[1, j] + ea[2] * ar[2, j] + eb[j] + gap:
+            return True
+    for i in range(3):  # a's axis i x b's axis j
+        i1 = (i + 1) % 3
+        i2 = (i + 2) % 3
+        for j in range(3):
+            j1 = (j + 1) % 3
+            j2 = (j + 2) % 3
+            ra = ea[i1] * ar[i2, j] + ea[i2] * ar[i1, j]
+            rb = eb[j1] * ar[i, j2] + eb[j2] * ar[i, j1]
+            if abs(t[i2] * r[i1, j] - t[i1] * r[i2, j]) > ra + rb + gap:
+                return True
+    return False
+
+
+@njit(cache=True)
+def _hull_box(box, t, s, R, px, py, pz):
+    """Centre (container frame) and (3,) half extents of type t's contact box
+    (`box[t, 6:]`) for an object at (px, py, pz) with rotation R and scale s."""
+    cx, cy, cz = _rotate(R, box[t, 6] * s, box[t, 7] * s, box[t, 8] * s)
+    e = np.empty(3)
+    for d in range(3):
+        e[d] = box[t, 9 + d] * s
+    return cx + px, cy + py, cz + pz, e
+
+
+@njit(cache=True)
 def pair_contact(a, b, typ, pos, quat, scale, margin, clearance, tol, radius, sph_off, sph_c,
                  sph_r, pc_off, pcl, pcl_off, box, pts, g_off, g_vals, g_shape, g_origin, g_h,
                  F, Tq):
@@ -260,6 +312,14 @@ def pair_contact(a, b, typ, pos, quat, scale, margin, clearance, tol, radius, sp
     delta = clearance + margin[a] + margin[b]
     R_a = quat_to_rot(quat[a])
     R_b = quat_to_rot(quat[b])
+    # elongated or flat objects whose bounding spheres meet are mostly far apart: their
+    # boxes show it for a fraction of the tests below. A grid value is interpolated from
+    # nodes up to sqrt(3) cells from its point, hence the two cells of room
+    ax, ay, az, ea = _hull_box(box, ta, sa, R_a, pos[a, 0], pos[a, 1], pos[a, 2])
+    bx, by, bz, eb = _hull_box(box, tb, sb, R_b, pos[b, 0], pos[b, 1], pos[b, 2])
+    gap = delta + tol + 2.0 * max(g_h[ta] * sa, g_h[tb] * sb)
+    if boxes_apart(R_a, ax, ay, az, ea, R_b, bx, by, bz, eb, gap):
+        return 0.0
     worst = 0.0
     reach_b = radius[tb] * sb + delta
     reach_a = radius[ta] * sa + delta

@@ -23,6 +23,17 @@ from .threads import ThreadTuner
 _PHYSICS = PhysicsOptions()
 
 
+def _boxes(t: ObjectType) -> np.ndarray:
+    """(12,) type t's vertex box (lo, hi) and the centre and half extents of the box
+    around its vertices, inner spheres and surface points (local frame)."""
+    r = t.sphere_radii[:, None]
+    every = np.concatenate([t.vertices, t.sphere_centres - r, t.sphere_centres + r,
+                            t.surface_points])
+    lo, hi = every.min(axis=0), every.max(axis=0)
+    return np.concatenate([t.vertices.min(axis=0), t.vertices.max(axis=0),
+                           (lo + hi) / 2, (hi - lo) / 2])
+
+
 class TypeTable:
     """Object types flattened into the arrays the kernels read (see kernels' module doc)."""
 
@@ -44,9 +55,9 @@ class TypeTable:
         self.pcl = np.ascontiguousarray(np.concatenate([b for _, b, _ in clusters]))
         self.pcl_off = np.concatenate([[0], np.cumsum(np.concatenate(
             [n for _, _, n in clusters]))]).astype(np.int64)
-        # (T,6) each type's bounding box (local frame): lo xyz, hi xyz
-        self.box = np.array([np.concatenate([t.vertices.min(axis=0), t.vertices.max(axis=0)])
-                             for t in types], np.float64)
+        # (T,12) each type's bounding box (local frame): lo xyz, hi xyz; then the centre
+        # and half extents of the box that holds everything the contact tests read
+        self.box = np.array([_boxes(t) for t in types], np.float64).reshape(len(types), 12)
         self.g_off = np.cumsum([0] + [t.grid.values.size for t in types]).astype(np.int64)
         self.g_vals = np.ascontiguousarray(
             np.concatenate([t.grid.values.ravel() for t in types]), np.float64)

@@ -510,6 +510,82 @@ def test_pair_contact_matches_reference_at_grazing_distances(table, container):
     assert found >= 30
 
 
+def boxes_gap_ref(Ra, ca, ea, Rb, cb, eb) -> float:
+    """The largest gap between two oriented boxes' projections over the 15 separating axes,
+    normalised (numpy reference for `kernels.boxes_apart`): a lower bound of their distance,
+    and positive only if they are apart."""
+    corners = np.array([[i, j, k] for i in (-1, 1) for j in (-1, 1) for k in (-1, 1)], float)
+    pa = ca + (corners * ea) @ Ra.T
+    pb = cb + (corners * eb) @ Rb.T
+    axes = [Ra[:, i] for i in range(3)] + [Rb[:, j] for j in range(3)]
+    axes += [np.cross(Ra[:, i], Rb[:, j]) for i in range(3) for j in range(3)]
+    best = -np.inf
+    for ax in axes:
+        n = np.linalg.norm(ax)
+        if n < 1e-6:
+            continue
+        u, v = pa @ (ax / n), pb @ (ax / n)
+        best = max(best, u.min() - v.max(), v.min() - u.max())
+    return best
+
+
+def test_boxes_apart_matches_reference():
+    rng = np.random.default_rng(66)
+    apart = near = 0
+    for _ in range(3000):
+        Ra, Rb = quat_to_matrix(random_quats(rng, 2))
+        ea, eb = rng.uniform(0.1, 3.0, (2, 3))
+        ca, cb = rng.normal(size=(2, 3)) * 3.0
+        gap = rng.uniform(0.0, 0.5)
+        got = kernels.boxes_apart(Ra, *ca, ea, Rb, *cb, eb, gap)
+        ref = boxes_gap_ref(Ra, ca, ea, Rb, cb, eb)
+        if got:  # never apart when the boxes come within the gap
+            assert ref > gap
+            apart += 1
+        elif ref > 1.8 * gap + 1e-6:
+            # its cross axes are not normalised (|a x b| >= sin 45 deg makes gap/0.7 at
+            # most), so it misses only separations near the gap on cross axes
+            n = [np.linalg.norm(np.cross(Ra[:, i], Rb[:, j])) for i in range(3) for j in range(3)]
+            assert min(n) < 0.56, (ref, gap)
+        near += ref <= gap
+    assert apart > 500 and near > 500
+    # face to face along an axis: apart just beyond the gap, not at it
+    R = np.eye(3)
+    e = np.ones(3)
+    assert kernels.boxes_apart(R, 0.0, 0, 0, e, R, 2.5 + 1e-6, 0, 0, e, 0.5)
+    assert not kernels.boxes_apart(R, 0.0, 0, 0, e, R, 2.5 - 1e-6, 0, 0, e, 0.5)
+
+
+def test_pair_contact_box_test_skips_pairs_and_changes_nothing(table, container):
+    # elongated configurations whose bounding spheres meet: the pairs the box test ends
+    # early, checked against the reference, which has no such test
+    rng = np.random.default_rng(67)
+    grids = type_grids(table)
+    skipped = touching = 0
+    for _ in range(300):
+        typ = np.array([1, 1])  # the 2 x 3 x 4 box type
+        quat = random_quats(rng, 2)
+        scale = rng.uniform(0.5, 1.0, 2)
+        margin = rng.uniform(0.0, 0.05, 2)
+        d = rng.normal(size=3)
+        d /= np.linalg.norm(d)
+        reach = (table.radius[typ] * scale).sum()
+        pos = np.array([[0.0, 0, 0], d * rng.uniform(0.4, 1.0) * reach])
+        state = make_state(typ, pos, quat, scale, margin)
+        env = env_for(table, container, state, 0.01, 1e-9)
+        worst = call(kernels.pair_contact, env, a=0, b=1)
+        ref, F_ref, T_ref = pair_contact_ref(0, 1, table, grids, typ, pos, quat, scale, margin,
+                                             0.01, 1e-9)
+        assert worst == pytest.approx(ref, rel=1e-12, abs=1e-12)
+        np.testing.assert_allclose(env["F"], F_ref, rtol=1e-10, atol=1e-12)
+        np.testing.assert_allclose(env["Tq"], T_ref, rtol=1e-10, atol=1e-12)
+        R = quat_to_matrix(quat)
+        boxes = [kernels._hull_box(table.box, 1, scale[k], R[k], *pos[k]) for k in range(2)]
+        skipped += kernels.boxes_apart(R[0], *boxes[0], R[1], *boxes[1], 0.01 + margin.sum())
+        touching += worst > 0
+    assert skipped > 30 and touching > 30
+
+
 @pytest.mark.parametrize("n", [1, 16, 17, 96, 384, 1000])
 def test_point_clusters_list_every_point_once_inside_its_ball(n):
     pts = np.random.default_rng(n).normal(size=(n, 3)) * [3.0, 1.0, 0.5]
@@ -537,7 +613,13 @@ def test_type_table_clusters_index_each_types_points(table, types):
             assert span.start <= table.pcl_off[c] < table.pcl_off[c + 1] <= span.stop
             assert np.linalg.norm(q - table.pcl[c, :3], axis=1).max() <= table.pcl[c, 3] + 1e-12
         np.testing.assert_allclose(table.box[t, :3], typ.vertices.min(axis=0))
-        np.testing.assert_allclose(table.box[t, 3:], typ.vertices.max(axis=0))
+        np.testing.assert_allclose(table.box[t, 3:6], typ.vertices.max(axis=0))
+        # the contact box holds everything a contact test reads
+        centre, half = table.box[t, 6:9], table.box[t, 9:12]
+        r = typ.sphere_radii[:, None]
+        for q in (typ.vertices, typ.surface_points, typ.sphere_centres - r,
+                  typ.sphere_centres + r):
+            assert np.all(np.abs(q - centre) <= half + 1e-12)
 
 
 def test_pair_contact_far_apart_is_zero(table, container):
