@@ -24,7 +24,9 @@ class PhaseOptions:
     # more than MANY_OBJECTS objects (`phases.phase1_lattice`). An fcc lattice keeps the
     # objects further apart at a higher count, so they grow without long pushes there
     phase1_lattice: str | None = None
-    phase1_fcc_density: float = 0.55  # the fcc lattice's objects' volume / container volume
+    # the fcc lattice's objects' volume / container volume; None: 0.55, or 0.58 where the
+    # cubic lattice holds more than 15,000 objects (`phases.phase1_fcc_density`)
+    phase1_fcc_density: float | None = None
     phase1_iterations: int = 30  # solver iterations per growth step (paper: 25-30)
     # growth steps from scale 0 to 1; None: the paper's 30, or 6 with many objects
     # (`phases.phase1_growth_steps`)
@@ -41,6 +43,12 @@ class PhaseOptions:
         if self.phase1_lattice not in (None, "cubic", "fcc"):
             raise InputError(f"phase1_lattice must be 'cubic', 'fcc' or None (by the "
                              f"lattice's size), got {self.phase1_lattice!r}")
+        d = self.phase1_fcc_density
+        if d is not None and (isinstance(d, bool) or not isinstance(d, (int, float))
+                              or not 0.0 < d < 1.0):
+            raise InputError(f"phase1_fcc_density must be a fraction of the container "
+                             f"between 0 and 1 (e.g. 0.55), or None (by the lattice's size), "
+                             f"got {d!r}")
 
 
 @dataclass(frozen=True)

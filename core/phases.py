@@ -30,6 +30,13 @@ GROWTH_STEPS = 30
 MANY_OBJECTS_STEPS = 6
 #: the lattice phase 1 uses where its cubic lattice holds more than MANY_OBJECTS objects
 MANY_OBJECTS_LATTICE = "fcc"
+#: the fcc lattice's density (its objects' bare volume over the container's), and the
+#: denser one where the cubic lattice holds more than DENSER_FCC_OBJECTS: with that many,
+#: phase 1 grows the denser lattice with few failures and fills what the cavity passes
+#: would, sooner (docs/notes-core.md)
+FCC_DENSITY = 0.55
+DENSER_FCC_DENSITY = 0.58
+DENSER_FCC_OBJECTS = 15_000
 #: phase 1's spread window is at most its lattice objects over this
 SPREAD_QUEUE = 8
 
@@ -116,18 +123,28 @@ def phase1_lattice(requested: str | None, lattice_objects: int) -> str:
     return MANY_OBJECTS_LATTICE if lattice_objects > MANY_OBJECTS else "cubic"
 
 
+def phase1_fcc_density(requested: float | None, lattice_objects: int) -> float:
+    """The fcc lattice's density: `requested`, or by default FCC_DENSITY, and
+    DENSER_FCC_DENSITY where the cubic lattice holds more than DENSER_FCC_OBJECTS."""
+    if requested is not None:
+        return float(requested)
+    return DENSER_FCC_DENSITY if lattice_objects > DENSER_FCC_OBJECTS else FCC_DENSITY
+
+
 def phase1(solver: Solver, shares: np.ndarray, spacing: float, rng: np.random.Generator,
            stop: Stop, *, iters: int = 30, margin: np.ndarray,
            growth_steps: int | None = None, spread_window: int = 1,
-           lattice: str | None = None, fcc_spacing: float | None = None,
+           lattice: str | None = None, cubic_density: float = 0.5,
+           fcc_density: float | None = None,
            progress: Callable[[float, str], None] | None = None) -> PhaseStats:
     """Place one shrunken object per interior lattice point and grow them one at a time.
 
-    spacing: the cubic lattice's spacing (container units). shares: (T,) target shares by
-    count. margin: (T,) per-type safety margin (container units). growth_steps: steps from
-    scale 0 to 1; None: `phase1_growth_steps` of the cubic lattice's size. lattice: "cubic",
-    "fcc" (one point per fcc_spacing^3, default spacing: `container.interior_points`), or
-    None: `phase1_lattice` of the cubic lattice's size.
+    spacing: the cubic lattice's spacing (container units), which holds cubic_density of
+    the container in the objects' mean volume. shares: (T,) target shares by count. margin:
+    (T,) per-type safety margin (container units). growth_steps: steps from scale 0 to 1;
+    None: `phase1_growth_steps` of the cubic lattice's size. lattice: "cubic", "fcc" (its
+    point density set for fcc_density, or `phase1_fcc_density` of the cubic lattice's size
+    when None), or None: `phase1_lattice` of the cubic lattice's size.
     The next object to grow takes the largest type that is below its target share (or, when
     none is, the type furthest below it); it is the first ungrown one, or with
     spread_window > 1 the one of the next spread_window (at most a SPREAD_QUEUE-th of the
@@ -143,9 +160,11 @@ def phase1(solver: Solver, shares: np.ndarray, spacing: float, rng: np.random.Ge
     lattice = phase1_lattice(lattice, len(pts))
     nearest = spacing  # between lattice points
     if lattice == "fcc":
-        fcc_spacing = spacing if fcc_spacing is None else fcc_spacing
+        fcc_density = phase1_fcc_density(fcc_density, len(pts))
+        fcc_spacing = spacing * (cubic_density / fcc_density) ** (1.0 / 3.0)
         pts = interior_points(solver.c, fcc_spacing, min_depth, rng, lattice="fcc")
         nearest = fcc_spacing * 4.0 ** (1.0 / 3.0) / math.sqrt(2.0)
+        st.extra["fcc_density"] = fcc_density
     st.extra["growth_steps"] = growth_steps
     st.extra["lattice"] = lattice
     rng.shuffle(pts)

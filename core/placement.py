@@ -80,8 +80,8 @@ def place_once(solver: Solver, q: np.ndarray, s1: float, f_min: float,
     t0 = time.perf_counter()
     st1 = phase1(solver, q, s1, rng, stop, iters=ph.phase1_iterations, margin=margin,
                  growth_steps=ph.phase1_growth_steps, spread_window=ph.spread_window,
-                 lattice=ph.phase1_lattice,
-                 fcc_spacing=s1 * (ph.phase1_density / ph.phase1_fcc_density) ** (1 / 3),
+                 lattice=ph.phase1_lattice, cubic_density=ph.phase1_density,
+                 fcc_density=ph.phase1_fcc_density,
                  progress=lambda f, m: report(0.05 + 0.55 * f, m))
     after1 = snapshot_metrics(solver.s, vol, q, c_volume)
     t1 = time.perf_counter()

@@ -68,6 +68,18 @@ def test_the_lattice_follows_the_cubic_lattice_size_unless_given():
     assert phases.phase1_lattice("fcc", 5) == "fcc"
 
 
+def test_the_fcc_density_follows_the_cubic_lattice_size_unless_given():
+    many = phases.DENSER_FCC_OBJECTS
+    assert phases.phase1_fcc_density(None, many) == phases.FCC_DENSITY == 0.55
+    assert phases.phase1_fcc_density(None, many + 1) == phases.DENSER_FCC_DENSITY == 0.58
+    assert phases.phase1_fcc_density(0.5, many + 1) == 0.5
+    for bad in (0.0, 1.0, -0.2, "0.6", True):
+        with pytest.raises(InputError, match="phase1_fcc_density must be a fraction"):
+            PhaseOptions(phase1_fcc_density=bad)
+    with pytest.raises(InputError, match="phase1_fcc_density"):
+        PackOptions.from_flat({"phase1_fcc_density": 1.5})
+
+
 def _phase1(monkeypatch, **flat):
     """Phase 1 of a small box of fruit; returns its stats and the lattices it asked for
     as (spacing, lattice, points)."""
@@ -99,6 +111,13 @@ def test_phase1_on_many_objects_grows_an_fcc_lattice_at_its_own_density(monkeypa
                                           (pytest.approx(spacing * (0.5 / 0.55) ** (1 / 3)),
                                            "fcc")]
     assert fcc.inserted == calls[1][2] and fcc.grown >= 0.9 * fcc.inserted
+    assert fcc.extra["fcc_density"] == 0.55
+    # with a cubic lattice of more than DENSER_FCC_OBJECTS, the denser fcc lattice
+    monkeypatch.setattr(phases, "DENSER_FCC_OBJECTS", 5)
+    denser, calls = _phase1(monkeypatch)
+    assert denser.extra["fcc_density"] == 0.58
+    assert calls[1][:2] == (pytest.approx(spacing * (0.5 / 0.58) ** (1 / 3)), "fcc")
+    assert denser.inserted == calls[1][2] > fcc.inserted
     # asked for explicitly, whatever the size
     monkeypatch.setattr(phases, "MANY_OBJECTS", 10_000)
     forced, calls = _phase1(monkeypatch, phase1_lattice="fcc", phase1_fcc_density=0.6)
