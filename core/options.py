@@ -25,7 +25,8 @@ class PhaseOptions:
     # objects further apart at a higher count, so they grow without long pushes there
     phase1_lattice: str | None = None
     # the fcc lattice's objects' volume / container volume; None: 0.55, or 0.58 where the
-    # cubic lattice holds more than 15,000 objects (`phases.phase1_fcc_density`)
+    # cubic lattice holds more than 15,000 objects and 0.6 above 50,000
+    # (`phases.phase1_fcc_density`)
     phase1_fcc_density: float | None = None
     phase1_iterations: int = 30  # solver iterations per growth step (paper: 25-30)
     # growth steps from scale 0 to 1; None: the paper's 30, or 6 with many objects

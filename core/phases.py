@@ -31,12 +31,11 @@ MANY_OBJECTS_STEPS = 6
 #: the lattice phase 1 uses where its cubic lattice holds more than MANY_OBJECTS objects
 MANY_OBJECTS_LATTICE = "fcc"
 #: the fcc lattice's density (its objects' bare volume over the container's), and the
-#: denser one where the cubic lattice holds more than DENSER_FCC_OBJECTS: with that many,
-#: phase 1 grows the denser lattice with few failures and fills what the cavity passes
+#: denser ones (cubic lattice objects above which, density), largest first: with that
+#: many, phase 1 grows a denser lattice with few failures and fills what the cavity passes
 #: would, sooner (docs/notes-core.md)
 FCC_DENSITY = 0.55
-DENSER_FCC_DENSITY = 0.58
-DENSER_FCC_OBJECTS = 15_000
+DENSER_FCC = ((50_000, 0.6), (15_000, 0.58))
 #: phase 1's spread window is at most its lattice objects over this
 SPREAD_QUEUE = 8
 
@@ -124,11 +123,14 @@ def phase1_lattice(requested: str | None, lattice_objects: int) -> str:
 
 
 def phase1_fcc_density(requested: float | None, lattice_objects: int) -> float:
-    """The fcc lattice's density: `requested`, or by default FCC_DENSITY, and
-    DENSER_FCC_DENSITY where the cubic lattice holds more than DENSER_FCC_OBJECTS."""
+    """The fcc lattice's density: `requested`, or by default FCC_DENSITY, and a DENSER_FCC
+    one where the cubic lattice holds more than its count of objects."""
     if requested is not None:
         return float(requested)
-    return DENSER_FCC_DENSITY if lattice_objects > DENSER_FCC_OBJECTS else FCC_DENSITY
+    for above, denser in DENSER_FCC:
+        if lattice_objects > above:
+            return denser
+    return FCC_DENSITY
 
 
 def phase1(solver: Solver, shares: np.ndarray, spacing: float, rng: np.random.Generator,

@@ -464,20 +464,15 @@ def test_pair_contact_matches_reference(table, container, seed):
     clearance, tol = 0.02, 1e-6
     found = 0
     for typ, pos, quat, scale, margin in pair_scene(rng, table, 12, overlap=True):
-        state = make_state(typ, pos, quat, scale, margin)
-        env = env_for(table, container, state, clearance, tol)
-        worst = call(kernels.pair_contact, env, a=0, b=1)
-        ref, F_ref, T_ref = pair_contact_ref(0, 1, table, grids, typ, pos, quat, scale, margin,
-                                             clearance, tol)
-        assert worst == pytest.approx(ref, rel=1e-12, abs=1e-12)
-        F, Tq = env["F"], env["Tq"]
-        np.testing.assert_allclose(F, F_ref, rtol=1e-10, atol=1e-12)
-        np.testing.assert_allclose(Tq, T_ref, rtol=1e-10, atol=1e-12)
+        worst, env = pair_matches_reference(table, container, grids, typ, pos, quat, scale,
+                                            margin, clearance, tol)
+        F = env["F"]
         # equal and opposite pushes on the two objects
         np.testing.assert_allclose(F[0, :3], -F[1, :3], rtol=0, atol=1e-12)
         found += worst > 0
         # the same contact seen from b
-        env2 = env_for(table, container, state, clearance, tol)
+        env2 = env_for(table, container, make_state(typ, pos, quat, scale, margin),
+                       clearance, tol)
         assert call(kernels.pair_contact, env2, a=1, b=0) == pytest.approx(worst, abs=1e-12)
         np.testing.assert_allclose(env2["F"], F, rtol=1e-10, atol=1e-12)
     assert found >= 8
@@ -498,16 +493,24 @@ def test_pair_contact_matches_reference_at_grazing_distances(table, container):
         d = rng.normal(size=3)
         d /= np.linalg.norm(d)
         pos = np.array([[0.0, 0, 0], d * rng.uniform(0.55, 1.0) * table.radius[typ].sum()])
-        state = make_state(typ, pos, quat, scale, margin)
-        env = env_for(table, container, state, 0.0, 1e-9)
-        worst = call(kernels.pair_contact, env, a=0, b=1)
-        ref, F_ref, T_ref = pair_contact_ref(0, 1, table, grids, typ, pos, quat, scale, margin,
-                                             0.0, 1e-9)
-        assert worst == pytest.approx(ref, rel=1e-12, abs=1e-12)
-        np.testing.assert_allclose(env["F"], F_ref, rtol=1e-10, atol=1e-12)
-        np.testing.assert_allclose(env["Tq"], T_ref, rtol=1e-10, atol=1e-12)
-        found += worst > 0
+        found += pair_matches_reference(table, container, grids, typ, pos, quat, scale,
+                                        margin, 0.0, 1e-9)[0] > 0
     assert found >= 30
+
+
+def pair_matches_reference(table, container, grids, typ, pos, quat, scale, margin,
+                           clearance, tol) -> tuple[float, dict]:
+    """pair_contact of objects 0 and 1 against the numpy reference (depth, forces,
+    torques); returns the depth and the kernel's arguments (with its forces)."""
+    state = make_state(typ, pos, quat, scale, margin)
+    env = env_for(table, container, state, clearance, tol)
+    worst = call(kernels.pair_contact, env, a=0, b=1)
+    ref, F_ref, T_ref = pair_contact_ref(0, 1, table, grids, typ, pos, quat, scale, margin,
+                                         clearance, tol)
+    assert worst == pytest.approx(ref, rel=1e-12, abs=1e-12)
+    np.testing.assert_allclose(env["F"], F_ref, rtol=1e-10, atol=1e-12)
+    np.testing.assert_allclose(env["Tq"], T_ref, rtol=1e-10, atol=1e-12)
+    return worst, env
 
 
 def boxes_gap_ref(Ra, ca, ea, Rb, cb, eb) -> float:
@@ -571,14 +574,8 @@ def test_pair_contact_box_test_skips_pairs_and_changes_nothing(table, container)
         d /= np.linalg.norm(d)
         reach = (table.radius[typ] * scale).sum()
         pos = np.array([[0.0, 0, 0], d * rng.uniform(0.4, 1.0) * reach])
-        state = make_state(typ, pos, quat, scale, margin)
-        env = env_for(table, container, state, 0.01, 1e-9)
-        worst = call(kernels.pair_contact, env, a=0, b=1)
-        ref, F_ref, T_ref = pair_contact_ref(0, 1, table, grids, typ, pos, quat, scale, margin,
-                                             0.01, 1e-9)
-        assert worst == pytest.approx(ref, rel=1e-12, abs=1e-12)
-        np.testing.assert_allclose(env["F"], F_ref, rtol=1e-10, atol=1e-12)
-        np.testing.assert_allclose(env["Tq"], T_ref, rtol=1e-10, atol=1e-12)
+        worst, _ = pair_matches_reference(table, container, grids, typ, pos, quat, scale,
+                                          margin, 0.01, 1e-9)
         R = quat_to_matrix(quat)
         boxes = [kernels._hull_box(table.box, 1, scale[k], R[k], *pos[k]) for k in range(2)]
         skipped += kernels.boxes_apart(R[0], *boxes[0], R[1], *boxes[1], 0.01 + margin.sum())

@@ -69,10 +69,11 @@ def test_the_lattice_follows_the_cubic_lattice_size_unless_given():
 
 
 def test_the_fcc_density_follows_the_cubic_lattice_size_unless_given():
-    many = phases.DENSER_FCC_OBJECTS
-    assert phases.phase1_fcc_density(None, many) == phases.FCC_DENSITY == 0.55
-    assert phases.phase1_fcc_density(None, many + 1) == phases.DENSER_FCC_DENSITY == 0.58
-    assert phases.phase1_fcc_density(0.5, many + 1) == 0.5
+    assert phases.phase1_fcc_density(None, 15_000) == phases.FCC_DENSITY == 0.55
+    assert phases.phase1_fcc_density(None, 15_001) == 0.58
+    assert phases.phase1_fcc_density(None, 50_000) == 0.58
+    assert phases.phase1_fcc_density(None, 50_001) == 0.6
+    assert phases.phase1_fcc_density(0.5, 50_001) == 0.5
     for bad in (0.0, 1.0, -0.2, "0.6", True):
         with pytest.raises(InputError, match="phase1_fcc_density must be a fraction"):
             PhaseOptions(phase1_fcc_density=bad)
@@ -112,8 +113,8 @@ def test_phase1_on_many_objects_grows_an_fcc_lattice_at_its_own_density(monkeypa
                                            "fcc")]
     assert fcc.inserted == calls[1][2] and fcc.grown >= 0.9 * fcc.inserted
     assert fcc.extra["fcc_density"] == 0.55
-    # with a cubic lattice of more than DENSER_FCC_OBJECTS, the denser fcc lattice
-    monkeypatch.setattr(phases, "DENSER_FCC_OBJECTS", 5)
+    # with a cubic lattice of more objects than a DENSER_FCC count, its denser lattice
+    monkeypatch.setattr(phases, "DENSER_FCC", ((5, 0.58),))
     denser, calls = _phase1(monkeypatch)
     assert denser.extra["fcc_density"] == 0.58
     assert calls[1][:2] == (pytest.approx(spacing * (0.5 / 0.58) ** (1 / 3)), "fcc")
