@@ -1,6 +1,7 @@
 """Growth: time and peak memory against the number of objects, per phase, on log-log axes.
 
     python bench/growth.py [--method full|paper|budgeted] [--counts N ...] [--fit-from N]
+                           [--seed N] [--out STEM]
 
 The scene: oranges and lemons (YCB low-poly, x100: 6-7 mm) in a cube whose side is chosen
 for about N objects, automatic fidelity, one attempt; above 1500 expected objects auto uses
@@ -19,7 +20,11 @@ growth_paper.png.
 --method budgeted: the whole method with a time budget per size (--budgets, one per count;
 default `BUDGETS`), as a user runs a large packing: the passes fill holes until the budget
 ends, attempts as pack chooses them; writes growth_budgeted.json and growth_budgeted.png.
-Its times follow the budgets, so its fits say little; the densities are the point.
+Its total times follow the budgets, so their fits say little. What scales is the time the
+run took to reach a density (`LEVELS`: placed density of full-size objects before
+certification, from the phases' progress reports, counted from pack's start): each run
+records it per level, and the fits give its exponent over the runs that reached the level
+(a level some run in the fit range never reached gets no fit). The chart's right panel.
 """
 
 from __future__ import annotations
@@ -47,10 +52,13 @@ PHASES["budgeted"] = PHASES["full"]
 #: per method: (default target counts, default --fit-from)
 DEFAULTS = {"full": ([100, 200, 400, 800], 100),
             "paper": ([1000, 3000, 10000, 30000, 100000], 100),
-            "budgeted": ([5000, 10000, 30000, 100000], 1000)}
+            "budgeted": ([1000, 3000, 5000, 10000, 30000, 100000], 1000)}
 #: budgeted method: default placement budget (s) per target count; 100,000 objects get
 #: 500 s, so that with certification the run fits issue 21's 10 minutes
-BUDGETS = {5000: 240.0, 10000: 240.0, 30000: 300.0, 100000: 500.0}
+BUDGETS = {1000: 120.0, 3000: 180.0, 5000: 240.0, 10000: 240.0, 30000: 300.0,
+           100000: 500.0}
+#: budgeted method: placed densities whose time to reach is recorded and fitted
+LEVELS = (0.55, 0.57, 0.58, 0.59, 0.60)
 STEMS = {"full": "growth", "paper": "growth_paper", "budgeted": "growth_budgeted"}
 COLORS = {"approximate": "tab:gray", "phase1": "tab:blue", "phase2": "tab:green",
           "extra": "tab:orange", "certify": "tab:purple", "total": "k"}
@@ -80,6 +88,9 @@ def main(argv: list[str] | None = None) -> int:
                     help="fit the runs with at least this many objects (default: " +
                          ", ".join(f"{m} {DEFAULTS[m][1]}" for m in DEFAULTS) + ")")
     ap.add_argument("--seed", type=int, default=1)
+    ap.add_argument("--out", metavar="STEM",
+                    help="results' file stem in bench/results (default: the method's, e.g. "
+                         "growth_budgeted): other seeds beside the default run")
     ap.add_argument("--meshes", type=Path, default=MESHES)
     ap.add_argument("--report-only", action="store_true")
     a = ap.parse_args(argv)
@@ -90,7 +101,7 @@ def main(argv: list[str] | None = None) -> int:
         ap.error(f"--budgets gives {len(a.budgets)} budgets for {len(a.counts)} counts")
     budgets = a.budgets or [BUDGETS[min(BUDGETS, key=lambda c: abs(c - n))]
                             for n in a.counts]
-    stem = STEMS[a.method]
+    stem = a.out or STEMS[a.method]
     out = RESULTS / f"{stem}.json"
     if a.report_only:
         data = json.loads(out.read_text())
@@ -119,6 +130,7 @@ def main(argv: list[str] | None = None) -> int:
                 if a.method == "budgeted":
                     rec["budget"] = budget
                 rec["load"] = os.getloadavg()
+                rec["time_to_density"] = times_to_levels(rec["density_trace"])
                 runs.append(rec)
                 print(f"target {n}: {rec['metrics']['count']} objects, "
                       f"{rec['wall_seconds']:.1f} s, density {rec['metrics']['density']:.1%}, "
@@ -131,6 +143,10 @@ def main(argv: list[str] | None = None) -> int:
                 "runs": runs}
     data["fit_from"] = a.fit_from
     data["fits"] = fits(data, PHASES[data.get("method", "paper")], a.fit_from)
+    if data.get("method") == "budgeted":
+        for r in data["runs"]:  # also for runs stored before the levels were recorded
+            r["time_to_density"] = times_to_levels(r.get("density_trace", []))
+        data["level_fits"] = level_fits(data["runs"], a.fit_from)
     write_json(out, data)
     other = RESULTS / "growth_paper.json"
     paper = json.loads(other.read_text()) if a.method == "full" and other.exists() else None
@@ -153,6 +169,37 @@ def fits(data: dict, phases: tuple[str, ...], fit_from: int) -> dict:
     return out
 
 
+def time_to_density(trace: list, level: float) -> float | None:
+    """Seconds from pack's start to the first progress report at a placed density of at
+    least level (a fraction), or None if the run never reached it. trace: (s, density)."""
+    for t, d in trace:
+        if d >= level:
+            return float(t)
+    return None
+
+
+def times_to_levels(trace: list) -> dict[str, float | None]:
+    """`time_to_density` per `LEVELS` entry, keyed by the level as text ("0.58")."""
+    return {f"{lv:.2f}": time_to_density(trace, lv) for lv in LEVELS}
+
+
+def level_fits(runs: list[dict], fit_from: int) -> dict[str, dict]:
+    """Per level: the exponent and coefficient of time-to-reach against objects placed over
+    the runs with at least fit_from objects, and how many of them reached it; no fit (None)
+    unless all of them did, since a run that never reached it has no time to fit."""
+    runs = [r for r in runs if r["metrics"]["count"] >= fit_from]
+    out = {}
+    for key in (f"{lv:.2f}" for lv in LEVELS):
+        t = [r["time_to_density"].get(key) for r in runs]
+        ok = [x is not None for x in t]
+        f = None
+        if all(ok):
+            f = fit(np.array([r["metrics"]["count"] for r in runs], float), np.array(t, float))
+        out[key] = {"reached": sum(ok), "runs": len(runs),
+                    "fit": None if f is None else {"exponent": f[0], "coefficient": f[1]}}
+    return out
+
+
 def _stop_note(rec: dict) -> str:
     """What a run's end says beside its figures: its budget (budgeted method), or that the
     paper method's cap stopped it."""
@@ -169,7 +216,11 @@ def _chart(data: dict, path: Path, paper: dict | None = None) -> None:
 
     method = data.get("method", "paper")
     n = np.array([r["metrics"]["count"] for r in data["runs"]], float)
-    fig, (ax, axm) = plt.subplots(1, 2, figsize=(11, 5), width_ratios=(3, 2))
+    levels = data.get("level_fits")
+    if levels:
+        fig, (ax, axm, axl) = plt.subplots(1, 3, figsize=(16, 5), width_ratios=(3, 2, 3))
+    else:
+        fig, (ax, axm) = plt.subplots(1, 2, figsize=(11, 5), width_ratios=(3, 2))
     for ph in PHASES[method]:
         color = COLORS[ph]
         t = np.array([r["timings"].get(ph, 0.0) for r in data["runs"]], float)
@@ -188,12 +239,13 @@ def _chart(data: dict, path: Path, paper: dict | None = None) -> None:
         pn = np.array([r["metrics"]["count"] for r in paper["runs"]], float)
         pt = np.array([r["timings"]["total"] for r in paper["runs"]], float)
         ax.loglog(pn, pt, "x--", color="tab:red", lw=1, label="paper's two phases: total")
-    for r, x in zip(data["runs"], n, strict=True):
+    for i, (r, x) in enumerate(zip(data["runs"], n, strict=True)):
         # auto fidelity uses fewer spheres above MANY_OBJECTS expected objects
         note = f"{r['metrics']['density']:.1%}, {r['fidelity_detail']['spheres']} sph"
         note += _stop_note(r)
-        ax.annotate(note, (x, r["timings"]["total"]), fontsize=7, xytext=(-20, 6),
-                    textcoords="offset points")
+        # above and below in turn: neighbouring sizes' notes would overlap
+        ax.annotate(note, (x, r["timings"]["total"]), fontsize=7,
+                    xytext=(-20, 6 if i % 2 == 0 else -14), textcoords="offset points")
     ax.set_xlabel("objects placed")
     ax.set_ylabel("wall time (s)")
     title = {"full": "the whole method, no budget", "paper": "paper's phases",
@@ -209,8 +261,34 @@ def _chart(data: dict, path: Path, paper: dict | None = None) -> None:
     axm.set_ylabel("peak resident memory (MiB)")
     axm.legend(fontsize=8)
     axm.grid(True, which="both", alpha=0.3)
+    if levels:
+        _levels_panel(axl, data, levels)
     fig.tight_layout()
     save_figure(fig, path)
+
+
+def _levels_panel(ax, data: dict, levels: dict) -> None:
+    """Time to reach each placed density against objects placed, with the fits."""
+    cmap = __import__("matplotlib").colormaps["viridis"]
+    for i, (key, lf) in enumerate(levels.items()):
+        color = cmap(i / max(len(levels) - 1, 1))
+        pts = [(r["metrics"]["count"], r["time_to_density"][key]) for r in data["runs"]
+               if r["time_to_density"].get(key) is not None]
+        if not pts:
+            continue
+        n, t = np.array(pts, float).T
+        f = lf["fit"]
+        label = f"{float(key):.0%}: " + (f"~ n^{f['exponent']:.2f}" if f else
+                                         f"reached by {lf['reached']} of {lf['runs']}")
+        ax.loglog(n, t, "o", color=color, label=label)
+        if f is not None:
+            xs = np.geomspace(max(n.min(), data.get("fit_from", 0)), n.max(), 20)
+            ax.loglog(xs, f["coefficient"] * xs ** f["exponent"], "-", color=color, lw=1)
+    ax.set_xlabel("objects placed")
+    ax.set_ylabel("time to reach the density (s)")
+    ax.set_title("Time to a placed density (before certification)", fontsize=10)
+    ax.legend(fontsize=8)
+    ax.grid(True, which="both", alpha=0.3)
 
 
 if __name__ == "__main__":
