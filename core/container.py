@@ -116,6 +116,16 @@ def interior_points(container: Container, spacing: float, min_depth: float,
     return _cubic_points(container, spacing, min_depth, off)
 
 
+def deepest_points(container: Container, points: np.ndarray, count: int) -> np.ndarray:
+    """The `count` points of `points` (M,3, container frame) deepest inside the container,
+    in their given order (ties: the earlier first); all of them when M <= count."""
+    if len(points) <= count:
+        return points
+    g = container.grid
+    depth = sample_grid_many(g.values, g.origin, g.spacing, points)
+    return points[np.sort(np.argsort(-depth, kind="stable")[:max(count, 0)])]
+
+
 def _cubic_points(container: Container, spacing: float, min_depth: float,
                   off: np.ndarray) -> np.ndarray:
     """The cubic lattice's points offset by `off` from the container's lower bounds that lie

@@ -13,7 +13,7 @@ from collections.abc import Callable
 
 import numpy as np
 
-from .container import interior_points
+from .container import deepest_points, interior_points
 from .fidelity import MANY_OBJECTS
 from .kernels import sample_grid_many
 from .metrics import best_tvd, density, equivalent_radius, tvd_of_counts
@@ -146,7 +146,8 @@ def phase1(solver: Solver, shares: np.ndarray, spacing: float, rng: np.random.Ge
     (T,) per-type safety margin (container units). growth_steps: steps from scale 0 to 1;
     None: `phase1_growth_steps` of the cubic lattice's size. lattice: "cubic", "fcc" (its
     point density set for fcc_density, or `phase1_fcc_density` of the cubic lattice's size
-    when None), or None: `phase1_lattice` of the cubic lattice's size.
+    when None; at most the container's volume over a point's volume, the deepest), or
+    None: `phase1_lattice` of the cubic lattice's size.
     The next object to grow takes the largest type that is below its target share (or, when
     none is, the type furthest below it); it is the first ungrown one, or with
     spread_window > 1 the one of the next spread_window (at most a SPREAD_QUEUE-th of the
@@ -165,6 +166,12 @@ def phase1(solver: Solver, shares: np.ndarray, spacing: float, rng: np.random.Ge
         fcc_density = phase1_fcc_density(fcc_density, len(pts))
         fcc_spacing = spacing * (cubic_density / fcc_density) ** (1.0 / 3.0)
         pts = interior_points(solver.c, fcc_spacing, min_depth, rng, lattice="fcc")
+        # the random offset decides whether a layer of the lattice lies just inside each
+        # flat wall, where its objects must push the rest inwards to grow: more points
+        # than the density asks for jam phase 1 (docs/notes-core.md)
+        cap = int(solver.c.volume / fcc_spacing ** 3)
+        st.extra["fcc_dropped"] = max(0, len(pts) - cap)
+        pts = deepest_points(solver.c, pts, cap)
         nearest = fcc_spacing * 4.0 ** (1.0 / 3.0) / math.sqrt(2.0)
         st.extra["fcc_density"] = fcc_density
     st.extra["growth_steps"] = growth_steps

@@ -12,7 +12,7 @@ from testdata import mesh_path
 
 from jampacked.core import phases
 from jampacked.core.api import pack
-from jampacked.core.container import build_container, interior_points
+from jampacked.core.container import build_container, deepest_points, interior_points
 from jampacked.core.errors import InputError
 from jampacked.core.kernels import sample_grid_many
 from jampacked.core.meshes import box_mesh
@@ -81,7 +81,18 @@ def test_the_fcc_density_follows_the_cubic_lattice_size_unless_given():
         PackOptions.from_flat({"phase1_fcc_density": 1.5})
 
 
-def _phase1(monkeypatch, **flat):
+def test_deepest_points_keep_the_deepest_in_their_order():
+    c = _box()  # 30 x 20 x 40 about the origin: depth 10 - |y| away from the other walls
+    pts = np.array([[0.0, y, 0.0] for y in (9.5, 0.0, -8.0, 3.0, 9.9, -3.0)])
+    np.testing.assert_array_equal(deepest_points(c, pts, 6), pts)
+    np.testing.assert_array_equal(deepest_points(c, pts, 9), pts)
+    # depths 0.5, 10, 2, 7, 0.1, 7: the four deepest, in the given order (a tie: both)
+    np.testing.assert_array_equal(deepest_points(c, pts, 4), pts[[1, 2, 3, 5]])
+    np.testing.assert_array_equal(deepest_points(c, pts, 1), pts[[1]])
+    assert deepest_points(c, pts, 0).shape == (0, 3)
+
+
+def _phase1(monkeypatch, seed: int = 1, **flat):
     """Phase 1 of a small box of fruit; returns its stats and the lattices it asked for
     as (spacing, lattice, points)."""
     calls = []
@@ -93,7 +104,7 @@ def _phase1(monkeypatch, **flat):
 
     monkeypatch.setattr(phases, "interior_points", spy)
     options = PackOptions.from_flat({"extra_passes": [], "max_attempts": 1, **flat})
-    p = pack("box:40x40x40", FRUIT, seed=1, type_scale=100.0, fidelity="low",
+    p = pack("box:40x40x40", FRUIT, seed=seed, type_scale=100.0, fidelity="low",
              options=options)
     return p.report.phase1, calls  # phase 1's first, then phase 2's
 
@@ -124,3 +135,18 @@ def test_phase1_on_many_objects_grows_an_fcc_lattice_at_its_own_density(monkeypa
     forced, calls = _phase1(monkeypatch, phase1_lattice="fcc", phase1_fcc_density=0.6)
     assert forced.extra["lattice"] == "fcc" and forced.inserted == calls[1][2] > 0
     assert calls[1][0] == pytest.approx(spacing * (0.5 / 0.6) ** (1 / 3))
+
+
+def test_phase1_grows_no_more_fcc_objects_than_its_density_asks(monkeypatch):
+    # seed 2's offset puts layers of the lattice just inside the box's walls: 256 points
+    # where 64,000 mm^3 at 0.55 of the fruit's mean volume asks for 235; the shallowest
+    # are dropped. Seed 1's 196 points are all kept.
+    monkeypatch.setattr(phases, "MANY_OBJECTS", 5)
+    spacing = _phase1(monkeypatch)[1][0][0]
+    cap = int(40.0 ** 3 / (spacing ** 3 * 0.5 / 0.55))
+    over, calls = _phase1(monkeypatch, seed=2)
+    assert calls[1][2] > cap and over.inserted == cap
+    assert over.extra["fcc_dropped"] == calls[1][2] - cap
+    assert over.grown >= 0.9 * over.inserted
+    under, calls = _phase1(monkeypatch, seed=1)
+    assert under.inserted == calls[1][2] < cap and under.extra["fcc_dropped"] == 0
