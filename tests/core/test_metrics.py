@@ -10,6 +10,7 @@ from testdata import UlpUp
 
 from jampacked.core.errors import InputError
 from jampacked.core.metrics import (
+    best_tvd,
     compute_metrics,
     density,
     equivalent_radius,
@@ -199,3 +200,19 @@ def test_the_equivalent_radius_does_not_follow_numpys_cube_root(monkeypatch):
     monkeypatch.setattr(np, "cbrt", UlpUp(np.cbrt))
     np.testing.assert_array_equal(equivalent_radius(volumes), want)
     assert equivalent_radius(volumes.reshape(20, 25)).shape == (20, 25)
+
+
+def test_a_zero_mix_tolerance_takes_no_object_beyond_the_best_mix():
+    """--mix-tolerance 0 promises the mix as close as the count allows: in the rocker arm
+    (orange and peach x250, equal shares) the extra passes took 4 oranges and 7 peaches
+    (TVD 0.136) where 5 and 6 give 0.045, on the one-object slack small scenes get."""
+    from jampacked.core.metrics import tvd_of_counts as _tvd
+    from jampacked.core.phases import mix_cap
+
+    q = np.array([0.5, 0.5])
+    counts = np.array([5.0, 6.0])  # the best mix of 11
+    assert _tvd(counts + [0, 1], q) > mix_cap(counts, q, 0.0)  # 5 / 7: refused
+    assert _tvd(counts + [1, 0], q) <= mix_cap(counts, q, 0.0)  # 6 / 6: taken
+    assert mix_cap(counts, q, 0.04) == pytest.approx(1 / 12)  # above 0: one object's slack
+    three = np.full(3, 1 / 3)
+    assert mix_cap(np.array([2.0, 2, 2]), three, 0.0) == pytest.approx(best_tvd(three, 7))

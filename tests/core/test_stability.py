@@ -197,6 +197,22 @@ def test_size_ratio_1_to_5_keeps_the_mix_through_the_cavity_fill():
     assert p.metrics["tvd"] <= _mix_bound(shares, p.n) + MIX_SLACK, p.metrics
 
 
+def test_a_zero_mix_tolerance_keeps_the_best_mix_the_count_allows():
+    """The hand at 150 mm holds 17 of the lemon, strawberry and banana x300. With the
+    default tolerance the extra passes took one object beyond the best mix (TVD 0.098
+    against 0.039 for 17); --mix-tolerance 0 asks for the mix as close as the count allows,
+    and gets it, with fewer objects."""
+    hand = str(mesh_path("containers/hand.obj"))
+    kw = {"seed": 1, "container_size": 150.0, "type_scale": 300.0, "attempts": 1}
+    q = np.full(3, 1 / 3)
+    loose = pack(hand, [LEMON, STRAWBERRY, BANANA], **kw)
+    assert loose.metrics["tvd"] > best_tvd(q, loose.n) + 0.03  # the case bites
+    strict = pack(hand, [LEMON, STRAWBERRY, BANANA], **kw,
+                  options=PackOptions(cavity=CavityPassOptions(max_tvd=0.0)))
+    assert strict.certificate["certified"] and strict.n > 10
+    assert strict.metrics["tvd"] == pytest.approx(best_tvd(q, strict.n), abs=1e-9)
+
+
 def test_size_ratio_1_to_20_is_certified_with_both_types():
     """An orange (22 mm) and a strawberry scaled to a twentieth of its equivalent radius:
     the container grid is capped (220 cells across; a flat box keeps it small), the small
