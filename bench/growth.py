@@ -130,7 +130,6 @@ def main(argv: list[str] | None = None) -> int:
                 if a.method == "budgeted":
                     rec["budget"] = budget
                 rec["load"] = os.getloadavg()
-                rec["time_to_density"] = times_to_levels(rec["density_trace"])
                 runs.append(rec)
                 print(f"target {n}: {rec['metrics']['count']} objects, "
                       f"{rec['wall_seconds']:.1f} s, density {rec['metrics']['density']:.1%}, "
@@ -144,7 +143,7 @@ def main(argv: list[str] | None = None) -> int:
     data["fit_from"] = a.fit_from
     data["fits"] = fits(data, PHASES[data.get("method", "paper")], a.fit_from)
     if data.get("method") == "budgeted":
-        for r in data["runs"]:  # also for runs stored before the levels were recorded
+        for r in data["runs"]:
             r["time_to_density"] = times_to_levels(r.get("density_trace", []))
         data["level_fits"] = level_fits(data["runs"], a.fit_from)
     write_json(out, data)
@@ -269,7 +268,9 @@ def _chart(data: dict, path: Path, paper: dict | None = None) -> None:
 
 def _levels_panel(ax, data: dict, levels: dict) -> None:
     """Time to reach each placed density against objects placed, with the fits."""
-    cmap = __import__("matplotlib").colormaps["viridis"]
+    import matplotlib
+
+    cmap = matplotlib.colormaps["viridis"]
     for i, (key, lf) in enumerate(levels.items()):
         color = cmap(i / max(len(levels) - 1, 1))
         pts = [(r["metrics"]["count"], r["time_to_density"][key]) for r in data["runs"]
