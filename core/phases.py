@@ -36,6 +36,12 @@ MANY_OBJECTS_LATTICE = "fcc"
 #: would, sooner (docs/notes-core.md)
 FCC_DENSITY = 0.55
 DENSER_FCC = ((50_000, 0.6), (15_000, 0.58))
+#: an fcc lattice of at least DENSE_FCC density keeps its points at least DENSE_FCC_DEPTH of
+#: the objects' mean equivalent radius deep: an object nearer the wall must push the
+#: lattice inwards to grow, and a dense one has no room for that (docs/notes-core.md); the
+#: cavity passes fill the shell
+DENSE_FCC = 0.6
+DENSE_FCC_DEPTH = 0.5
 #: phase 1's spread window is at most its lattice objects over this
 SPREAD_QUEUE = 8
 
@@ -149,7 +155,8 @@ def phase1(solver: Solver, shares: np.ndarray, spacing: float, rng: np.random.Ge
     (T,) per-type safety margin (container units). growth_steps: steps from scale 0 to 1;
     None: `phase1_growth_steps` of the cubic lattice's size. lattice: "cubic", "fcc" (its
     point density set for fcc_density, or `phase1_fcc_density` of the cubic lattice's size
-    when None; at most the container's volume over a point's volume, the deepest), or
+    when None; at most the container's volume over a point's volume, the deepest; from
+    DENSE_FCC, none within DENSE_FCC_DEPTH mean equivalent radii of the wall), or
     None: `phase1_lattice` of the cubic lattice's size.
     The next object to grow takes the largest type that is below its target share (or, when
     none is, the type furthest below it); it is the first ungrown one, or with
@@ -168,7 +175,11 @@ def phase1(solver: Solver, shares: np.ndarray, spacing: float, rng: np.random.Ge
     if lattice == "fcc":
         fcc_density = phase1_fcc_density(fcc_density, len(pts))
         fcc_spacing = spacing * (cubic_density / fcc_density) ** (1.0 / 3.0)
-        pts = interior_points(solver.c, fcc_spacing, min_depth, rng, lattice="fcc")
+        fcc_depth = min_depth
+        if fcc_density >= DENSE_FCC:
+            mean_radius = equivalent_radius(cubic_density * spacing ** 3)
+            fcc_depth = max(min_depth, DENSE_FCC_DEPTH * mean_radius)
+        pts = interior_points(solver.c, fcc_spacing, fcc_depth, rng, lattice="fcc")
         # the random offset decides whether a layer of the lattice lies just inside each
         # flat wall, where its objects must push the rest inwards to grow: more points
         # than the density asks for jam phase 1 (docs/notes-core.md)

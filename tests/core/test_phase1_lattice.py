@@ -99,7 +99,7 @@ def _phase1(monkeypatch, seed: int = 1, **flat):
 
     def spy(container, spacing, min_depth, rng=None, lattice="cubic"):
         pts = interior_points(container, spacing, min_depth, rng, lattice)
-        calls.append((spacing, lattice, len(pts)))
+        calls.append((spacing, lattice, len(pts), min_depth))
         return pts
 
     monkeypatch.setattr(phases, "interior_points", spy)
@@ -112,7 +112,7 @@ def _phase1(monkeypatch, seed: int = 1, **flat):
 def test_phase1_on_many_objects_grows_an_fcc_lattice_at_its_own_density(monkeypatch):
     cubic, calls = _phase1(monkeypatch)
     assert cubic.extra["lattice"] == "cubic"
-    (spacing, lattice, n), = calls[:1]
+    (spacing, lattice, n, _), = calls[:1]
     assert lattice == "cubic" and cubic.inserted == n
     # the same scene as if its lattice held many objects: the cubic lattice is counted,
     # then phase 1 grows the fcc lattice of phase1_fcc_density (0.55 against 0.5)
@@ -130,11 +130,17 @@ def test_phase1_on_many_objects_grows_an_fcc_lattice_at_its_own_density(monkeypa
     assert denser.extra["fcc_density"] == 0.58
     assert calls[1][:2] == (pytest.approx(spacing * (0.5 / 0.58) ** (1 / 3)), "fcc")
     assert denser.inserted == calls[1][2] > fcc.inserted
+    assert calls[1][3] == calls[0][3]  # points as near the wall as the cubic lattice's
     # asked for explicitly, whatever the size
     monkeypatch.setattr(phases, "MANY_OBJECTS", 10_000)
     forced, calls = _phase1(monkeypatch, phase1_lattice="fcc", phase1_fcc_density=0.6)
     assert forced.extra["lattice"] == "fcc" and forced.inserted == calls[1][2] > 0
     assert calls[1][0] == pytest.approx(spacing * (0.5 / 0.6) ** (1 / 3))
+    # from DENSE_FCC, points half the fruit's mean equivalent radius deep at least
+    mean_radius = (3 * 0.5 * spacing ** 3 / (4 * math.pi)) ** (1 / 3)
+    assert phases.DENSE_FCC == 0.6
+    assert calls[1][3] == pytest.approx(phases.DENSE_FCC_DEPTH * mean_radius)
+    assert calls[0][3] < calls[1][3]
 
 
 def test_phase1_grows_no_more_fcc_objects_than_its_density_asks(monkeypatch):
