@@ -94,7 +94,7 @@ def test_deepest_points_keep_the_deepest_in_their_order():
 
 def _phase1(monkeypatch, seed: int = 1, **flat):
     """Phase 1 of a small box of fruit; returns its stats and the lattices it asked for
-    as (spacing, lattice, points)."""
+    as (spacing, lattice, points, min_depth)."""
     calls = []
 
     def spy(container, spacing, min_depth, rng=None, lattice="cubic"):
