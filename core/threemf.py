@@ -65,7 +65,11 @@ def _model_xml(data: bytes) -> bytes:
             if model is None:
                 raise ThreeMFError("the package has no 3D model part (3D/3dmodel.model)")
             return archive.read(model)
-    except (zipfile.BadZipFile, zlib.error, EOFError, NotImplementedError, OSError) as exc:
+    except ThreeMFError:
+        raise
+    # ValueError: a damaged name that claims to be UTF-8 (UnicodeDecodeError), bad offsets
+    except (zipfile.BadZipFile, zlib.error, EOFError, NotImplementedError, OSError,
+            ValueError) as exc:
         raise ThreeMFError(f"the zip archive is damaged: {exc}") from exc
 
 

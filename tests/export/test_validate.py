@@ -581,8 +581,9 @@ def test_read_errors_name_the_file(tmp_path):
 
 
 def _damaged_3mf_files(tmp_path: Path) -> dict[str, Path]:
-    """A valid 3MF, then the ways a 3MF is damaged: a cut zip, compressed data changed, no
-    model part, malformed XML, a vertex without a coordinate."""
+    """A valid 3MF, then the ways a 3MF is damaged: a cut zip, compressed data changed, a
+    name that is not the UTF-8 it claims, no model part, malformed XML, a vertex without a
+    coordinate."""
     good = tmp_path / "good.3mf"
     write_mesh(good, *box())
     data = good.read_bytes()
@@ -597,6 +598,14 @@ def _damaged_3mf_files(tmp_path: Path) -> dict[str, Path]:
         flipped[k] ^= 0x5A
     out["zlib"] = tmp_path / "zlib.3mf"
     out["zlib"].write_bytes(bytes(flipped))
+    # a name in the central directory that claims UTF-8 (flag bit 11) but is not
+    # (fuzz seed 4345 case 124: UnicodeDecodeError)
+    central = data.rindex(b"PK\x01\x02")
+    name = bytearray(data)
+    name[central + 9] |= 0x08  # flags' bit 11 (UTF-8 names): bit 3 of the high byte
+    name[central + 46] = 0x8B
+    out["name"] = tmp_path / "name.3mf"
+    out["name"].write_bytes(bytes(name))
     out["no_model"] = tmp_path / "no_model.3mf"
     with zipfile.ZipFile(out["no_model"], "w") as archive:
         archive.writestr("[Content_Types].xml", "<Types/>")
