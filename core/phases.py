@@ -142,6 +142,21 @@ def phase1_fcc_density(requested: float | None, lattice_objects: int) -> float:
     return FCC_DENSITY
 
 
+def fcc_points(solver: Solver, fcc_spacing: float, fcc_density: float, mean_volume: float,
+               min_depth: float, rng: np.random.Generator) -> tuple[np.ndarray, int]:
+    """Phase 1's fcc lattice points (container frame) at least min_depth inside, offset by
+    rng, and how many were dropped. From DENSE_FCC density none lies within DENSE_FCC_DEPTH
+    equivalent radii of mean_volume (container units^3) of the wall, and there are at most
+    the container's volume over fcc_spacing^3, the deepest: the random offset decides
+    whether a layer lies just inside each flat wall, where its objects must push the rest
+    inwards to grow, and more than the density asks for jam phase 1 (docs/notes-core.md)."""
+    if fcc_density >= DENSE_FCC:
+        min_depth = max(min_depth, DENSE_FCC_DEPTH * equivalent_radius(mean_volume))
+    pts = interior_points(solver.c, fcc_spacing, min_depth, rng, lattice="fcc")
+    cap = int(solver.c.volume / fcc_spacing ** 3)
+    return deepest_points(solver.c, pts, cap), max(0, len(pts) - cap)
+
+
 def phase1(solver: Solver, shares: np.ndarray, spacing: float, rng: np.random.Generator,
            stop: Stop, *, iters: int = 30, margin: np.ndarray,
            growth_steps: int | None = None, spread_window: int = 1,
@@ -175,17 +190,9 @@ def phase1(solver: Solver, shares: np.ndarray, spacing: float, rng: np.random.Ge
     if lattice == "fcc":
         fcc_density = phase1_fcc_density(fcc_density, len(pts))
         fcc_spacing = spacing * (cubic_density / fcc_density) ** (1.0 / 3.0)
-        fcc_depth = min_depth
-        if fcc_density >= DENSE_FCC:
-            mean_radius = equivalent_radius(cubic_density * spacing ** 3)
-            fcc_depth = max(min_depth, DENSE_FCC_DEPTH * mean_radius)
-        pts = interior_points(solver.c, fcc_spacing, fcc_depth, rng, lattice="fcc")
-        # the random offset decides whether a layer of the lattice lies just inside each
-        # flat wall, where its objects must push the rest inwards to grow: more points
-        # than the density asks for jam phase 1 (docs/notes-core.md)
-        cap = int(solver.c.volume / fcc_spacing ** 3)
-        st.extra["fcc_dropped"] = max(0, len(pts) - cap)
-        pts = deepest_points(solver.c, pts, cap)
+        mean_volume = cubic_density * spacing ** 3
+        pts, st.extra["fcc_dropped"] = fcc_points(solver, fcc_spacing, fcc_density,
+                                                  mean_volume, min_depth, rng)
         nearest = fcc_spacing * 4.0 ** (1.0 / 3.0) / math.sqrt(2.0)
         st.extra["fcc_density"] = fcc_density
     st.extra["growth_steps"] = growth_steps
