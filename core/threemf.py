@@ -65,7 +65,7 @@ def _model_xml(data: bytes) -> bytes:
             if model is None:
                 raise ThreeMFError("the package has no 3D model part (3D/3dmodel.model)")
             return archive.read(model)
-    except ThreeMFError:
+    except ThreeMFError:  # a ValueError itself: keep its own message
         raise
     # ValueError: a damaged name that claims to be UTF-8 (UnicodeDecodeError), bad offsets
     except (zipfile.BadZipFile, zlib.error, EOFError, NotImplementedError, OSError,
