@@ -29,7 +29,14 @@ from scipy.spatial import cKDTree
 
 from .check_pool import CheckPool, usable_processes
 from .container import Container
-from .exact_checks import GAP_SEARCH, PlacedSolids, check_solids, run_checks, shortfall
+from .exact_checks import (
+    GAP_SEARCH,
+    PlacedSolids,
+    check_solids,
+    least_gap,
+    run_checks,
+    shortfall,
+)
 from .kernels import sample_grid_many
 from .separation import apart_pairs, hull_points, hull_table
 
@@ -64,7 +71,9 @@ class CertifyReport:
     worst_overlap_pair: tuple[int, int] | None
     worst_outside: float  # max object volume outside the container / object volume
     worst_outside_object: int | None
-    min_pair_gap: float | None  # only with clearance > 0 (None when no pair was near)
+    # only with clearance > 0: the least gaps the checks read, which read a gap beyond
+    # GAP_SEARCH x c as that much (None when no pair was near); `least_gaps` measures them
+    min_pair_gap: float | None
     min_wall_gap: float | None
     bad_pairs: list[tuple[int, int]] = field(default_factory=list)
     bad_wall: list[int] = field(default_factory=list)
@@ -225,6 +234,58 @@ class Certifier:
                 rep.bad_wall.append(i)
         rep.certified = not rep.bad_pairs and not rep.bad_wall
         return rep
+
+    def least_gaps(self, typ: np.ndarray, matrices: np.ndarray, clearance: float,
+                   memo: CheckMemo, ids: np.ndarray) -> tuple[float | None, float | None]:
+        """The exact least gap between two objects and between an object and the wall
+        (container units) of objects (typ (N,), matrices (N,4,4)) just certified with
+        clearance > 0, `memo` and `ids`. The checks read gaps only up to GAP_SEARCH x the
+        clearance; these are searched further (`exact_checks.least_gap`), from bounds no
+        larger than each gap: a pair's boxes apart, an object's least vertex depth less
+        its longest edge and the grid's error (as `certify` proves objects deep inside).
+        None: no pair, or no object and the wall, within twice the largest object's
+        bounding radius (or 16 clearances, if more)."""
+        base = GAP_SEARCH * clearance
+        reach = np.linalg.norm(self.hulls[0], axis=1).max(initial=0.0)
+        limit = max(16.0 * clearance, 2.0 * float(reach))
+        lo, hi, depth = memo.lo[ids], memo.hi[ids], memo.depth[ids]
+        # the solids are float32: bounds from the float64 vertices may be off by its rounding
+        slack = 1e-6 * self.coordinate_size
+        solid = PlacedSolids(self.types, typ, matrices)
+        everyone = np.ones(len(typ), bool)
+
+        def known(gap: float | None, search: float) -> float | None:
+            """A memo's gap as measure() gives it: exact below `base`, a floor above."""
+            if gap is None:
+                return None
+            if gap < base:
+                return min(gap, search)
+            return search if search <= base else None
+
+        def pairs_within(search: float) -> tuple[np.ndarray, list]:
+            pairs = self._touching_pairs(lo, hi, everyone, search)
+            i, j = pairs[:, 0], pairs[:, 1]
+            apart = np.maximum(lo[i] - hi[j], lo[j] - hi[i]).max(axis=1, initial=0.0)
+            return apart - slack, pairs.tolist()
+
+        def pair_gap(pair: list[int], search: float) -> float:
+            i, j = pair
+            a, b = int(ids[i]), int(ids[j])
+            got = known(memo.pairs.get((min(a, b), max(a, b)), (None, None))[0], search)
+            return got if got is not None else float(solid(i).min_gap(solid(j), search))
+
+        wall_lower = depth - self.max_edge[typ] - 0.5 * self.container.grid.spacing - slack
+
+        def walls_within(search: float) -> tuple[np.ndarray, list]:
+            near = np.flatnonzero(wall_lower < search)
+            return wall_lower[near], near.tolist()
+
+        def wall_gap(i: int, search: float) -> float:
+            got = known(memo.walls.get(int(ids[i]), (None, None, False))[0], search)
+            return got if got is not None else float(solid(i).min_gap(self.outside, search))
+
+        return (least_gap(pairs_within, pair_gap, base, limit),
+                least_gap(walls_within, wall_gap, base, limit))
 
     @staticmethod
     def _touching_pairs(lo: np.ndarray, hi: np.ndarray, check: np.ndarray,

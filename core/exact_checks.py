@@ -14,7 +14,7 @@ processes start quickly.
 
 from __future__ import annotations
 
-from collections.abc import Callable
+from collections.abc import Callable, Sequence
 
 import numpy as np
 
@@ -43,6 +43,40 @@ def shortfall(gap: float | None, clearance: float) -> float | None:
     if gap is None or gap >= clearance * (1 - 1e-6):
         return None
     return clearance - gap
+
+
+def least_gap(candidates: Callable[[float], tuple[np.ndarray, Sequence]],
+              measure: Callable[[object, float], float], start: float,
+              limit: float) -> float | None:
+    """The exact least gap over a set of checks, or None where none is below `limit`.
+
+    candidates(s) gives the checks whose gap may be below s: (K,) lower bounds on their
+    gaps and their K keys; measure(key, search) gives a check's gap where it is below
+    `search`, else `search` (manifold3d's min_gap, whose cost grows with the search). The
+    check with the lowest bound within `start` (or within a doubled search, where none is)
+    is searched until it reads a gap, doubling up to `limit`; that gap bounds the least,
+    and the checks that may lie below it then run from the lowest bound up, each
+    searching only below the least gap found so far. Lengths in container units."""
+    search = start
+    while True:
+        lower, keys = candidates(search)
+        if len(lower):
+            break
+        if search >= limit:
+            return None
+        search = min(2.0 * search, limit)
+    first = int(np.argmin(lower))
+    best = measure(keys[first], search)
+    while best >= search and search < limit:
+        search = min(2.0 * search, limit)
+        best = measure(keys[first], search)
+    best = min(best, search)
+    lower, keys = candidates(best)
+    for k in np.argsort(lower, kind="stable").tolist():
+        if lower[k] >= best:
+            break
+        best = min(best, measure(keys[k], best))
+    return float(best) if best < limit else None
 
 
 class PlacedSolids:

@@ -286,3 +286,55 @@ def test_a_pair_in_a_hollow_gets_its_boolean():
     m[1, :3, 3] = [1.5, 0.0, 1.5]  # 0.5 into the pocket's side
     rep = cert.certify(typ, m)
     assert rep.bad_pairs == [(0, 1)] and rep.worst_overlap > 1e-3
+
+
+@pytest.mark.parametrize("seed", range(6))
+def test_least_gap_is_the_brute_force_minimum(seed):
+    rng = np.random.default_rng(seed)
+    gaps = rng.uniform(1.0, 12.0, 50)
+    lower = gaps * rng.uniform(0.0, 1.0, 50)  # bounds no larger than each gap
+    searched = []
+
+    def candidates(s):
+        k = np.flatnonzero(lower < s)
+        return lower[k], k.tolist()
+
+    def measure(k, search):
+        searched.append((lower[k], search))
+        return min(gaps[k], search)
+
+    limit = 20.0 if seed % 2 else 0.8 * gaps.min()  # odd seeds: the least gap lies within
+    got = exact_checks.least_gap(candidates, measure, 0.5, limit)
+    if seed % 2:
+        assert got == gaps.min()
+        # no check whose bound reached the least gap ran
+        assert all(lo < search for lo, search in searched)
+    else:
+        assert got is None
+
+
+def test_least_gaps_are_measured_beyond_the_checks_search(certifier):
+    """Balls 4 c apart and 2.6 c from the wall: the checks read 1.25 c for every gap, the
+    least gaps are each the exact min_gap."""
+    c = 0.5
+    r = 1.5
+    pos = np.array([[0.0, 0.0, 0.0], [2 * r + 4 * c, 0.0, 0.0], [0.0, 15.0 - r - 2.6 * c, 0.0]])
+    typ = np.ones(len(pos), np.int64)
+    m = _matrices(np.random.default_rng(3), pos)
+    memo = certify.CheckMemo()
+    ids = np.arange(len(pos))
+    rep = certifier.certify(typ, m, c, memo=memo, ids=ids)
+    assert rep.certified and rep.min_wall_gap == pytest.approx(1.25 * c)
+    solids = [certifier.types[t].transform(m[i, :3, :4].tolist()) for i, t in enumerate(typ)]
+    wall = min(s.min_gap(certifier.outside, 30.0) for s in solids)
+    pair = min(solids[i].min_gap(solids[j], 30.0) for i in range(3) for j in range(i + 1, 3))
+    assert wall > 2 * c and pair > 3 * c
+    got = certifier.least_gaps(typ, m, c, memo, ids)
+    assert got == (pytest.approx(pair, abs=1e-9), pytest.approx(wall, abs=1e-9))
+    # one ball at the centre of the 30 mm box: no pair, and the wall further than twice
+    # the largest bounding radius (and 16 clearances)
+    memo = certify.CheckMemo()
+    one = m[:1].copy()
+    one[0, :3, 3] = 0.0
+    assert certifier.certify(typ[:1], one, 0.1, memo=memo, ids=ids[:1]).certified
+    assert certifier.least_gaps(typ[:1], one, 0.1, memo, ids[:1]) == (None, None)
