@@ -107,7 +107,8 @@ def shares_note(shares: Sequence[float] | None, labels: Sequence[str]) -> str | 
     total = float(sum(shares))
     if abs(total - 1.0) <= 0.005:
         return None
-    scaled = ", ".join(f"{Path(lab).stem} {s / total:.0%}"
+    # one decimal where a whole percent would not add up (50% and 30%: 62.5% and 37.5%)
+    scaled = ", ".join(f"{Path(lab).stem} {f'{100 * s / total:.1f}'.removesuffix('.0')}%"
                        for lab, s in zip(labels, shares, strict=True))
     return (f"the shares add up to {total:.0%}, not 100%; they are taken as proportions: "
             f"{scaled}")

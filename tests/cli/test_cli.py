@@ -160,6 +160,19 @@ def test_info_lists_the_attempts_and_the_time_of_those_not_kept(packed, capsys):
     assert "attempts not kept" in so
 
 
+def test_info_gives_the_least_gaps_or_says_none_came_near(packed, capsys):
+    d, out, *_ = packed
+    doc = json.loads(out.read_text())
+    doc["certificate"].update(clearance=0.3, min_pair_gap=0.3125, min_wall_gap=None)
+    edited = d / "gaps.json"
+    edited.write_text(json.dumps(doc))
+    assert main(["info", str(edited)]) == 0
+    rows = {line.split("│")[1].strip(): line.split("│")[2].strip()
+            for line in capsys.readouterr().out.splitlines() if line.count("│") >= 3}
+    assert rows["min gap objects"] == "0.312  (clearance 0.3)"
+    assert rows["min gap wall"] == "no object that close  (clearance 0.3)"
+
+
 def test_info_reports_changed_source(packed, capsys):
     d, out, *_ = packed
     doc = json.loads(out.read_text())
@@ -298,8 +311,10 @@ def test_shares_note_when_percents_do_not_add_up():
     assert shares_note([1 / 3, 1 / 3, 0.333], ["a", "b", "c"]) is None  # rounding
     assert shares_note([2.0, 1.0], ["a", "b"]) is None  # weights: proportions meant
     note = shares_note([0.4, 0.4, 0.4], ["dir/a.obj", "b.stl", "c.ply"])
-    assert note is not None and "120%" in note and "a 33%, b 33%, c 33%" in note
+    assert note is not None and "120%" in note and "a 33.3%, b 33.3%, c 33.3%" in note
     assert "60%" in shares_note([0.3, 0.3], ["a", "b"])
+    # 50% and 30% are 62.5% and 37.5% (whole percents read 62% and 37%: 99%)
+    assert shares_note([0.5, 0.3], ["a", "b"]).endswith("a 62.5%, b 37.5%")
 
 
 def test_pack_warns_when_percents_do_not_add_up(tmp_path):
