@@ -38,7 +38,8 @@ def union_arrays(pieces: list[m3.Manifold], shell: m3.Manifold | None,
                  resolution: float | None, float32: bool = False
                  ) -> tuple[np.ndarray, np.ndarray, int, int]:
     """Union of the pieces and the shell: (vertices, faces, bad faces left, triangles the
-    resolution saved); see :func:`clean_arrays` for the bad faces.
+    resolution saved); see :func:`clean_arrays` for the bad faces. With a resolution the
+    union is simplified by it too, unless that leaves bad faces.
 
     Raises MeshError when manifold3d fails or returns a wrong result (more volume than its
     parts); nothing is written then.
@@ -60,13 +61,16 @@ def union_arrays(pieces: list[m3.Manifold], shell: m3.Manifold | None,
                         "was written. Check the type meshes (`jampacked validate`) and the "
                         "packing's placements (`jampacked info`); if both are sound, report "
                         "this with the packing file.")
-    saved = 0
     if resolution is not None:
-        before = result.num_tri()
-        result = result.simplify(resolution)
-        saved = before - result.num_tri()
+        simplified = result.simplify(resolution)
+        v, f, left = clean_arrays(simplified, float32=float32)
+        if left == 0:
+            return v, f, left, result.num_tri() - simplified.num_tri()
+        # simplifying the union can fold faces where objects meet (the types themselves
+        # were simplified before the union, which saves most of the triangles): keep the
+        # union as the booleans made it
     v, f, left = clean_arrays(result, float32=float32)
-    return v, f, left, saved
+    return v, f, left, 0
 
 
 def clean_arrays(result: m3.Manifold, float32: bool = False

@@ -272,6 +272,37 @@ def test_resolution_saves_triangles_and_stays_valid(tmp_path):
     assert abs(coarse.volume - full.volume) <= area * 0.5
 
 
+def test_a_resolution_that_folds_the_union_where_objects_meet_still_exports(tmp_path):
+    """A lemon and a strawberry (x300) touching as packed in a 120 mm bunny: the union
+    simplified by 0.1 mm had faces that cross where the two meet, and the export was
+    refused as not watertight; the types simplified alone stay valid."""
+    recs = []
+    for name, path in (("lemon", LEMON), ("strawberry", mesh_path(
+            "fruit/ycb_lowpoly/012_strawberry.obj"))):
+        m = load_mesh(path)
+        recs.append(TypeRecord(name=name, path=str(path), sha256=m.sha256, share=0.5,
+                               local_from_file=np.diag([300.0, 300, 300, 1])
+                               @ _shift(-m.centroid), volume=m.volume * 300 ** 3))
+    p = Packing(container_path="box:100x100x100", container_sha256=None,
+                frame_from_file=np.eye(4), container_volume=1e6, types=recs,
+                type_index=np.array([0, 1]),
+                rotations=np.array([[0.3174226570152726, 0.3340499161786812,
+                                     -0.6513688326868711, -0.6028035783889505],
+                                    [0.48972253647335123, 0.002099430436550133,
+                                     0.5732184510480027, -0.6569536034150949]]),
+                translations=np.array([[2.2875941362486856, 2.8539008283598477,
+                                        -7.073549745520593],
+                                       [-2.2875941362486856, -2.8539008283598477,
+                                        7.0735497455205945]]),
+                scales=np.ones(2))
+    full = export_packing(p, tmp_path / "full.stl", ExportOptions(mode="union"))
+    rep = export_packing(p, tmp_path / "coarse.stl",
+                         ExportOptions(mode="union", resolution=0.1))
+    assert full.passed and full.bodies == 1
+    assert rep.passed and rep.bodies == 1
+    assert rep.triangles_saved > 0 and rep.triangles < full.triangles
+
+
 def _shift(t: np.ndarray) -> np.ndarray:
     m = np.eye(4)
     m[:3, 3] = t
