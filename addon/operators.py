@@ -332,7 +332,9 @@ class ExportRunner(JobRunner):
         text = f"Exported {', '.join(result.paths)}: {result.summary()}"
         if lines:
             text += " " + " ".join(lines)
-        self._note(context, 'INFO' if result.passed else 'WARNING', text)
+        text += "".join(f" Warning: {summary.in_blender_words(w)}" for w in result.warnings)
+        level = 'INFO' if result.passed and not result.warnings else 'WARNING'
+        self._note(context, level, text)
         return {'FINISHED'}
 
 

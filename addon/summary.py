@@ -105,6 +105,9 @@ _BLENDER_WORDS = (
     ("--mix-tolerance", "Mix Tolerance"),
     ("--clearance", "Clearance"),
     ("--fidelity", "Fidelity"),
+    # export: the add-on exports with +z up and names an opening by its panel's words
+    (", or give another --up (the drain goes under the cavity's lowest point)", ""),
+    ("--open-plane or --window", "an Opening (Plane or Window)"),
 )
 
 

@@ -32,6 +32,7 @@ from .connect import connect_scene, default_diameter
 from .cost import check_export_cost, estimate_export
 from .io import WRITE_FORMATS, write_mesh
 from .mesh_write import Instances
+from .openings import drain_cover
 from .options import ExportOptions, check_scale, rotate_axis, up_rotation
 from .parts import require_gap, separate_parts
 from .report import ExportReport
@@ -117,6 +118,8 @@ def export_packing(packing: Packing | str | os.PathLike,
         shell, out.shell = _shell(scene, options, report)
         out.timings["shell"] = time.perf_counter() - t
         check_cancel()
+        if out.shell.drain_at is not None and options.mode != "parts":
+            out.warnings += _drain_warning(packing, scene, options, out.shell.drain_at)
 
     t = time.perf_counter()
     instances = None
@@ -181,6 +184,25 @@ def _shell(scene: PlacedScene, options: ExportOptions, report: Progress):
         shell_report.drain_at = tuple(float(c) for c in
                                       rot.T @ np.asarray(shell_report.drain_at))
     return shell, shell_report
+
+
+#: the drain warning's last advice (the add-on, which has no up axis, leaves it out)
+DRAIN_UP_ADVICE = ", or give another --up (the drain goes under the cavity's lowest point)"
+
+
+def _drain_warning(packing: Packing, scene: PlacedScene, options: ExportOptions,
+                   at: tuple[float, float, float]) -> list[str]:
+    """A warning when objects sit on the drain's mouth (`openings.drain_cover`)."""
+    up = up_rotation(options.up)[2]  # the up axis in the container frame
+    covered = drain_cover(scene.solids, np.asarray(at), up, float(options.drain))
+    if not covered:
+        return []
+    names = ", ".join(f"{packing.types[packing.type_index[i]].name} #{i}" for i in covered[:3])
+    more = f" and {len(covered) - 3} more" if len(covered) > 3 else ""
+    where = ", ".join(f"{c:.4g}" for c in at)
+    return [f"the drain hole at ({where}) is covered: {names}{more} sits within its radius "
+            f"above it, so liquid or powder may not reach it. Open the shell with "
+            f"--open-plane or --window{DRAIN_UP_ADVICE}."]
 
 
 def _one_body(packing: Packing, scene: PlacedScene, shell: m3.Manifold | None,

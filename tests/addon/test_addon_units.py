@@ -147,6 +147,24 @@ def test_engine_messages_in_blender_words():
         "scale, 0.5)"
 
 
+def test_the_drain_warning_in_blender_words(monkeypatch):
+    # the add-on exports with +z up: the advice to give another up axis is left out
+    from types import SimpleNamespace
+
+    from jampacked.export import assemble
+    from jampacked.export.options import ExportOptions
+
+    monkeypatch.setattr(assemble, "drain_cover", lambda *a: [0])
+    packing = SimpleNamespace(types=[SimpleNamespace(name="lemon")], type_index=[0])
+    options = ExportOptions(mode="union", shell=2.0, drain=3.0)
+    text, = assemble._drain_warning(packing, SimpleNamespace(solids=[]), options, (0, 0, -38))
+    assert "--up" in text and "--open-plane or --window" in text
+    assert summary.in_blender_words(text) == (
+        "The drain hole at (0, 0, -38) is covered: lemon #0 sits within its radius above "
+        "it, so liquid or powder may not reach it. Open the shell with an Opening (Plane or "
+        "Window).")
+
+
 def test_export_options_from_the_panel():
     engine = load_standalone("engine")
     opts = engine.export_options("PARTS", 2.0, "PLANE", "+z", 0.7, 0.0, 1.0, 0.0, 0.0, True)

@@ -482,6 +482,31 @@ def test_drain_goes_through_the_lowest_wall_along_up(apart, tmp_path, up, axis):
     assert rep.shell.opening is None and rep.passed
 
 
+def test_an_object_on_the_drain_is_named_in_a_warning(apart, tmp_path):
+    """An object packed against the floor fills the drain's mouth (objects reach into the
+    shell, which lies inside the container) and the hole is a dimple: say so."""
+    rep = export_packing(apart, tmp_path / "open.stl",
+                         ExportOptions(mode="union", shell=2.0, drain=4.0))
+    assert rep.passed and not any("drain" in w for w in rep.warnings)
+    # polytope3 (type 1) on the floor, under the drain at the floor's middle
+    on_floor = _packing(tmp_path, np.array([[0.0, 0.0, -32.0], [20.0, 20.0, 20.0]]), [1, 0])
+    rep = export_packing(on_floor, tmp_path / "plugged.stl",
+                         ExportOptions(mode="union", shell=2.0, drain=4.0))
+    assert rep.passed and rep.shell.drain_at[2] == pytest.approx(-38.0, abs=0.5)
+    drain = [w for w in rep.warnings if "drain" in w]
+    assert len(drain) == 1 and "polytope3 #0" in drain[0] and "--up" in drain[0]
+    # the file agrees: solid right above the drain's mouth, along its axis
+    solid = _solids_of_file(tmp_path / "plugged.stl")
+    probe = m3.Manifold.cube([0.2, 0.2, 0.2], True).translate([0.0, 0.0, -37.5])
+    assert (solid ^ probe).volume() > 0.9 * 0.2 ** 3
+
+
+def _solids_of_file(path: Path) -> m3.Manifold:
+    mesh = trimesh.load(path, force="mesh")
+    return m3.Manifold(m3.Mesh(vert_properties=np.asarray(mesh.vertices, np.float32),
+                               tri_verts=np.asarray(mesh.faces, np.uint32)))
+
+
 def test_cli_export_with_shell_render_and_up(apart, tmp_path, capsys):
     from jampacked.cli.main import main
 
