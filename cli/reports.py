@@ -234,7 +234,11 @@ def print_export(report: ExportReport, console: Console) -> None:
         if s.opening:
             t.add_row("opening", s.opening)
         if s.drain:
-            t.add_row("drain hole", f"{s.drain:g}")
+            at = "" if s.drain_at is None else " at (" + ", ".join(
+                f"{c:.4g}" for c in s.drain_at) + ")"
+            t.add_row("drain hole", f"{s.drain:g}{at}")
+        if s.notes:
+            t.add_row("shell notes", "\n".join(escape(n) for n in s.notes))
     if report.voids_filled:
         t.add_row("sealed voids filled", f"{report.voids_filled} "
                                          f"({report.voids_filled_volume:,.1f} in volume)")

@@ -174,10 +174,21 @@ def _shell(scene: PlacedScene, options: ExportOptions, report: Progress):
     opening = options.opening
     if opening is not None:
         opening = dataclasses.replace(opening, axis=rotate_axis(opening.axis, rot))
+    covered, reach = None, 0.0
+    if options.drain is not None and options.mode != "parts" and scene.solids:
+        # a drain under an object opens into it: it may move beside the objects, by up to
+        # the largest object's size
+        up = rot[2]  # the print's up axis in the container frame
+        reach = max(float(np.linalg.norm(np.subtract(*np.reshape(s.bounding_box(), (2, 3)))))
+                    for s in scene.type_solids)
+
+        def covered(point: np.ndarray) -> bool:
+            return bool(drain_cover(scene.solids, rot.T @ point, up, float(options.drain)))
     shell, shell_report = make_shell(scene.container_vertices @ rot.T, scene.container_faces,
                                      options.shell, opening=opening, drain=options.drain,
                                      resolution=options.resolution,
-                                     progress=lambda f, m: report(0.1 + 0.2 * f, m))
+                                     progress=lambda f, m: report(0.1 + 0.2 * f, m),
+                                     drain_covered=covered, drain_reach=reach)
     shell = shell.transform(np.column_stack([rot.T, np.zeros(3)]))
     shell_report.opening = opening_label(options.opening)  # named in the caller's axes
     if shell_report.drain_at is not None:

@@ -8,6 +8,7 @@ already turned that way.
 from __future__ import annotations
 
 import math
+from collections.abc import Callable
 
 import manifold3d as m3
 import numpy as np
@@ -146,8 +147,32 @@ def _drain_site(shell: m3.Manifold, cavity_vertices: np.ndarray, thickness: floa
     return lowest
 
 
+def _free_site(shell: m3.Manifold, low: np.ndarray, radius: float, reach: float,
+               size: float, covered: Callable[[np.ndarray], bool]) -> np.ndarray | None:
+    """The lowest point of the cavity's floor within `reach` of `low` (across) that no object
+    covers (`covered(point)`), the nearest of equal heights; None where every one is covered.
+    The floor is found under the points of a grid `radius` apart, by rays cast down from
+    `reach` above `low` where that point lies in the cavity (walls above and below it)."""
+    n = max(1, int(reach / radius))
+    grid = [(i * i + j * j, i, j) for i in range(-n, n + 1) for j in range(-n, n + 1)
+            if 0 < i * i + j * j <= n * n]
+    up = np.array([0.0, 0.0, 1.0])
+    floors = []
+    for _, i, j in sorted(grid):
+        start = low + np.array([i * radius, j * radius, reach])
+        down, above = _ray_hits(shell, start, -up, size), _ray_hits(shell, start, up, size)
+        if down and down[0][1] and above and above[0][1]:
+            floors.append(start - down[0][0] * up)
+    for floor in sorted(floors, key=lambda p: p[2]):  # stable: the nearest of equal heights
+        if not covered(floor):
+            return floor
+    return None
+
+
 def drill_drain(shell: m3.Manifold, inner: m3.Manifold, diameter: float,
-                thickness: float) -> tuple[m3.Manifold, tuple[float, float, float]]:
+                thickness: float, covered: Callable[[np.ndarray], bool] | None = None,
+                reach: float = 0.0, notes: list[str] | None = None
+                ) -> tuple[m3.Manifold, tuple[float, float, float]]:
     """Drill a vertical drain hole from the cavity's lowest point down through the wall.
 
     Resin and powder printers need it: uncured resin or loose powder trapped in a closed
@@ -155,12 +180,25 @@ def drill_drain(shell: m3.Manifold, inner: m3.Manifold, diameter: float,
     lowest point of the cavities, where liquid pools with the container standing as modelled
     (-z down). It starts a little above that point (short of the ceiling) and ends a margin
     below where the wall is left, but never reaches a part of the container further below.
+    covered(point): whether objects sit on a drain there (`drain_cover`); where they sit on
+    the lowest point, the hole goes under the lowest free point of the floor within `reach`
+    of it (`_free_site`), so that it opens beside the object rather than under it, and
+    `notes` says so.
     """
     v, _ = solid_arrays(inner)
     radius = 0.5 * diameter
     up = np.array([0.0, 0.0, 1.0])
     size = float(np.ptp(v[:, 2])) + 4.0 * thickness + diameter + 1.0
     low = _drain_site(shell, v, thickness, size)
+    if covered is not None and reach > 0 and covered(low):
+        free = _free_site(shell, low, radius, reach, size, covered)
+        if free is not None:
+            if notes is not None:
+                notes.append(f"objects sit on the cavity's lowest point: the drain opens "
+                             f"{np.linalg.norm((free - low)[:2]):.3g} away from it and "
+                             f"{free[2] - low[2]:.3g} higher, at the lowest point of the "
+                             "floor they leave free.")
+            low = free
     # the cavity's floor rises across the disc: start up to radius + T/4 above, short of the
     # ceiling
     ceiling = [t for t, _ in _ray_hits(shell, low, up, size) if t > 1e-6 * size]

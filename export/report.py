@@ -61,6 +61,7 @@ class ExportReport:
         if self.shell is not None:
             parts.append(f"shell {self.shell.thickness:g} thick (measured median "
                          f"{self.shell.measured_median:.3g}, min {self.shell.measured_min:.3g})")
+            parts += [note.rstrip(".") for note in self.shell.notes]
         if self.min_gap is not None:
             parts.append(f"smallest gap between parts {self.min_gap:.3g} (clearance "
                          f"{self.clearance:g})")

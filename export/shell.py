@@ -77,7 +77,9 @@ def make_shell(vertices: np.ndarray, faces: np.ndarray, thickness: float, *,
                opening: Opening | None = None, drain: float | None = None,
                resolution: float | None = None,
                progress: Callable[[float, str], None] | None = None,
-               samples: int = 2000) -> tuple[m3.Manifold, ShellReport]:
+               samples: int = 2000,
+               drain_covered: Callable[[np.ndarray], bool] | None = None,
+               drain_reach: float = 0.0) -> tuple[m3.Manifold, ShellReport]:
     """Shell of the container with wall thickness ``thickness``: container minus its offset.
 
     Args:
@@ -95,6 +97,9 @@ def make_shell(vertices: np.ndarray, faces: np.ndarray, thickness: float, *,
             Either way the grid is coarsened to stay under ``MAX_GRID_NODES`` nodes.
         progress: ``progress(fraction, message)`` called as the work goes on.
         samples: points used to measure the wall thickness.
+        drain_covered, drain_reach: whether objects sit on a drain at a point (this
+            function's frame), and how far from the cavity's lowest point the drain may
+            move to open beside them (`openings.drill_drain`).
 
     Returns:
         (shell, report): the shell solid (its outer surface is the container mesh itself, its
@@ -125,7 +130,8 @@ def make_shell(vertices: np.ndarray, faces: np.ndarray, thickness: float, *,
     drain_at = None
     if drain is not None:
         report_progress(0.7, "shell: drain hole")
-        shell, drain_at = drill_drain(shell, inner, drain, thickness)
+        shell, drain_at = drill_drain(shell, inner, drain, thickness, drain_covered,
+                                      drain_reach, notes)
         if cavities > 1:
             notes.append(f"the shell has {cavities} separate cavities; the drain opens only "
                          "the lowest one.")

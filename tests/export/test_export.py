@@ -482,29 +482,50 @@ def test_drain_goes_through_the_lowest_wall_along_up(apart, tmp_path, up, axis):
     assert rep.shell.opening is None and rep.passed
 
 
-def test_an_object_on_the_drain_is_named_in_a_warning(apart, tmp_path):
-    """An object packed against the floor fills the drain's mouth (objects reach into the
-    shell, which lies inside the container) and the hole is a dimple: say so."""
-    rep = export_packing(apart, tmp_path / "open.stl",
+def _drain_probe(path: Path, at: np.ndarray, t: float) -> float:
+    """How much of a 0.2 cube at `at` + t along +z the file's solid fills."""
+    mesh = trimesh.load(path, force="mesh")
+    solid = m3.Manifold(m3.Mesh(vert_properties=np.asarray(mesh.vertices, np.float32),
+                                tri_verts=np.asarray(mesh.faces, np.uint32)))
+    probe = m3.Manifold.cube([0.2, 0.2, 0.2], True).translate((at + [0, 0, t]).tolist())
+    return (solid ^ probe).volume() / 0.2 ** 3
+
+
+def test_a_drain_under_an_object_opens_beside_it(apart, tmp_path):
+    """Objects packed against the floor reach into the shell (it lies inside the container)
+    and the union fused one into the drain's mouth: the hole was a dimple. The drain now
+    goes under the lowest floor point no object sits on, and the shell's notes say so."""
+    rep = export_packing(apart, tmp_path / "free.stl",
+                         ExportOptions(mode="union", shell=2.0, drain=4.0))
+    assert rep.passed and rep.shell.drain_at == pytest.approx((0.0, 0.0, -38.0), abs=0.5)
+    assert rep.shell.notes == [] and rep.warnings == []
+    # polytope3 (type 1, bounding radius 9) on the floor, over the floor's middle
+    on_floor = _packing(tmp_path, np.array([[0.0, 0.0, -32.0], [20.0, 20.0, 20.0]]), [1, 0])
+    rep = export_packing(on_floor, tmp_path / "beside.stl",
                          ExportOptions(mode="union", shell=2.0, drain=4.0))
     assert rep.passed and not any("drain" in w for w in rep.warnings)
-    # polytope3 (type 1) on the floor, under the drain at the floor's middle
+    at = np.asarray(rep.shell.drain_at)
+    assert at[2] == pytest.approx(-38.0, abs=0.5) and np.hypot(*at[:2]) > 4.0
+    assert any("the drain opens" in n for n in rep.shell.notes)
+    assert "the drain opens" in rep.summary()
+    # the file agrees: open above the mouth and through the floor, along the drain's axis
+    assert _drain_probe(tmp_path / "beside.stl", at, 0.5) == 0.0
+    assert _drain_probe(tmp_path / "beside.stl", at, -1.0) == 0.0
+    middle = np.array([0.0, 0.0, -38.0])  # where the drain was: the object fills it
+    assert _drain_probe(tmp_path / "beside.stl", middle, 0.5) > 0.9
+
+
+def test_a_drain_no_free_floor_can_take_is_named_in_a_warning(tmp_path, monkeypatch):
+    from jampacked.export import openings
+
+    monkeypatch.setattr(openings, "_free_site", lambda *a: None)  # every site covered
     on_floor = _packing(tmp_path, np.array([[0.0, 0.0, -32.0], [20.0, 20.0, 20.0]]), [1, 0])
     rep = export_packing(on_floor, tmp_path / "plugged.stl",
                          ExportOptions(mode="union", shell=2.0, drain=4.0))
-    assert rep.passed and rep.shell.drain_at[2] == pytest.approx(-38.0, abs=0.5)
+    assert rep.passed and rep.shell.drain_at == pytest.approx((0.0, 0.0, -38.0), abs=0.5)
     drain = [w for w in rep.warnings if "drain" in w]
     assert len(drain) == 1 and "polytope3 #0" in drain[0] and "--up" in drain[0]
-    # the file agrees: solid right above the drain's mouth, along its axis
-    solid = _solids_of_file(tmp_path / "plugged.stl")
-    probe = m3.Manifold.cube([0.2, 0.2, 0.2], True).translate([0.0, 0.0, -37.5])
-    assert (solid ^ probe).volume() > 0.9 * 0.2 ** 3
-
-
-def _solids_of_file(path: Path) -> m3.Manifold:
-    mesh = trimesh.load(path, force="mesh")
-    return m3.Manifold(m3.Mesh(vert_properties=np.asarray(mesh.vertices, np.float32),
-                               tri_verts=np.asarray(mesh.faces, np.uint32)))
+    assert _drain_probe(tmp_path / "plugged.stl", np.asarray(rep.shell.drain_at), 0.5) > 0.9
 
 
 def test_cli_export_with_shell_render_and_up(apart, tmp_path, capsys):
@@ -516,6 +537,9 @@ def test_cli_export_with_shell_render_and_up(apart, tmp_path, capsys):
                str(png)])
     text = capsys.readouterr().out
     assert rc == 0 and "plane +y@0.6" in text and "PASS" in text
+    # where the drain goes (the floor along +y is at y = -38)
+    drain = next(line for line in text.splitlines() if "drain hole" in line)
+    assert " 3 at (" in drain and ", -38," in drain
     assert png.read_bytes()[:8] == b"\x89PNG\r\n\x1a\n"
     v = validate_file(tmp_path / "s.3mf")
     assert v.passed and v.bbox_max[1] < 40 - 2.0 - 10  # the +y wall is cut away
