@@ -33,7 +33,7 @@ modes:
 
 shell and openings:
   --shell T makes a wall of thickness T from the container's surface inwards. Open it so
-  the objects show with --open-plane +z@0.75 (removes the shell beyond 75%% of the height
+  the objects show with --open-plane +z@0.75 (removes the shell beyond 75% of the height
   along +z; any of +x -x +y -y +z -z) or --window +y@30 (a 30 mm round hole through the
   side facing +y). --drain D adds a drainage/escape hole of diameter D through the lowest
   point of the shell along --up (default +z) for resin and powder printers. Write

@@ -26,10 +26,10 @@ from jampacked.core.repair import MIX_SLACK
 PACK_EPILOG = """\
 shares:
   --type FILE=SHARE gives a type's target share by count, as a fraction (0.4) or a
-  percent (40%%). Types without a share split what is left equally; with no shares at all
+  percent (40%). Types without a share split what is left equally; with no shares at all
   every type gets the same share. When every type has a share, the shares are normalised,
   so --type a.stl=2 --type b.stl=1 means two a's for each b (percents that do not add up
-  to 100%% are normalised too, with a warning).
+  to 100% are normalised too, with a warning).
 
 units:
   The container's units are the scene's units (millimetres for printing).
@@ -39,9 +39,9 @@ units:
 examples:
   jampacked pack default -o out/packing.json --preview out/preview.png
       Spot the cow (150 mm) filled with five kinds of fruit.
-  jampacked pack vase.stl --container-size 120 --type apple.obj=40%% \\
-      --type lemon.obj=30%% --type plum.obj -o packing.json
-      40%% apples, 30%% lemons, 30%% plums in a vase 120 mm tall (or wide).
+  jampacked pack vase.stl --container-size 120 --type apple.obj=40% \\
+      --type lemon.obj=30% --type plum.obj -o packing.json
+      40% apples, 30% lemons, 30% plums in a vase 120 mm tall (or wide).
   jampacked pack box:40x40x45 --type cube.stl --type ball.stl --clearance 0.4 \\
       --time-budget 60 --seed 7 -o packing.json --preview preview.png
       Equal shares in a 40 x 40 x 45 mm box, at least 0.4 mm between parts.

@@ -356,6 +356,10 @@ def test_help(capsys):
     text = capsys.readouterr().out
     for word in ("--type", "SHARE", "--clearance", "container units", "examples:", "mm"):
         assert word in text, word
+    # argparse expands %% in options' help only, not in the descriptions and epilogs
+    for command in ("pack", "export", "info", "validate", "batch"):
+        assert main([command, "--help"]) == 0
+        assert "%%" not in capsys.readouterr().out, command
     assert main([]) == 2  # a command is required
 
 
