@@ -274,8 +274,14 @@ def _judge_edge(objects: Sequence[PlacedObject], shells: Sequence[tuple[m3.Manif
     pa, pb = _closest_pair(objects[a], target, start)
     rod = _strut_between(pa, pb, diameter, b >= n, shell_thickness,
                          centres[a], None if b >= n else centres[b], variant)
-    if outside is not None and b < n and (rod ^ outside).volume() > OUTSIDE_TOL * rod.volume():
-        return "refused"
+    if outside is not None:
+        poke = (rod ^ outside).volume()
+        if b < n and poke > OUTSIDE_TOL * rod.volume():
+            return "refused"
+        if poke > 0.0:
+            # a strut's rim grazing the wall, or meeting a thin shell at a slant, pokes out
+            # of the container: its surface trims the strut (which still joins its ends)
+            rod = rod - outside
     return rod, float(np.linalg.norm(pb - pa))
 
 

@@ -528,6 +528,27 @@ def test_a_drain_no_free_floor_can_take_is_named_in_a_warning(tmp_path, monkeypa
     assert _drain_probe(tmp_path / "plugged.stl", np.asarray(rep.shell.drain_at), 0.5) > 0.9
 
 
+def test_a_strut_to_a_thin_shell_stays_inside_the_container(tmp_path):
+    """A polytope of an unseen packing by a box's wall, tied to a 1 mm shell: the strut met
+    the wall at a slant and its rim came out 0.31 mm beyond the box."""
+    path = mesh_path("polyhedra/convex7/polytope6.obj")
+    m = load_mesh(path)
+    rec = TypeRecord(name="polytope6", path=str(path), sha256=m.sha256, share=1.0,
+                     local_from_file=_shift(-m.centroid), volume=m.volume)
+    p = Packing(container_path="box:50x30x20", container_sha256=None,
+                frame_from_file=np.eye(4), container_volume=50.0 * 30 * 20, types=[rec],
+                type_index=np.array([0]),
+                rotations=np.array([[0.462392039343492, -0.0051839474325789435,
+                                     -0.886659975555577, 0.0009035422329457876]]),
+                translations=np.array([[14.516895681508624, -12.480292367133236,
+                                        -5.200403982315165]]), scales=np.ones(1))
+    rep = export_packing(p, tmp_path / "s.ply", ExportOptions(
+        mode="connect", shell=1.0, opening=Opening(axis="-z", at=0.3), up="-z"))
+    assert rep.passed and rep.bodies == 1 and rep.connectors == 1
+    lo, hi = trimesh.load(tmp_path / "s.ply", force="mesh").bounds
+    assert np.all(lo >= [-25.0, -15.0, -10.0]) and np.all(hi <= [25.0, 15.0, 10.0])
+
+
 def test_cli_export_with_shell_render_and_up(apart, tmp_path, capsys):
     from jampacked.cli.main import main
 
