@@ -30,8 +30,8 @@ from jampacked.core.solids import solid_arrays
 
 from .connect import connect_scene, default_diameter
 from .cost import check_export_cost, estimate_export
-from .io import WRITE_FORMATS, write_mesh
-from .mesh_write import Instances
+from .io import write_mesh
+from .mesh_write import Instances, write_format
 from .openings import drain_cover
 from .options import ExportOptions, check_scale, rotate_axis, up_rotation
 from .parts import require_gap, separate_parts
@@ -156,10 +156,7 @@ def _output_paths(out_paths: str | os.PathLike | Sequence[str | os.PathLike]) ->
     if not paths:
         raise InputError("no output file given: name at least one (-o out.3mf).")
     for p in paths:
-        ext = Path(p).suffix.lower().lstrip(".")
-        if ext not in WRITE_FORMATS:
-            raise InputError(f"cannot write '{p}': unknown mesh format '.{ext}'; use one of "
-                             f"{', '.join('.' + e for e in WRITE_FORMATS)}.")
+        write_format(p)
     return paths
 
 

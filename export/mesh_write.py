@@ -115,6 +115,16 @@ def _same_file(a: str, b: str) -> bool:
     return False
 
 
+def write_format(path: str) -> str:
+    """The format a file name asks for (its extension, lower case), or InputError."""
+    ext = extension(path)
+    if ext not in WRITE_FORMATS:
+        what = f"unknown mesh format '.{ext}'" if ext else "no extension to name its format"
+        raise InputError(f"cannot write '{path}': {what}; use one of "
+                         f"{', '.join('.' + e for e in WRITE_FORMATS)}.")
+    return ext
+
+
 def write_mesh_file(
     path: str | os.PathLike,
     vertices: object,
@@ -147,10 +157,7 @@ def write_mesh_file(
         MeshError: the file cannot be written (missing folder, permissions, disk full).
     """
     path_str = os.fspath(path)
-    ext = extension(path_str)
-    if ext not in WRITE_FORMATS:
-        raise InputError(f"cannot write '{path_str}': unknown mesh format '.{ext}'; use one "
-                         f"of {', '.join('.' + e for e in WRITE_FORMATS)}.")
+    ext = write_format(path_str)
     for p in protect:
         if _same_file(path_str, os.fspath(p)):
             raise InputError(f"refusing to write '{path_str}': it is an input file "

@@ -370,8 +370,11 @@ def test_bad_options_are_clear(kwargs, match):
 
 
 def test_bad_outputs_are_clear(apart, tmp_path):
-    with pytest.raises(InputError, match="unknown mesh format"):
+    with pytest.raises(InputError, match="unknown mesh format '.dae'"):
         export_packing(apart, tmp_path / "x.dae")
+    with pytest.raises(InputError, match="'.*noext': no extension to name its format; use "
+                                         "one of .stl"):
+        export_packing(apart, tmp_path / "noext")
     with pytest.raises(InputError, match="no output"):
         export_packing(apart, [])
     with pytest.raises(MeshError, match="does not exist"):
