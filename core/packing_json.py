@@ -188,8 +188,9 @@ class _Reader:
     def __init__(self, path: str) -> None:
         self.path = path
 
-    def fail(self, msg: str) -> InputError:
-        return InputError(f"packing file {self.path}: {msg}")
+    def fail(self, msg: str, fix: str = "it was damaged or edited by hand: restore it, or "
+                                         "pack again") -> InputError:
+        return InputError(f"packing file {self.path}: {msg}" + (f"; {fix}." if fix else ""))
 
     def get(self, obj: Any, key: str, where: str) -> Any:
         if not isinstance(obj, dict):
@@ -295,18 +296,19 @@ def load_packing(path: str | os.PathLike) -> Packing:
     except OSError as exc:
         raise InputError(f"cannot read packing file {src}: {exc.strerror or exc}") from exc
     except (json.JSONDecodeError, UnicodeDecodeError) as exc:
-        raise r.fail(f"not valid JSON ({exc}); was it truncated or edited?") from exc
+        raise r.fail(f"not valid JSON ({exc}); was it truncated or edited?", "") from exc
     except RecursionError:
         raise r.fail("nested too deeply to be a packing (JSON lists or objects inside each "
-                     "other hundreds of levels deep); was it edited?") from None
+                     "other hundreds of levels deep); was it edited?", "") from None
     if not isinstance(doc, dict) or doc.get("format") != FORMAT:
         found = doc.get("format") if isinstance(doc, dict) else None
-        raise r.fail(f"not a jampacked packing (format is {found!r}, expected {FORMAT!r})")
+        raise r.fail(f"not a jampacked packing (format is {found!r}, expected {FORMAT!r})",
+                     "give a file that `jampacked pack` wrote")
     version = r.integer(r.get(doc, "version", ""), "version")
     if version > VERSION:
         raise r.fail(
             f"written by a newer jampacked (version {version}); this one reads version "
-            f"{VERSION}: upgrade jampacked"
+            f"{VERSION}: upgrade jampacked", ""
         )
     if version < 1:
         raise r.fail(f"invalid version {version}")

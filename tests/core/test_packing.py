@@ -343,7 +343,9 @@ def test_matrix_disagreeing_with_placement(saved):
 def test_type_index_out_of_range(saved):
     out, doc = saved
     doc["placements"][2]["type"] = 2
-    _bad(out, doc, r"placements\[2\]\.type is 2 but the file lists 2 types")
+    # what, where, and how to fix it
+    _bad(out, doc, r"placements\[2\]\.type is 2 but the file lists 2 types; it was damaged "
+                   "or edited by hand: restore it, or pack again.$")
     doc["placements"][2]["type"] = -1
     _bad(out, doc, "type is -1")
 
