@@ -173,8 +173,8 @@ class ValidationReport:
     def summary(self) -> str:
         """One line: ``PASS name: ...`` or ``FAIL name: ...``."""
         if self.passed:
-            n = len(self.bodies)
             cavities = sum(b.kind == "cavity" for b in self.bodies)
+            n = len(self.bodies) - cavities  # a cavity is the inside of a body, not one
             genus = sorted({b.genus for b in self.bodies if b.genus is not None})
             parts = [f"{n} bod{'y' if n == 1 else 'ies'}"]
             if cavities:

@@ -104,7 +104,7 @@ def test_hollow_solid_with_cavity_passes():
     assert [b.kind for b in r.bodies] == ["solid", "cavity"]
     assert r.bodies[1].inside == (0,)
     assert r.volume == pytest.approx(63.0)
-    assert "1 cavity" in r.summary()
+    assert "1 body, 1 cavity" in r.summary()  # "2 bodies, 1 cavity" before
 
 
 def test_stl_soup_is_merged_at_identical_positions_only():
