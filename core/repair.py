@@ -125,7 +125,7 @@ def certify_and_repair(solver: Solver, certifier: Certifier, clearance: float,
         idx = s.alive_indices()
         final = certify(idx)
         if final.certified:
-            if clearance > 0:  # the checks read gaps up to a search distance: measure on
+            if clearance > 0:  # the checks read gaps only up to their search distance
                 final.min_pair_gap, final.min_wall_gap = certifier.least_gaps(
                     s.typ[idx], placement_matrices(s.quat[idx], s.pos[idx], s.scale[idx]),
                     clearance, memo, idx)

@@ -32,7 +32,7 @@ from .connect import connect_scene, default_diameter
 from .cost import check_export_cost, estimate_export
 from .io import write_mesh
 from .mesh_write import Instances, write_format
-from .openings import drain_cover
+from .openings import drain_cover, solid_boxes
 from .options import ExportOptions, check_scale, rotate_axis, up_rotation
 from .parts import require_gap, separate_parts
 from .report import ExportReport
@@ -176,11 +176,13 @@ def _shell(scene: PlacedScene, options: ExportOptions, report: Progress):
         # a drain under an object opens into it: it may move beside the objects, by up to
         # the largest object's size
         up = rot[2]  # the print's up axis in the container frame
-        reach = max(float(np.linalg.norm(np.subtract(*np.reshape(s.bounding_box(), (2, 3)))))
-                    for s in scene.type_solids)
+        sizes = solid_boxes(scene.type_solids)
+        reach = float(np.linalg.norm(sizes[:, 1] - sizes[:, 0], axis=1).max())
+        boxes = solid_boxes(scene.solids)
 
         def covered(point: np.ndarray) -> bool:
-            return bool(drain_cover(scene.solids, rot.T @ point, up, float(options.drain)))
+            return bool(drain_cover(scene.solids, rot.T @ point, up, float(options.drain),
+                                    boxes))
     shell, shell_report = make_shell(scene.container_vertices @ rot.T, scene.container_faces,
                                      options.shell, opening=opening, drain=options.drain,
                                      resolution=options.resolution,
@@ -208,7 +210,8 @@ def _drain_warning(packing: Packing, scene: PlacedScene, options: ExportOptions,
     names = ", ".join(f"{packing.types[packing.type_index[i]].name} #{i}" for i in covered[:3])
     more = f" and {len(covered) - 3} more" if len(covered) > 3 else ""
     where = ", ".join(f"{c:.4g}" for c in at)
-    return [f"the drain hole at ({where}) is covered: {names}{more} sits within its radius "
+    sit = "sits" if len(covered) == 1 else "sit"
+    return [f"the drain hole at ({where}) is covered: {names}{more} {sit} within its radius "
             f"above it, so liquid or powder may not reach it. Open the shell with "
             f"--open-plane or --window{DRAIN_UP_ADVICE}."]
 

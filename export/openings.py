@@ -18,7 +18,8 @@ from jampacked.core.solids import solid_arrays
 
 from .options import Opening
 
-__all__ = ["cut_window", "drain_cover", "drill_drain", "opening_label", "plane_cut"]
+__all__ = ["cut_window", "drain_cover", "drill_drain", "opening_label", "plane_cut",
+           "solid_boxes"]
 
 #: segments of the cylinders cut for windows and drains
 CYLINDER_SEGMENTS = 48
@@ -218,21 +219,24 @@ def drill_drain(shell: m3.Manifold, inner: m3.Manifold, diameter: float,
     return shell - hole, (float(low[0]), float(low[1]), float(low[2]))
 
 
+def solid_boxes(solids: list[m3.Manifold]) -> np.ndarray:
+    """(N, 2, 3) each solid's bounding box: lo, hi."""
+    return np.array([np.reshape(s.bounding_box(), (2, 3)) for s in solids],
+                    np.float64).reshape(-1, 2, 3)
+
+
 def drain_cover(solids: list[m3.Manifold], at: np.ndarray, up: np.ndarray,
-                diameter: float) -> list[int]:
+                diameter: float, boxes: np.ndarray | None = None) -> list[int]:
     """The objects (indices into solids, placed) that sit on a drain's mouth: within the
     drain's radius of where it leaves the cavity (`at`) and up to a radius above it, along
     the unit `up`. Liquid and powder reach the hole only through the gap such an object
-    leaves. Container frame and units."""
+    leaves. boxes: the solids' `solid_boxes`, when known. Container frame and units."""
     radius = 0.5 * diameter
     mouth = _cylinder(np.asarray(at, np.float64), np.asarray(up, np.float64), radius, radius)
-    lo, hi = np.asarray(mouth.bounding_box(), np.float64).reshape(2, 3)
-    covered = []
-    for i, solid in enumerate(solids):
-        s_lo, s_hi = np.asarray(solid.bounding_box(), np.float64).reshape(2, 3)
-        if np.all(s_lo <= hi) and np.all(lo <= s_hi) and (solid ^ mouth).volume() > 0:
-            covered.append(i)
-    return covered
+    lo, hi = np.reshape(mouth.bounding_box(), (2, 3))
+    boxes = solid_boxes(solids) if boxes is None else boxes
+    near = np.flatnonzero(np.all(boxes[:, 0] <= hi, axis=1) & np.all(lo <= boxes[:, 1], axis=1))
+    return [int(i) for i in near if (solids[i] ^ mouth).volume() > 0]
 
 
 def opening_label(opening: Opening | None) -> str | None:
