@@ -339,7 +339,11 @@ def build_result(context: bpy.types.Context, request: PackRequest,
             mesh.name = f"Jampacked {rec.name}"
             to_local = rec.local_from_file @ matrix_np(source.matrix_world)
             mesh.transform(Matrix(to_local.tolist()))
-            if np.linalg.det(to_local[:3, :3]) < 0:
+            # outward as the engine packed it: a mirroring transform, or a mesh modelled
+            # inside out (the engine turns it with a warning), leaves it inward
+            tris = mesh_triangles(mesh, mesh.name)
+            a, b, c = (tris.vertices[tris.faces[:, k]] for k in range(3))
+            if np.einsum("ij,ij->", a, np.cross(b, c)) < 0:
                 mesh.flip_normals()
             colour = summary.type_colour(t)
             if not len(mesh.materials):

@@ -97,6 +97,10 @@ def _get(props: Mapping[str, Any], key: str, default: Any = None) -> Any:
 #: about the scene's objects and the panel's fields (longest first)
 _BLENDER_WORDS = (
     (" (CLI: --type FILE[=SHARE])", ""),
+    # the whole phrase first: a Clearance field takes its unit ("0.2 mm") in any scene
+    ("--clearance (e.g. --clearance 0.2 for 0.2 mm)", "a Clearance (e.g. 0.2 mm)"),
+    ("export with --mode union or --mode connect", "export in Union or Connect mode"),
+    ("; then export again.", "; then pack again."),
     ("--type-scale / type_scale", "the type objects' scale"),
     ("--container-size / container_size", "the container object's scale"),
     ("--type-scale", "the type objects' scale"),

@@ -109,6 +109,16 @@ def _transformed(scale, parent=False):
     return build
 
 
+def _inside_out(scale):
+    """An icosphere with its faces turned inwards (and a scale, which may mirror it back)."""
+    def build(bpy, name, rng):
+        obj = _ico(bpy, name)
+        obj.data.flip_normals()
+        obj.scale = scale
+        return obj
+    return build
+
+
 def _boolean_type(bpy, name, rng):
     obj = _ico(bpy, name)
     cutter = _ico(bpy, f"{name} cutter", radius=0.6, location=(0.8, 0.0, 30.0))
@@ -203,6 +213,9 @@ TYPE_KINDS = [
     Kind("boolean", _boolean_type, None),
     Kind("mirrored x", _transformed((-0.9, 0.9, 0.9)), None),
     Kind("mirrored xyz", _transformed((-0.8, -0.8, -0.8)), None),
+    # the engine turns it outward (with a warning); the result's mesh was left inward
+    Kind("inside out", _inside_out((1.0, 1.0, 1.0)), None),
+    Kind("inside out, mirrored", _inside_out((-0.9, 0.9, 0.9)), None),
     Kind("non-uniform rotated", _transformed((1.2, 0.6, 0.9)), None),
     Kind("parented", _transformed((1.0, 1.0, 1.0), parent=True), None),
     Kind("parented mirrored", _transformed((1.0, -1.0, 1.0), parent=True), None),

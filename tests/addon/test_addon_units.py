@@ -142,6 +142,16 @@ def test_engine_messages_in_blender_words():
         "type.")
     assert summary.in_blender_words("give a larger --time-budget, or none.") == \
         "Give a larger Time Budget, or none."
+    # messages written for the command line and for mesh files
+    from jampacked.core.errors import InputError
+    from jampacked.export.parts import require_gap
+
+    with pytest.raises(InputError) as err:
+        require_gap(0.0)
+    assert summary.in_blender_words(str(err.value)).endswith(
+        "Re-pack with a Clearance (e.g. 0.2 mm), or export in Union or Connect mode.")
+    assert summary.in_blender_words("Fix: fill the holes; then export again.") == \
+        "Fix: fill the holes; then pack again."
     assert summary.in_blender_words("Scale the objects down (--type-scale / type_scale, "
                                     "0.5)") == "Scale the objects down (the type objects' " \
         "scale, 0.5)"
