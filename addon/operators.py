@@ -237,10 +237,7 @@ class JobRunner:
 
     # ---------------------------------------------------------------- messages
     def _note(self, context: bpy.types.Context, level: str, message: str) -> None:
-        state = context.window_manager.jampacked_job
-        state.last_message = message
-        state.last_level = level
-        self.report({level}, message)
+        note(self, context, level, message)
 
     def _fail(self, context: bpy.types.Context, message: str) -> None:
         self._note(context, 'ERROR', summary.in_blender_words(message))
@@ -376,6 +373,15 @@ class JAMPACKED_OT_cancel(bpy.types.Operator):
         return {'FINISHED'}
 
 
+def note(op: bpy.types.Operator, context: bpy.types.Context, level: str, message: str
+         ) -> None:
+    """Report a message and keep it as the panel's last one."""
+    state = context.window_manager.jampacked_job
+    state.last_message = message
+    state.last_level = level
+    op.report({level}, message)
+
+
 class JAMPACKED_OT_make_real(bpy.types.Operator):
     """Turn instances of the packing into real objects sharing the type meshes (all, the
     points selected in Edit Mode, or one type)"""
@@ -409,7 +415,7 @@ class JAMPACKED_OT_make_real(bpy.types.Operator):
                 bpy.ops.object.mode_set(mode='OBJECT')  # the points' selection is saved
             made = bridge.make_real(coll, self.which, self.type_index)
         except _errors().JampackedError as exc:
-            self.report({'ERROR'}, str(exc)[:1].upper() + str(exc)[1:])
+            note(self, context, 'ERROR', str(exc)[:1].upper() + str(exc)[1:])
             return {'CANCELLED'}
         for obj in context.selected_objects:
             obj.select_set(False)
@@ -417,8 +423,8 @@ class JAMPACKED_OT_make_real(bpy.types.Operator):
             obj.select_set(True)
         context.view_layer.objects.active = made[-1]
         left = len(instances.points_object(coll).data.vertices)
-        self.report({'INFO'}, f"Made {len(made)} object(s) real in '{coll.name}'; {left} "
-                              "instance(s) left.")
+        note(self, context, 'INFO', f"Made {len(made)} object(s) real in '{coll.name}'; "
+                                    f"{left} instance(s) left.")
         return {'FINISHED'}
 
 

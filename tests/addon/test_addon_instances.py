@@ -208,6 +208,9 @@ def test_make_real_selected_points_and_one_type(bpy, addon, scene):
     select[[0, 3]] = True
     points.data.vertices.foreach_set("select", select)
     assert bpy.ops.jampacked.make_real(which='SELECTED') == {'FINISHED'}
+    # the panel shows it (it kept the Pack's message)
+    job = bpy.context.window_manager.jampacked_job
+    assert job.last_message.startswith("Made 2 object(s) real") and job.last_level == 'INFO'
     real = sorted(o.name for o in coll.objects if "jampacked_type" in o.keys())
     assert real == sorted(f"{packing.types[packing.type_index[i]].name} {i + 1}"
                           for i in (0, 3))
