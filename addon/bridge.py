@@ -24,7 +24,7 @@ import numpy as np
 from mathutils import Matrix
 
 from . import instances, summary, units
-from .engine import PackOutcome, Triangles, check_extent
+from .engine import PackOutcome, Triangles, check_extent, is_inward
 
 
 def _input_error(message: str) -> Exception:
@@ -341,9 +341,7 @@ def build_result(context: bpy.types.Context, request: PackRequest,
             mesh.transform(Matrix(to_local.tolist()))
             # outward as the engine packed it: a mirroring transform, or a mesh modelled
             # inside out (the engine turns it with a warning), leaves it inward
-            tris = mesh_triangles(mesh, mesh.name)
-            a, b, c = (tris.vertices[tris.faces[:, k]] for k in range(3))
-            if np.einsum("ij,ij->", a, np.cross(b, c)) < 0:
+            if is_inward(mesh_triangles(mesh, mesh.name)):
                 mesh.flip_normals()
             colour = summary.type_colour(t)
             if not len(mesh.materials):

@@ -87,6 +87,14 @@ MIN_EXTENT = 1e-6
 MAX_EXTENT = 1e9
 
 
+def is_inward(tris: Triangles) -> bool:
+    """The triangles enclose a negative volume: wound inwards (inside out)."""
+    from jampacked.core.mesh_geometry import signed_six_volumes
+
+    return bool(len(tris.faces)) and float(signed_six_volumes(tris.vertices,
+                                                              tris.faces).sum()) < 0
+
+
 def check_extent(tris: Triangles, what: str) -> None:
     """Refuse a Pack input whose size (largest extent of its world-space vertices) lies
     outside MIN_EXTENT..MAX_EXTENT Blender units, naming it (InputError). Non-finite
