@@ -129,8 +129,10 @@ def warnings(props: Mapping[str, Any]) -> list[str]:
     return [str(w) for w in _get(props, "warnings", [])]
 
 
-def panel_lines(props: Mapping[str, Any]) -> list[tuple[str, str]]:
-    """(label, value) rows for the panel, read from a result collection's properties."""
+def panel_lines(props: Mapping[str, Any], mm_per_unit: float | None = None
+                ) -> list[tuple[str, str]]:
+    """(label, value) rows for the panel, read from a result collection's properties;
+    with `mm_per_unit` (`units.mm_per_unit`) the gaps in millimetres, as exported."""
     def pct(x: Any) -> str:
         v = _number(x)
         return "-" if v is None else f"{v:.1%}"
@@ -160,8 +162,10 @@ def panel_lines(props: Mapping[str, Any]) -> list[tuple[str, str]]:
     rows.append(("Worst overlap", num(_get(props, "worst_overlap"), ".2e")))
     rows.append(("Worst outside", num(_get(props, "worst_outside"), ".2e")))
     if _number(_get(props, "clearance")):
-        rows.append(("Min gap objects", num(_get(props, "min_pair_gap"), ".3g")))
-        rows.append(("Min gap wall", num(_get(props, "min_wall_gap"), ".3g")))
+        for label, key in (("Min gap objects", "min_pair_gap"), ("Min gap wall", "min_wall_gap")):
+            gap = _number(_get(props, key))
+            rows.append((label, "-" if gap is None else f"{gap:.3g}" if mm_per_unit is None
+                         else f"{gap * mm_per_unit:.3g} mm"))
     stopped = _get(props, "stopped")
     if stopped:
         rows.append(("Stopped", {"deadline": "time budget", "cancelled": "finished early"}

@@ -126,7 +126,9 @@ class JAMPACKED_PT_result(_Sidebar, bpy.types.Panel):
         layout = self.layout
         layout.label(text=coll.name, icon='OUTLINER_COLLECTION')
         col = layout.column(align=True)
-        for label, value in summary.panel_lines(coll):
+        unit = context.scene.unit_settings
+        for label, value in summary.panel_lines(coll, units.mm_per_unit(unit.system,
+                                                                         unit.scale_length)):
             row = col.row()
             row.label(text=label)
             row.label(text=value)

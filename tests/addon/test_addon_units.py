@@ -128,6 +128,12 @@ def test_collection_properties_and_panel_lines():
     assert rows["Density"] == "41.0%" and rows["Certified"] == "yes"
     assert rows["apple"].startswith("2  (66.7% / 50.0%)  NNI 1.20")
     assert rows["lemon"].endswith("NNI -")
+    # gaps in millimetres, as exported (a scene in metres: 1000 mm per unit); None: "-"
+    gaps = {summary.PREFIX + k: v for k, v in props.items()}
+    gaps.update({summary.PREFIX + "clearance": 0.0002, summary.PREFIX + "min_pair_gap": 0.00021})
+    rows = dict(summary.panel_lines(gaps, 1000.0))
+    assert rows["Min gap objects"] == "0.21 mm" and rows["Min gap wall"] == "-"
+    assert dict(summary.panel_lines(gaps))["Min gap objects"] == "0.00021"
     colours = {summary.type_colour(i) for i in range(8)}
     assert len(colours) == 8
 
