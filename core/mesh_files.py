@@ -8,7 +8,8 @@ fallback. OBJ faces with negative (relative) indices are resolved against the ve
 defined before them, as the OBJ format says.
 
 Also here: a file's sha256 and the ``box:WxDxH`` specification that stands for a file.
-Units and frame are the file's own.
+Units and frame are the file's own, except that a 3MF model's declared unit is converted to
+millimetres (the only format that declares one).
 """
 
 from __future__ import annotations
@@ -26,7 +27,7 @@ import numpy as np
 import trimesh
 
 from .errors import InputError, MeshError
-from .threemf import ThreeMFError, read_3mf
+from .threemf import UNIT_MM, ThreeMFError, read_3mf_model
 
 __all__ = [
     "extension",
@@ -253,8 +254,9 @@ def _obj_arrays(data: bytes, errors: list[str], reader: str) -> Arrays | None:
         return None
 
 
-def read_arrays(path: str, data: bytes, label: str) -> Arrays:
-    """Vertices and triangles of the file ``path`` whose bytes are ``data``, as stored.
+def read_arrays(path: str, data: bytes, label: str, notes: list[str] | None = None) -> Arrays:
+    """Vertices and triangles of the file ``path`` whose bytes are ``data``, as stored (a
+    3MF model in another unit than millimetres: converted to millimetres).
 
     Args:
         path: the file (its extension picks the reader; meshio and trimesh's scenes read it
@@ -262,6 +264,7 @@ def read_arrays(path: str, data: bytes, label: str) -> Arrays:
         data: its bytes (for OBJ and OBJ with negative indices resolved, see
             :func:`obj_absolute_indices`).
         label: what messages call it, capitalised (e.g. "Object mesh 'a.stl'").
+        notes: where given, a sentence for the user is appended when a unit was converted.
 
     Raises:
         MeshError: unknown type, or no reader can read it (damaged, or not really that type).
@@ -269,7 +272,11 @@ def read_arrays(path: str, data: bytes, label: str) -> Arrays:
     ext = extension(path)
     if ext == "3mf":
         try:
-            return read_3mf(data)
+            arrays, unit = read_3mf_model(data)
+            if unit != "millimeter" and notes is not None:
+                notes.append(f"{label} declares its unit as {unit}: read in millimetres "
+                             f"(x{UNIT_MM[unit]:g}), as slicers read it.")
+            return arrays
         except ThreeMFError as exc:
             raise MeshError(
                 f"{label} cannot be read as a 3MF file ({exc}): the file is damaged or not "

@@ -81,12 +81,14 @@ class MeshData:
     """A checked triangle mesh: closed, 2-manifold, outward wound, one body, volume > 0.
 
     Attributes:
-        vertices: (V, 3) float64, read-only; positions in the file's units and frame.
+        vertices: (V, 3) float64, read-only; positions in the file's units (a 3MF model's:
+            millimetres) and frame.
         faces: (F, 3) int64, read-only; vertex indices, counter-clockwise seen from outside.
         path: the file it came from, as given; None for generated meshes.
         sha256: sha256 hex digest of the file's bytes; None for generated meshes.
         volume: exact signed volume in file units cubed (> 0).
-        warnings: repairs made while loading, each a full sentence naming the file.
+        warnings: repairs made while loading (and a 3MF unit converted), each a full
+            sentence naming the file.
 
     Equality and hashing are by identity (arrays do not compare as booleans).
     """
@@ -173,9 +175,10 @@ def load_mesh(path: str | os.PathLike, *, role: str = "object") -> MeshData:
             and containers also get the thin-wall check.
 
     Returns:
-        A :class:`MeshData` in the file's units and frame, closed, 2-manifold, outward wound,
-        one body, volume > 0, accepted by manifold3d. Repairs made are listed in
-        ``warnings`` and logged (see the module docstring).
+        A :class:`MeshData` in the file's units (a 3MF model's: millimetres) and frame,
+        closed, 2-manifold, outward wound, one body, volume > 0, accepted by manifold3d.
+        Repairs made, and a 3MF unit converted, are listed in ``warnings`` and logged (see
+        the module docstring).
 
     Raises:
         InputError: ``role`` is not "object" or "container".
@@ -195,15 +198,19 @@ def load_mesh(path: str | os.PathLike, *, role: str = "object") -> MeshData:
             f"{_cap(label)} is an empty file: export the mesh again (the export may "
             "have been interrupted)."
         )
-    vertices, faces = read_arrays(path_str, data, _cap(label))
+    notes: list[str] = []
+    vertices, faces = read_arrays(path_str, data, _cap(label), notes)
     obj_data = obj_absolute_indices(data) if extension(path_str) == "obj" else None
-    return _checked(vertices, faces, label, role, obj_data, path_str, digest)
+    return _checked(vertices, faces, label, role, obj_data, path_str, digest, notes)
 
 
 def _checked(vertices: np.ndarray, faces: np.ndarray, label: str, role: str,
-             obj_data: bytes | None, path: str | None, digest: str | None) -> MeshData:
-    """Check and repair (logging each repair) and freeze the result as MeshData."""
+             obj_data: bytes | None, path: str | None, digest: str | None,
+             notes: list[str] | None = None) -> MeshData:
+    """Check and repair (logging each repair and each of the reader's `notes`) and freeze
+    the result as MeshData."""
     vertices, faces, volume, warns = check_and_repair(vertices, faces, label, role, obj_data)
+    warns = (*(notes or ()), *warns)
     for message in warns:
         logger.warning(message)
     return MeshData(

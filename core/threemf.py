@@ -3,8 +3,9 @@
 Reading (:func:`read_3mf`) parses the root model part with lxml (libxml2) and takes every
 object of every build item, component transforms applied, concatenated in build order; the
 vertex and triangle attributes are converted by numpy exactly as Python's ``float()`` and
-``int()`` convert them. Nothing is merged or repaired, and the declared unit is not applied
-(positions stay in the file's units). Writing (:func:`encode_3mf`) gives one object per body,
+``int()`` convert them, and scaled from the model's declared unit to millimetres, as slicers
+read them (:func:`read_3mf_model` also gives the unit). Nothing is merged or repaired.
+Writing (:func:`encode_3mf`) gives one object per body,
 named, one build item each, in millimetres, with repr-exact float64 coordinates (a written
 file reads back bit for bit); :func:`encode_3mf_components` stores each of a few meshes once
 and each body as a component: a mesh and its transform.
@@ -21,7 +22,8 @@ from xml.sax.saxutils import quoteattr
 import numpy as np
 from lxml import etree
 
-__all__ = ["ThreeMFError", "encode_3mf", "encode_3mf_components", "read_3mf", "transform_text"]
+__all__ = ["UNIT_MM", "ThreeMFError", "encode_3mf", "encode_3mf_components", "read_3mf",
+           "read_3mf_model", "transform_text"]
 
 CORE_NAMESPACE = "http://schemas.microsoft.com/3dmanufacturing/core/2015/02"
 _REL_TYPE = "http://schemas.microsoft.com/3dmanufacturing/2013/01/3dmodel"
@@ -40,6 +42,9 @@ RELATIONSHIPS = (
     f'<Relationship Target="/3D/3dmodel.model" Id="rel0" Type="{_REL_TYPE}"/>'
     "</Relationships>\n"
 )
+#: the core specification's model units, in millimetres (``unit`` absent: millimetres)
+UNIT_MM = {"micron": 1e-3, "millimeter": 1.0, "centimeter": 10.0, "inch": 25.4,
+           "foot": 304.8, "meter": 1000.0}
 #: components nested deeper than this are refused (a cycle of components never ends)
 MAX_COMPONENT_DEPTH = 32
 
@@ -116,18 +121,28 @@ def _numbers(element: etree._Element, path: str, names: tuple[str, str, str],
 
 
 def read_3mf(data: bytes) -> Body:
-    """All build items of a 3MF package (root model part only), transforms applied.
+    """All build items of a 3MF package in millimetres: :func:`read_3mf_model` without the
+    unit."""
+    return read_3mf_model(data)[0]
+
+
+def read_3mf_model(data: bytes) -> tuple[Body, str]:
+    """All build items of a 3MF package (root model part only), transforms applied, and the
+    unit the model declares.
 
     Args:
         data: the bytes of a .3mf file.
 
     Returns:
-        ``(vertices, faces)``: (V, 3) float64 in the file's units and frame, (F, 3) int64
-        indices into the concatenated vertices, objects in build order.
+        ``((vertices, faces), unit)``: (V, 3) float64 in millimetres (the declared unit
+        converted; bit for bit the file's numbers in a millimetre model) in the file's frame,
+        (F, 3) int64 indices into the concatenated vertices, objects in build order; and
+        the unit, one of :data:`UNIT_MM`.
 
     Raises:
-        ThreeMFError: a damaged zip, no model part, malformed XML, a missing or unreadable
-            attribute, a bad transform, or components that nest too deep.
+        ThreeMFError: a damaged zip, no model part, malformed XML, an unknown unit, a
+            missing or unreadable attribute, a bad transform, or components that nest too
+            deep.
     """
     xml = _model_xml(data)
     # no entity expansion and no network: a model part is data, never a fetch
@@ -136,6 +151,10 @@ def read_3mf(data: bytes) -> Body:
         root = etree.fromstring(xml, parser)
     except etree.XMLSyntaxError as exc:
         raise ThreeMFError(f"the model XML is malformed: {exc}") from exc
+    unit = root.get("unit", "millimeter")
+    if unit not in UNIT_MM:
+        raise ThreeMFError(f"the model's unit {unit!r} is not one of 3MF's units "
+                           f"({', '.join(UNIT_MM)})")
     namespace = etree.QName(root).namespace
     ns = {"m": namespace} if namespace else {}
     prefix = "m:" if namespace else ""
@@ -183,10 +202,13 @@ def read_3mf(data: bytes) -> Body:
     for item in root.iterfind(f"{tag('build')}/{tag('item')}"):
         emit(item.get("objectid"), _transform(item.get("transform")), 0)
     if not out_f:
-        return np.zeros((0, 3)), np.zeros((0, 3), np.int64)
-    if len(out_f) == 1:  # already new arrays
-        return out_v[0], out_f[0]
-    return np.concatenate(out_v), np.concatenate(out_f)
+        return (np.zeros((0, 3)), np.zeros((0, 3), np.int64)), unit
+    # one body: already new arrays
+    v, f = (out_v[0], out_f[0]) if len(out_f) == 1 else (np.concatenate(out_v),
+                                                          np.concatenate(out_f))
+    if UNIT_MM[unit] != 1.0:
+        v *= UNIT_MM[unit]
+    return (v, f), unit
 
 
 # --------------------------------------------------------------------------------------------

@@ -35,13 +35,19 @@ __all__ = [
 
 #: how many objects an error names before it counts the rest
 NAMED = 8
+#: a source mesh's volume in the packing's frame may differ from the recorded one by this
+#: (relative; rounding only)
+VOLUME_REL = 1e-6
 
 
 def load_sources(packing: Packing) -> tuple[MeshData, list[MeshData]]:
-    """The container and type meshes a packing names, checked against their sha256.
+    """The container and type meshes a packing names, checked against their sha256 and
+    against the volumes the packing recorded.
 
-    Raises InputError when a file is missing, changed, or a type has no file (a packing
-    made in Blender: pass its meshes to :func:`export_packing` instead).
+    Raises InputError when a file is missing, changed, reads at another size than when it
+    was packed (a 3MF in inches read by a version that took it as millimetres), or a type
+    has no file (a packing made in Blender: pass its meshes to :func:`export_packing`
+    instead).
     """
     problems = verify_sources(packing)
     if problems:
@@ -53,6 +59,19 @@ def load_sources(packing: Packing) -> tuple[MeshData, list[MeshData]]:
             raise InputError(f"type {t.name!r} has no mesh file in the packing (it was made "
                              "from in-memory meshes); export it from where it was made.")
         types.append(load_mesh(t.path, role="object"))
+    sizes = [("the container", container, packing.frame_from_file, packing.container_volume)]
+    sizes += [(f"type {t.name!r}", m, t.local_from_file, t.volume)
+              for t, m in zip(packing.types, types, strict=True)]
+    for label, mesh, matrix, recorded in sizes:
+        volume = mesh.volume * abs(float(np.linalg.det(matrix[:3, :3])))
+        if volume == 0 or not math.isfinite(volume):
+            continue  # a singular frame: refused later, by name (`PlacedScene`)
+        if not math.isclose(volume, recorded, rel_tol=VOLUME_REL):
+            raise InputError(
+                f"cannot export: the mesh file of {label} reads as {volume:.6g} units^3 in the "
+                f"packing's frame, but the packing recorded {recorded:.6g} (x"
+                f"{(volume / recorded) ** (1 / 3):.4g} in size): it was packed by a version "
+                "that read the file differently. Re-run the packing.")
     return container, types
 
 

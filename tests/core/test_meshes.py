@@ -444,3 +444,55 @@ def test_mesh_from_arrays_checks_and_repairs_like_load_mesh():
         mesh_from_arrays(sphere.vertices, sphere.faces + 10_000, name="Bad")
     with pytest.raises(InputError, match="triangles"):
         mesh_from_arrays(sphere.vertices, np.zeros((2, 4), int), name="Quads")
+
+
+# ------------------------------------------------------------------------------------------
+# 3MF units
+
+
+def write_3mf(path: Path, vertices, faces, unit: str | None) -> Path:
+    """A one-object 3MF package written by hand, declaring `unit` (None: no attribute)."""
+    import zipfile
+
+    from jampacked.core import threemf
+
+    declared = "" if unit is None else f' unit="{unit}"'
+    model = (f'<?xml version="1.0" encoding="UTF-8"?>\n<model{declared} '
+             f'xmlns="{threemf.CORE_NAMESPACE}"><resources><object id="1" type="model">'
+             "<mesh><vertices>"
+             + "".join(f'<vertex x="{x!r}" y="{y!r}" z="{z!r}"/>'
+                       for x, y, z in np.asarray(vertices, float).tolist())
+             + "</vertices><triangles>"
+             + "".join(f'<triangle v1="{a}" v2="{b}" v3="{c}"/>' for a, b, c in faces)
+             + '</triangles></mesh></object></resources><build><item objectid="1"/></build>'
+             "</model>\n")
+    with zipfile.ZipFile(path, "w") as archive:
+        archive.writestr("[Content_Types].xml", threemf.CONTENT_TYPES)
+        archive.writestr("_rels/.rels", threemf.RELATIONSHIPS)
+        archive.writestr("3D/3dmodel.model", model)
+    return path
+
+
+@pytest.mark.parametrize(("unit", "mm"), [(None, 1.0), ("millimeter", 1.0), ("micron", 1e-3),
+                                          ("centimeter", 10.0), ("inch", 25.4),
+                                          ("foot", 304.8), ("meter", 1000.0)])
+def test_3mf_declared_unit_is_read_in_millimetres(tmp_path, unit, mm):
+    """A 3MF model in inches is 25.4 times larger in millimetres, as slicers read it; the
+    conversion is said (the README's lengths are millimetres for printing)."""
+    v, f = unit_box()
+    mesh = load_mesh(write_3mf(tmp_path / "box.3mf", v, f, unit), role="container")
+    assert mesh.volume == pytest.approx(24.0 * mm ** 3, rel=1e-12)
+    assert np.ptp(mesh.vertices, axis=0) == pytest.approx(np.array([2.0, 3.0, 4.0]) * mm)
+    if mm == 1.0:
+        assert mesh.warnings == ()
+    else:
+        assert len(mesh.warnings) == 1
+        assert f"unit as {unit}" in mesh.warnings[0] and "millimetres" in mesh.warnings[0]
+        assert "box.3mf" in mesh.warnings[0]
+
+
+def test_3mf_unknown_unit_is_a_clear_error(tmp_path):
+    v, f = unit_box()
+    path = write_3mf(tmp_path / "box.3mf", v, f, "furlong")
+    with pytest.raises(MeshError, match=r"unit 'furlong' is not one of 3MF's units .*inch"):
+        load_mesh(path)

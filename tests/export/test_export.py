@@ -2,6 +2,7 @@
 
 from __future__ import annotations
 
+import io
 import itertools
 import json
 import os
@@ -341,6 +342,39 @@ def test_changed_source_mesh_is_refused(tmp_path):
     with pytest.raises(InputError, match="changed"):
         export_packing(src, tmp_path / "o.stl")
     assert not (tmp_path / "o.stl").exists()
+
+
+def test_source_read_at_another_size_is_refused(tmp_path):
+    """A packing of a 3MF in inches made when its unit was not applied records the file's
+    numbers as millimetres: the file now reads 25.4 times larger, and exporting it would
+    place objects at the wrong size. The recorded volume catches it."""
+    from jampacked.core.threemf import encode_3mf
+
+    m = load_mesh(P1)
+    data = encode_3mf([(np.asarray(m.vertices) / 25.4, np.asarray(m.faces))], ["poly"])
+    inch = tmp_path / "poly.3mf"
+    with zipfile.ZipFile(io.BytesIO(data)) as src, zipfile.ZipFile(inch, "w") as dst:
+        for name in src.namelist():
+            part = src.read(name)
+            dst.writestr(name, part.replace(b'unit="millimeter"', b'unit="inch"'))
+    read = load_mesh(inch)
+    assert read.volume == pytest.approx(m.volume)
+
+    def packing(volume: float) -> Path:
+        rec = TypeRecord(name="poly", path=str(inch), sha256=read.sha256, share=1.0,
+                         local_from_file=_shift(-read.centroid), volume=volume)
+        p = Packing(container_path="box:50x50x50", container_sha256=None,
+                    frame_from_file=np.eye(4), container_volume=125000.0, types=[rec],
+                    type_index=np.zeros(1, int), rotations=[[1.0, 0, 0, 0]],
+                    translations=[[0.0, 0, 0]], scales=[1.0])
+        save_packing(p, tmp_path / "p.json")
+        return tmp_path / "p.json"
+
+    with pytest.raises(InputError, match=r"reads as .*\(x25\.4 in size\).*Re-run the packing"):
+        export_packing(packing(m.volume / 25.4 ** 3), tmp_path / "o.stl")
+    assert not (tmp_path / "o.stl").exists()
+    report = export_packing(packing(read.volume), tmp_path / "o.stl")
+    assert report.passed
 
 
 def test_cancel_writes_nothing(apart, tmp_path):
