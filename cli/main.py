@@ -20,7 +20,7 @@ from collections.abc import Sequence
 
 from jampacked.cli.args import UsageError
 from jampacked.cli.exits import EXIT_ERROR, EXIT_INTERRUPTED, EXIT_USAGE, print_error
-from jampacked.cli.parser import build_parser
+from jampacked.cli.interrupt import CancelOnInterrupt
 from jampacked.core.errors import JampackedError
 
 
@@ -42,6 +42,17 @@ def _configure_logging(debug: bool) -> None:
 
 def main(argv: Sequence[str] | None = None) -> int:
     """Run the ``jampacked`` command line; returns the exit status (never exits itself)."""
+    # the engine's imports take a second or more: a Ctrl-C during them is only recorded, so
+    # that no library's bare `except:` swallows it half-way through an import (the run then
+    # went on as if never interrupted) and no traceback is printed
+    try:
+        with CancelOnInterrupt() as early:
+            from jampacked.cli.parser import build_parser
+    except KeyboardInterrupt:  # a second Ctrl-C
+        early.requested = True
+    if early.requested:
+        print("interrupted", file=sys.stderr)
+        return EXIT_INTERRUPTED
     parser = build_parser()
     try:
         args = parser.parse_args(argv)

@@ -50,8 +50,9 @@ examples:
       Four attempts on two local worker processes; the densest is kept (the same
       packing as --attempts 4 alone).
 
-Ctrl-C stops early: the best certified packing found so far is saved (exit status 130);
-press Ctrl-C twice to abort without saving. Exit status: 0 done, 1 the engine refused
+Ctrl-C stops early: the best certified packing found so far is saved (exit status 130;
+nothing is saved before the first object is placed); press Ctrl-C twice to abort without
+saving. Exit status: 0 done, 1 the engine refused
 (the message says why and how to fix it), 2 bad arguments.
 """
 
@@ -159,6 +160,13 @@ def cmd_pack(args: argparse.Namespace) -> int:
             options=None if args.mix_tolerance is None
             else PackOptions(cavity=CavityPassOptions(max_tvd=args.mix_tolerance)),
             attempts=args.attempts, client=client)
+    if packing.report.stopped == "cancelled" and packing.n == 0:
+        # an empty packing is no result: keep what the output files held
+        err.print(f"[yellow]interrupted[/] before any object was placed: nothing saved "
+                  f"({escape(args.output)}"
+                  + (f" and {escape(args.preview)}" if args.preview else "")
+                  + " left as they were)", highlight=False)
+        return EXIT_INTERRUPTED
     save_packing(packing, args.output)
     for w in packing.report.warnings:
         warn(err, w)

@@ -193,9 +193,16 @@ def test_ctrl_c_saves_best_certified_packing(tmp_path, monkeypatch, capsys):
 
     def interrupted_pack(*args, should_cancel, **kwargs):
         assert not should_cancel()
-        signal.raise_signal(signal.SIGINT)  # what Ctrl-C does
+        polls = iter(range(10**9))
+
+        def ctrl_c_once_objects_are_placed() -> bool:
+            if next(polls) == 300:
+                signal.raise_signal(signal.SIGINT)  # what Ctrl-C does
+            return should_cancel()
+
+        packing = real_pack(*args, should_cancel=ctrl_c_once_objects_are_placed, **kwargs)
         seen["cancel"] = should_cancel()
-        return real_pack(*args, should_cancel=should_cancel, **kwargs)
+        return packing
 
     monkeypatch.setattr(pack_cmd, "pack", interrupted_pack)
     out = tmp_path / "p.json"
@@ -204,8 +211,52 @@ def test_ctrl_c_saves_best_certified_packing(tmp_path, monkeypatch, capsys):
     assert rc == 130
     assert "interrupted" in capsys.readouterr().err
     p = load_packing(out)
+    assert p.n > 0
     assert p.report.stopped == "cancelled" and p.certificate["certified"] is True
     assert signal.getsignal(signal.SIGINT) is before  # restored
+
+
+def test_ctrl_c_before_any_object_keeps_the_output_files(tmp_path, monkeypatch, capsys):
+    """Interrupted before anything was placed: an empty packing is no result, so the files
+    from an earlier run stay as they were (they were replaced by a 0-object packing)."""
+    real_pack = pack_cmd.pack
+
+    def interrupted_at_once(*args, should_cancel, **kwargs):
+        signal.raise_signal(signal.SIGINT)
+        return real_pack(*args, should_cancel=should_cancel, **kwargs)
+
+    monkeypatch.setattr(pack_cmd, "pack", interrupted_at_once)
+    out, preview = tmp_path / "p.json", tmp_path / "p.png"
+    out.write_text('{"an earlier": "packing"}')
+    preview.write_bytes(b"an earlier preview")
+    rc = main(["pack", "box:30x30x30", "--type", str(P1), *SMALL, "-q", "-o", str(out),
+               "--preview", str(preview)])
+    assert rc == 130
+    assert "nothing saved" in " ".join(capsys.readouterr().err.split())
+    assert out.read_text() == '{"an earlier": "packing"}'
+    assert preview.read_bytes() == b"an earlier preview"
+
+
+def test_ctrl_c_while_the_engine_is_imported_stops_cleanly(tmp_path):
+    """A Ctrl-C in the first second (the imports) stops the command with status 130 and no
+    traceback; it was swallowed by an import (the run went on) or printed one."""
+    out = tmp_path / "p.json"
+    code = (
+        "import builtins, signal, sys\n"
+        "from jampacked.cli.main import main\n"
+        "real = builtins.__import__\n"
+        "def hooked(name, *a, **k):\n"
+        "    if name == 'jampacked.cli.parser':\n"
+        "        signal.raise_signal(signal.SIGINT)\n"
+        "    return real(name, *a, **k)\n"
+        "builtins.__import__ = hooked\n"
+        f"sys.exit(main(['pack', 'box:30x30x30', '--type', {str(P1)!r}, '--fidelity', 'low', "
+        f"'--time-budget', '2', '-q', '-o', {str(out)!r}]))\n")
+    proc = subprocess.run([sys.executable, "-c", code], capture_output=True, text=True,
+                          timeout=300)
+    assert proc.returncode == 130, proc.stderr
+    assert "Traceback" not in proc.stderr and "interrupted" in proc.stderr
+    assert not out.exists()
 
 
 # --------------------------------------------------------------------------- bad input
