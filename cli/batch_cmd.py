@@ -14,7 +14,7 @@ from jampacked.cli.args import add_command
 from jampacked.cli.cluster_args import add_cluster_arguments, cluster_client
 from jampacked.cli.exits import EXIT_INTERRUPTED
 from jampacked.cli.interrupt import CancelOnInterrupt
-from jampacked.cli.reports import consoles
+from jampacked.cli.reports import consoles, warn
 from jampacked.core.batch import SUMMARY, SceneResult, check_done, run_batch, scene_file
 from jampacked.core.batch_file import read_batch
 
@@ -42,9 +42,11 @@ examples:
   jampacked batch scenes.toml -o out/ --scheduler tcp://10.0.0.5:8786
 
 A rerun skips the scenes whose packing file is there and verified (it loads, its mesh files'
-sha256 still match, it is certified). Ctrl-C stops: finished scenes stay written (exit status
-130). Exit status: 0 every scene packed or skipped, 1 a scene failed or the batch file is
-bad (the message names the scene and key), 2 bad arguments.
+sha256 still match, it is certified, its placements are the ones certified and its numbers
+follow from them); any other file is packed again, saying why. Each scene's warnings are
+printed and go in the summary's message column. Ctrl-C stops: finished scenes stay written
+(exit status 130). Exit status: 0 every scene packed or skipped, 1 a scene failed or the
+batch file is bad (the message names the scene and key), 2 bad arguments.
 """
 
 
@@ -95,6 +97,11 @@ def cmd_batch(args: argparse.Namespace) -> int:
         if r.status == "failed":
             err.print(f"[red]failed:[/] {escape(r.spec.id)}: {escape(r.message)}",
                       highlight=False, soft_wrap=True)
+        if r.repacked:
+            err.print(f"note: {escape(r.spec.id)} packed again: the earlier file was not "
+                      f"trusted: {escape(r.repacked)}", highlight=False, soft_wrap=True)
+        for w in r.warnings():
+            warn(err, f"{r.spec.id}: {w}")
     if cancel.requested:
         return EXIT_INTERRUPTED
     return 1 if any(r.status == "failed" for r in results) else 0

@@ -2,8 +2,13 @@
 cluster's workers; each packing written from this process only, atomically, as
 ``<out>/<scene id>.json``, plus a summary (``summary.csv``).
 
-A scene whose file is already there and verified (it loads, names the scene's seed and
-mesh files, its sources' sha256 still match, it is certified) is skipped. On a cluster a
+A scene whose file is already there and verified is skipped: it loads, names the scene's
+seed, mesh files and settings, its sources' sha256 still match, it is certified, the digest
+its certificate records (`placements_digest`, written by this module when it saves a
+certified packing) still matches its placements, frames and volumes, and its numbers
+(count, per-type counts, density, TVD, NNI) are what its placements give. A file that fails
+any of these (edited by hand, written by `pack` or by an older jampacked without a digest)
+is packed again, and the result says why. On a cluster a
 worker runs `pack_scene` and returns the Packing; a worker that dies mid-scene has its
 scenes run again elsewhere by Dask's scheduler, and since only this process writes, by scene
 id, a scene is never lost nor written twice. Cancel (Ctrl-C) stops waiting: finished
@@ -13,7 +18,9 @@ scenes stay written, unfinished ones are not written.
 from __future__ import annotations
 
 import csv
+import hashlib
 import io
+import json
 import os
 import time
 import uuid
@@ -27,15 +34,21 @@ from .api import pack
 from .atomic import atomic_output
 from .batch_file import SceneSpec
 from .errors import InputError, JampackedError
+from .metrics import compute_metrics
 from .options import CavityPassOptions, PackOptions
-from .packing_json import load_packing, save_packing, verify_sources
-from .packing_types import Packing
+from .packing_json import load_packing, save_packing, to_jsonable, verify_sources
+from .packing_types import Packing, is_spec
 
 SUMMARY = "summary.csv"
 COLUMNS = ("id", "status", "seed", "container", "types", "count", "density", "tvd",
            "nni_mean", "certified", "seconds", "file", "message")
 #: seconds between looks at the cluster's futures and the cancel callback
 POLL = 0.1
+#: the certificate's key for `placements_digest`
+DIGEST = "placements_sha256"
+#: the numbers a skipped file's metrics must hold, recomputed from its placements
+CHECKED_METRICS = ("count", "count_per_type", "density", "tvd", "nni_per_type", "nni_mean",
+                   "shares")
 
 
 @dataclass
@@ -49,6 +62,20 @@ class SceneResult:
     packing: Packing | None = None
     message: str = ""
     seconds: float | None = None
+    #: why an earlier file of the scene was not trusted and the scene packed again
+    repacked: str = ""
+
+    def warnings(self) -> list[str]:
+        """The run's warnings on its packing (as `jampacked pack` prints them)."""
+        return [] if self.packing is None else list(self.packing.report.warnings)
+
+    def notes(self) -> list[str]:
+        """What the user should read about this scene, beyond its status and numbers: the
+        error, why it was packed again, its run's warnings."""
+        out = [self.message] if self.message else []
+        if self.repacked:
+            out.append(f"packed again: the earlier file was not trusted: {self.repacked}")
+        return out + [f"warning: {w}" for w in self.warnings()]
 
     def row(self) -> dict:
         p, s = self.packing, self.spec
@@ -59,7 +86,8 @@ class SceneResult:
                 "density": _fmt(m.get("density")), "tvd": _fmt(m.get("tvd")),
                 "nni_mean": _fmt(m.get("nni_mean")),
                 "certified": "" if p is None else p.certificate.get("certified"),
-                "seconds": _fmt(self.seconds), "file": self.file, "message": self.message}
+                "seconds": _fmt(self.seconds), "file": self.file,
+                "message": " | ".join(self.notes())}
 
 
 def _fmt(v) -> str:
@@ -83,7 +111,8 @@ def scene_file(out_dir: str | os.PathLike, spec: SceneSpec) -> Path:
 
 
 def check_done(spec: SceneSpec, path: Path) -> tuple[Packing | None, str]:
-    """The scene's packing file if it is done and verified, else None and why not."""
+    """The scene's packing file if it is done and verified, else None and why not (a
+    sentence for the user: what is wrong with the file)."""
     if not path.is_file():
         return None, "not packed yet"
     try:
@@ -102,7 +131,85 @@ def check_done(spec: SceneSpec, path: Path) -> tuple[Packing | None, str]:
         return None, problems[0]
     if p.certificate.get("certified") is not True:
         return None, "not certified"
+    recorded = p.certificate.get(DIGEST)
+    if not isinstance(recorded, str):
+        return None, ("its certificate records no digest of the certified placements (written "
+                      "by 'jampacked pack' or an older jampacked), so they cannot be verified")
+    if recorded != placements_digest(p):
+        return None, ("its placements, frames, volumes or certificate were changed after it "
+                      "was certified (the certificate's digest no longer matches)")
+    wrong = _wrong_metric(p)
+    if wrong:
+        return None, wrong
     return p, ""
+
+
+def placements_digest(p: Packing) -> str:
+    """sha256 (hex) over what a packing's certificate vouches for: the placements (type
+    index, rotation, translation, scale), the container's identity (sha256 or box spec),
+    frame and volume, each type's sha256, local frame and volume, and the certificate's
+    own values (without the digest). Floats hash as their exact binary64 value, which the
+    packing JSON keeps, so a saved and loaded packing has the digest it was saved with."""
+    h = hashlib.sha256(b"jampacked.placements.1\0")
+
+    def add(a, dtype: str) -> None:
+        a = np.ascontiguousarray(np.asarray(a, dtype=dtype))
+        h.update(repr(a.shape).encode() + a.tobytes())
+
+    container = p.container_sha256 if p.container_sha256 or not is_spec(p.container_path) \
+        else p.container_path
+    head = {"container": container, "types": [t.sha256 for t in p.types],
+            "certificate": {k: v for k, v in to_jsonable(p.certificate, "certificate").items()
+                            if k != DIGEST}}
+    h.update(json.dumps(head, sort_keys=True, allow_nan=False).encode() + b"\0")
+    add(p.frame_from_file, "<f8")
+    add([p.container_volume, *(t.volume for t in p.types)], "<f8")
+    add([t.local_from_file for t in p.types], "<f8")
+    add(p.type_index, "<i8")
+    add(p.rotations, "<f8")
+    add(p.translations, "<f8")
+    add(p.scales, "<f8")
+    return h.hexdigest()
+
+
+def _wrong_metric(p: Packing) -> str:
+    """The first of the packing's numbers that its placements do not give ("" if none):
+    counts, density (recorded type volumes over the container volume), TVD, NNI, shares."""
+    if len(p.types) == 0:
+        return "it lists no object types"
+    shares = np.array([t.share for t in p.types], float)
+    if not shares.sum() > 0:
+        return "its types' shares do not add up to a positive number"
+    should = compute_metrics(p.type_index, p.translations,
+                             np.array([t.volume for t in p.types], float), shares,
+                             p.container_volume)
+    for key in CHECKED_METRICS:
+        said, right = p.metrics.get(key), should[key]
+        if not _same_number(said, right):
+            return (f"its metrics.{key} reads {_short(said)} but its placements give "
+                    f"{_short(right)} (edited after it was made?)")
+    return ""
+
+
+def _same_number(a, b) -> bool:
+    """a (as read from a file) equals b (recomputed), to rounding; lists item by item."""
+    if isinstance(b, list):
+        return isinstance(a, list) and len(a) == len(b) and all(
+            _same_number(x, y) for x, y in zip(a, b, strict=True))
+    if b is None or a is None:
+        return a is None and b is None
+    if isinstance(a, bool) or not isinstance(a, int | float):
+        return False
+    return bool(np.isclose(float(a), float(b), rtol=1e-9, atol=1e-12))
+
+
+def _short(v) -> str:
+    if isinstance(v, float):
+        return f"{v:.6g}"
+    if isinstance(v, list):
+        return "[" + ", ".join(_short(x) for x in v) + "]"
+    text = repr(v)
+    return text if len(text) <= 60 else text[:57] + "..."
 
 
 def _changed_settings(spec: SceneSpec, p: Packing) -> str:
@@ -148,9 +255,12 @@ def run_batch(scenes: list[SceneSpec], out_dir: str | os.PathLike, client=None,
     cancel = should_cancel or (lambda: False)
     results: dict[str, SceneResult] = {}
     todo = []
+    why_not: dict[str, str] = {}
     for spec in scenes:
         path = scene_file(out, spec)
-        done, _why = check_done(spec, path)
+        done, why = check_done(spec, path)
+        if path.exists():
+            why_not[spec.id] = why
         if done is not None:
             results[spec.id] = SceneResult(spec, "skipped", str(path), done,
                                            seconds=done.timings.get("total"))
@@ -168,9 +278,12 @@ def run_batch(scenes: list[SceneSpec], out_dir: str | os.PathLike, client=None,
                                            message="stopped before the end; not written")
         else:
             path = scene_file(out, spec)
+            if packing.certificate.get("certified") is True:
+                packing.certificate[DIGEST] = placements_digest(packing)
             save_packing(packing, path)
             results[spec.id] = SceneResult(spec, "packed", str(path), packing,
-                                           seconds=packing.timings.get("total"))
+                                           seconds=packing.timings.get("total"),
+                                           repacked=why_not.get(spec.id, ""))
             export_scene(results[spec.id], out, cancel)
         report(len(results), total, f"{spec.id}: {results[spec.id].status}")
 

@@ -1,0 +1,121 @@
+"""`jampacked batch` reruns: a packing file is skipped only when its placements are the
+ones that were certified and its numbers follow from them; anything else is packed again,
+saying why. Also: each scene's run warnings reach the user (printed and in the CSV)."""
+
+from __future__ import annotations
+
+import contextlib
+import csv
+import io
+import json
+import shutil
+
+import pytest
+from testdata import mesh_path
+
+from jampacked.cli.main import main
+from jampacked.core.batch import DIGEST, check_done, run_batch, scene_file
+from jampacked.core.batch_file import SceneSpec
+
+P1 = str(mesh_path("polyhedra/convex5/polytope1.obj"))
+P3 = str(mesh_path("polyhedra/convex5/polytope3.obj"))
+SPEC = SceneSpec(id="x-s1", container="box:24x24x24", types=(P1, P3), seed=1,
+                 fidelity="low")
+
+
+@pytest.fixture(scope="module")
+def packed(tmp_path_factory):
+    out = tmp_path_factory.mktemp("packed")
+    [r] = run_batch([SPEC], out)
+    assert r.status == "packed" and r.packing.n >= 3
+    return scene_file(out, SPEC)
+
+
+@pytest.fixture
+def copy(packed, tmp_path):
+    path = scene_file(tmp_path, SPEC)
+    shutil.copy(packed, path)
+    return path
+
+
+def edit(path, change) -> None:
+    doc = json.loads(path.read_text())
+    change(doc)
+    for p in doc["placements"]:  # the redundant matrix follows its translation
+        for i in range(3):
+            p["matrix"][i][3] = p["translation"][i]
+    path.write_text(json.dumps(doc))
+
+
+def test_an_untouched_file_is_verified_and_records_a_digest(copy):
+    done, why = check_done(SPEC, copy)
+    assert done is not None and why == ""
+    assert isinstance(done.certificate[DIGEST], str)
+
+
+def _same_place(d):
+    d["placements"][1]["translation"] = list(d["placements"][0]["translation"])
+
+
+def _far_away(d):
+    d["placements"][0]["translation"][0] += 500.0
+
+
+def _density(d):
+    d["metrics"]["density"] = 0.99
+
+
+def _cut(d):
+    d["placements"] = d["placements"][:2]
+
+
+def _count_only(d):
+    d["metrics"]["count"] += 1
+
+
+def _no_digest(d):
+    del d["certificate"][DIGEST]
+
+
+def _turned_certified(d):
+    d["certificate"]["worst_overlap"] = 0.0
+
+
+@pytest.mark.parametrize("change, reason", [
+    (_same_place, "changed after it was certified"),
+    (_far_away, "changed after it was certified"),
+    (_cut, "changed after it was certified"),
+    (_turned_certified, "changed after it was certified"),
+    (_density, "metrics.density reads 0.99 but its placements give"),
+    (_count_only, "metrics.count reads"),
+    (_no_digest, "records no digest of the certified placements"),
+])
+def test_an_edited_file_is_not_trusted(copy, change, reason):
+    edit(copy, change)
+    done, why = check_done(SPEC, copy)
+    assert done is None and reason in why
+
+
+def test_a_rerun_packs_an_edited_file_again_and_says_why(copy):
+    edit(copy, _density)
+    [r] = run_batch([SPEC], copy.parent)
+    assert r.status == "packed" and "metrics.density reads 0.99" in r.repacked
+    assert check_done(SPEC, copy)[0] is not None
+    with open(copy.parent / "summary.csv", newline="") as f:
+        [row] = csv.DictReader(f)
+    assert "packed again" in row["message"] and "metrics.density" in row["message"]
+
+
+def test_each_scenes_warnings_are_printed_and_in_the_summary(packed, tmp_path):
+    # this scene ends with its mix off the tolerance: pack warns, so does batch
+    shutil.copy(packed, tmp_path / "x-s1.json")
+    path = tmp_path / "b.toml"
+    path.write_text(f'[[scene]]\nname = "x"\ncontainer = "box:24x24x24"\n'
+                    f'types = ["{P1}", "{P3}"]\nseed = 1\nfidelity = "low"\n')
+    err = io.StringIO()
+    with contextlib.redirect_stdout(io.StringIO()), contextlib.redirect_stderr(err):
+        assert main(["batch", str(path), "-o", str(tmp_path), "-q"]) == 0
+    assert "warning:" in err.getvalue() and "type mix is off" in err.getvalue()
+    with open(tmp_path / "summary.csv", newline="") as f:
+        [row] = csv.DictReader(f)
+    assert row["status"] == "skipped" and "type mix is off" in row["message"]
