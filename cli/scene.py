@@ -114,10 +114,18 @@ def shares_note(shares: Sequence[float] | None, labels: Sequence[str]) -> str | 
             f"{scaled}")
 
 
+#: file types `pack -o` refuses: it writes JSON, and these name meshes (`export` writes them)
+MESH_EXTENSIONS = ("stl", "obj", "ply", "off", "3mf", "glb", "gltf")
+
+
 def check_mesh_file(path: str, role: str) -> None:
     """Raise UsageError unless ``path`` is an existing file (``role``: container/object)."""
     if not os.path.exists(path):
         raise UsageError(f"{role} mesh file '{path}' does not exist; check the path")
+    if os.path.isdir(path):
+        raise UsageError(f"{role} mesh file '{path}' is a folder; give a mesh file"
+                         + (" (one --type per file: --type fruit/apple.obj --type "
+                            "fruit/pear.obj)" if role == "object" else ""))
     if not os.path.isfile(path):
         raise UsageError(f"{role} mesh file '{path}' is not a file")
 
@@ -191,8 +199,16 @@ def resolve_scene(args: argparse.Namespace, stack: contextlib.ExitStack) -> Scen
     shares = resolve_shares([s for _, s in parsed], paths)
     inputs = paths + ([container] if os.path.isfile(container) else [])
     check_output(args.output, "-o", inputs)
+    ext = Path(args.output).suffix.lower().lstrip(".")
+    if ext in MESH_EXTENSIONS:
+        raise UsageError(f"-o {args.output}: pack writes the packing, a JSON file, not a "
+                         f"mesh; give a .json name, then write the {ext.upper()} with "
+                         f"'jampacked export PACKING.json -o {Path(args.output).name}'")
     if args.preview:
         check_output(args.preview, "--preview", inputs)
+        if Path(args.preview).suffix.lower() != ".png":
+            raise UsageError(f"--preview {args.preview}: the preview is a PNG image; give "
+                             "it a .png name")
         if os.path.abspath(args.preview) == os.path.abspath(args.output):
             raise UsageError("--preview and -o name the same file; give the preview its own "
                              "name, e.g. preview.png")

@@ -259,6 +259,24 @@ def test_ctrl_c_while_the_engine_is_imported_stops_cleanly(tmp_path):
     assert not out.exists()
 
 
+def test_pack_refuses_a_mesh_or_odd_image_name_for_its_outputs(tmp_path, capsys):
+    """`pack -o p.stl` wrote JSON into a .stl file (which slicers then fail to read), and
+    --preview p.jpg a PNG under a JPEG name; a folder given as a type said only 'not a
+    file'."""
+    for argv, words in (
+            (["-o", str(tmp_path / "p.stl")], ["JSON", ".json", "jampacked export"]),
+            (["-o", str(tmp_path / "p.json"), "--preview", str(tmp_path / "p.jpg")],
+             ["PNG", ".png"])):
+        rc = main(["pack", "box:30x30x30", "--type", str(P1), *SMALL, "-q", *argv])
+        err = " ".join(capsys.readouterr().err.split())
+        assert rc == 2 and all(w in err for w in words), err
+    rc = main(["pack", "box:30x30x30", "--type", str(P1.parent), *SMALL, "-q", "-o",
+               str(tmp_path / "p.json")])
+    err = " ".join(capsys.readouterr().err.split())
+    assert rc == 2 and "is a folder" in err and "one --type per file" in err
+    assert not list(tmp_path.iterdir())
+
+
 # --------------------------------------------------------------------------- bad input
 
 
