@@ -243,12 +243,29 @@ def _load_scene(container: MeshSource, types: Sequence[MeshSource],
                       cmesh.volume * s_c ** 3, meshes)
 
 
+def _type_names(scene: _Scene, names: Sequence[str] | None) -> list[str]:
+    """`names`, or each type's file name without its extension ("type<i>" without a file),
+    a name that repeats an earlier one followed by "-2", "-3"...: types from a/fruit.obj and
+    b/fruit.obj must be told apart in the summary, the packing file and the exports."""
+    if names is not None:
+        return list(names)
+    out: list[str] = []
+    for i, m in enumerate(scene.types):
+        stem = Path(m.path).stem if m.path else f"type{i}"
+        name, k = stem, 1
+        while name in out:
+            k += 1
+            name = f"{stem}-{k}"
+        out.append(name)
+    return out
+
+
 def _type_sizes(scene: _Scene, type_scale: float, names: Sequence[str] | None
                 ) -> list[TypeSize]:
     """The object types' names, files, extents and volumes after the type scale."""
+    named = _type_names(scene, names)
     with np.errstate(over="ignore", under="ignore"):
-        return [TypeSize(name=names[i] if names is not None else (
-                             Path(m.path).stem if m.path else f"type{i}"),
+        return [TypeSize(name=named[i],
                          path=m.path, extents=m.extents * type_scale,
                          volume=float(m.volume) * type_scale ** 3 if type_scale < 1e100
                          else math.inf)
@@ -288,9 +305,9 @@ class _Approximation:
     def build_types(self, scene: _Scene, q: np.ndarray, inputs: PackInputs,
                     names: Sequence[str] | None, use_cache: bool) -> None:
         """Approximate every object type; refuse a type no interior point can hold."""
+        named = _type_names(scene, names)
         for i, m in enumerate(scene.types):
-            name = names[i] if names is not None else (
-                Path(m.path).stem if m.path else f"type{i}")
+            name = named[i]
             self.types.append(build_type(
                 name, m.vertices, m.faces, path=m.path, sha256=m.sha256, share=float(q[i]),
                 type_scale=inputs.type_scale, fidelity=self.fidelity, use_cache=use_cache,

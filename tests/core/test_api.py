@@ -4,6 +4,7 @@ from __future__ import annotations
 
 import itertools
 import time
+from pathlib import Path
 
 import manifold3d as m3
 import numpy as np
@@ -457,3 +458,17 @@ def _bounding_radius(rec) -> float:
     v = trimesh.load(rec.path, force="mesh").vertices
     local = v @ np.asarray(rec.local_from_file)[:3, :3].T + np.asarray(rec.local_from_file)[:3, 3]
     return float(np.linalg.norm(local, axis=1).max())
+
+
+def test_types_from_files_of_one_name_are_told_apart(tmp_path):
+    """a/fruit.obj and b/fruit.obj were both named "fruit" in the summary, the packing file
+    and the exports' part names."""
+    paths = []
+    for folder in ("a", "b"):
+        (tmp_path / folder).mkdir()
+        paths.append(tmp_path / folder / "polytope.obj")
+        paths[-1].write_bytes(Path(POLY[0]).read_bytes())
+    paths.append(tmp_path / "b" / "polytope.ply")
+    trimesh.load(POLY[1]).export(paths[-1])
+    p = pack(BOX, [str(q) for q in paths], seed=1, fidelity="low", time_budget=0.0)
+    assert [t.name for t in p.types] == ["polytope", "polytope-2", "polytope-3"]
