@@ -37,7 +37,7 @@ units:
   --type-scale multiplies the object files' coordinates (1000 turns metres into mm).
 
 examples:
-  jampacked pack default -o out/packing.json --preview out/preview.png
+  jampacked pack default -o packing.json --preview preview.png
       Spot the cow (150 mm) filled with five kinds of fruit.
   jampacked pack vase.stl --container-size 120 --type apple.obj=40% \\
       --type lemon.obj=30% --type plum.obj -o packing.json
@@ -113,7 +113,9 @@ def add_pack_parser(sub: argparse._SubParsersAction) -> None:
              f"{MIX_SLACK:g} of it (or of the placement's mix, if that is further off)")
     p.add_argument(
         "--seed", type=seed, default=0, metavar="N",
-        help="random seed; the same inputs and seed give the same packing (default: 0)")
+        help="random seed; the same inputs and seed give the same packing, unless the "
+             "--time-budget ends the run (where it ends depends on the machine's speed) "
+             "(default: 0)")
     p.add_argument(
         "--fidelity", choices=("auto", "low", "medium", "high"), default="auto",
         help="how closely the engine models object shapes while packing: low is fastest, "

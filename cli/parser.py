@@ -14,7 +14,7 @@ from jampacked.cli.validate_cmd import add_validate_parser
 
 MAIN_EPILOG = """\
 examples:
-  jampacked pack default -o out/packing.json --preview out/preview.png
+  jampacked pack default -o packing.json --preview preview.png
   jampacked pack vase.stl --container-size 120 --type apple.obj=40% \\
       --type lemon.obj=30% --type plum.obj -o packing.json
   jampacked pack box:40x40x45 --type cube.stl --type ball.stl --clearance 0.4 \\
