@@ -47,10 +47,12 @@ examples:
   jampacked export packing.json --mode parts -o parts.3mf
   jampacked export packing.json --mode union --resolution 0.1 -o fruit.stl
 
-Every file is validated as written (closed, 2-manifold, outward, no self-intersections)
-before it is put in place; nothing is written over an input. Exit status: 0 written and
-valid, 1 the export refused or failed (the message says why), 2 bad arguments, 130
-interrupted (nothing written).
+Every output path is checked before any work (format, folder, not an input or the packing
+file). Every file is validated as written (closed, 2-manifold, outward, no
+self-intersections); only when all of them pass are they put in place, together, so a
+failure or Ctrl-C leaves every earlier file as it was. Exit status: 0 written and valid, 1
+the export refused or failed (the message says why), 2 bad arguments, 130 interrupted
+(nothing written, unless the message says the export was complete).
 """
 
 
@@ -165,6 +167,18 @@ def cmd_export(args: argparse.Namespace) -> int:
         except Cancelled as exc:
             print_error(exc)
             return EXIT_INTERRUPTED
+        except KeyboardInterrupt as exc:
+            # a second Ctrl-C held back while the files were put in place: they all were
+            replaced = getattr(exc, "replaced", None)
+            if not replaced:
+                raise
+            print_error(f"interrupted once the export was complete: "
+                        f"{', '.join(replaced)} {'was' if len(replaced) == 1 else 'were'} "
+                        "written and validated.")
+            return EXIT_INTERRUPTED
+    if cancel.requested:
+        err.print("[yellow]warning:[/] Ctrl-C came after every file was validated: the "
+                  "export was completed and its files written.", highlight=False)
     if args.json:
         print(json.dumps(report.as_dict(), indent=1, allow_nan=False))
     elif not args.quiet:

@@ -3,12 +3,14 @@
 Frames: the packing's container frame, container units (mm for printing); see
 :mod:`jampacked.export.scene`. manifold3d does every boolean; results go straight from
 manifold3d arrays to the writer (no trimesh processing), and every file is validated as
-written before it is put in place (:func:`jampacked.export.io.write_mesh`). A 3MF of parts
-stores each type's mesh once and each part as a component: that mesh and its placement.
+written before it is put in place (:func:`jampacked.export.io.write_meshes`): the files of
+one export are put in place all together or not at all. A 3MF of parts stores each type's
+mesh once and each part as a component: that mesh and its placement.
 
-:func:`export_packing` runs the stages: read the packing and check the request, load the
-sources (checked against their hashes), place the solids, build the shell, then union,
-connect or separate the parts, clean the result, write and validate every file, report.
+:func:`export_packing` runs the stages: read the packing and check the request and every
+output path, load the sources (checked against their hashes), place the solids, build the
+shell, then union, connect or separate the parts, clean the result, write and validate every
+file, and only then put them all in place, report.
 """
 
 from __future__ import annotations
@@ -30,7 +32,7 @@ from jampacked.core.solids import solid_arrays
 
 from .connect import connect_scene, default_diameter
 from .cost import check_export_cost, estimate_export
-from .io import write_mesh
+from .io import MeshOutput, check_output_paths, write_meshes
 from .mesh_write import Instances, write_format
 from .openings import drain_cover, solid_boxes
 from .options import ExportOptions, check_scale, rotate_axis, up_rotation
@@ -59,6 +61,11 @@ def export_packing(packing: Packing | str | os.PathLike,
     and type meshes in their file frames, to use instead of the files the packing names
     (e.g. from Blender). Lengths in container units.
 
+    Every output path is checked before any work (format, not an input or the packing
+    file, folder there, none named twice); the files are written beside their targets,
+    validated, and renamed into place only when all of them passed, so a failure, a cancel
+    or an interrupt leaves every previous file as it was.
+
     Raises InputError (bad options, missing/changed sources, an output that is an input,
     placements that cannot be exported, parts of a packing without clearance, an export
     that needs more memory than the machine has: see :mod:`jampacked.export.cost`), MeshError (a
@@ -83,6 +90,12 @@ def export_packing(packing: Packing | str | os.PathLike,
     float32 = any(Path(p).suffix.lower() in (".stl", ".ply") for p in paths)
     protect = [p for p in ([source, packing.container_path]
                            + [t.path for t in packing.types]) if p and not is_spec(p)]
+    part_names = None
+    if options.split_files:
+        part_names = [f"{packing.types[k].name}_{i:03d}"
+                      for i, k in enumerate(packing.type_index)]
+    # every file this export writes, checked before any work
+    check_output_paths(_targets(paths, part_names), protect)
     if packing.n == 0 and options.shell is None:
         raise InputError("the packing has no objects and no shell was asked for: there is "
                          "nothing to export.")
@@ -158,6 +171,19 @@ def _output_paths(out_paths: str | os.PathLike | Sequence[str | os.PathLike]) ->
     for p in paths:
         write_format(p)
     return paths
+
+
+def _targets(paths: list[str], part_names: list[str] | None) -> list[str]:
+    """Every file the export writes: the paths, or with ``part_names`` (--split) one file
+    per part beside each path."""
+    if part_names is None:
+        return list(paths)
+    return [_part_path(p, name) for p in paths for name in part_names]
+
+
+def _part_path(path: str, name: str) -> str:
+    stem = Path(path)
+    return str(stem.with_name(f"{stem.stem}_{name}{stem.suffix}"))
 
 
 def _shell(scene: PlacedScene, options: ExportOptions, report: Progress):
@@ -268,22 +294,18 @@ def _struts(packing: Packing, scene: PlacedScene, shell: m3.Manifold | None,
 def _write(bodies: Bodies, names: list[str], paths: list[str], split_files: bool,
            protect: list[str], out: ExportReport, check_cancel: Callable[[], None],
            instances: Instances | None = None) -> list[str]:
-    """Write and validate every file (one per part with ``split_files``); the paths written.
-    ``instances``: the same bodies as copies of the type meshes, for a 3MF of parts."""
-    written: list[str] = []
+    """Write and validate every file (one per part with ``split_files``), then put them all
+    in place (:func:`write_meshes`: all or none); the paths written. ``instances``: the same
+    bodies as copies of the type meshes, for a 3MF of parts."""
+    outputs: list[MeshOutput] = []
     for p in paths:
         if split_files:
-            stem = Path(p)
             for (bv, bf), name in zip(bodies, names, strict=True):
-                part = str(stem.with_name(f"{stem.stem}_{name}{stem.suffix}"))
-                out.validation.append(write_mesh(part, bv, bf, protect=protect))
-                written.append(part)
+                outputs.append(MeshOutput(_part_path(p, name), bv, bf))
         elif len(bodies) > 1:
             data = instances if instances is not None and p.lower().endswith(".3mf") else bodies
-            out.validation.append(write_mesh(p, data, names=names, protect=protect))
-            written.append(p)
+            outputs.append(MeshOutput(p, data, names=names))
         else:
-            out.validation.append(write_mesh(p, bodies[0][0], bodies[0][1], protect=protect))
-            written.append(p)
-        check_cancel()
-    return written
+            outputs.append(MeshOutput(p, bodies[0][0], bodies[0][1]))
+    out.validation += write_meshes(outputs, protect=protect, check_cancel=check_cancel)
+    return [os.fspath(o.path) for o in outputs]

@@ -1,24 +1,45 @@
-"""Write a mesh file and validate it as written, before it is put in place.
+"""Write mesh files and validate them as written, before any is put in place.
 
 Writing is :mod:`jampacked.export.mesh_write`; reading a file as stored is
 :func:`jampacked.core.mesh_files.read_mesh_arrays` (also importable from here); validating is
 :mod:`jampacked.export.validate`. Units and frame are the caller's (container units, mm for
 printing); 3MF files declare millimetres.
+
+Several files of one export are written all or none (:func:`write_meshes`): a file that fails,
+an interrupt or a cancel leaves every output as it was.
 """
 
 from __future__ import annotations
 
 import os
-from collections.abc import Iterable, Sequence
-from dataclasses import replace
+from collections.abc import Callable, Iterable, Sequence
+from dataclasses import dataclass, replace
 
-from jampacked.core.errors import MeshError
+from jampacked.core.errors import InputError, MeshError
 from jampacked.core.mesh_files import read_mesh_arrays
 
-from .mesh_write import WRITE_FORMATS, write_mesh_file
+from .mesh_write import (
+    WRITE_FORMATS,
+    check_output_path,
+    remove_temporaries,
+    replace_files,
+    stage_mesh_file,
+)
 from .validate import ValidationReport, validate_file
 
-__all__ = ["WRITE_FORMATS", "read_mesh_arrays", "write_mesh"]
+__all__ = ["WRITE_FORMATS", "MeshOutput", "read_mesh_arrays", "write_mesh", "write_meshes"]
+
+
+@dataclass(frozen=True)
+class MeshOutput:
+    """One file to write: ``path`` and what :func:`write_mesh` takes for it (``vertices``
+    and ``faces``, or ``vertices`` a list of bodies or an Instances with ``faces`` None;
+    ``names`` for 3MF objects)."""
+
+    path: str | os.PathLike
+    vertices: object
+    faces: object = None
+    names: Sequence[str] | None = None
 
 
 def write_mesh(
@@ -61,26 +82,87 @@ def write_mesh(
     validated and renamed over ``path``; on any failure the temporary file is removed and
     ``path`` is left as it was.
     """
-    path_str = os.fspath(path)
-    reports: list[ValidationReport] = []
-
-    def check(tmp: str) -> None:
-        try:
-            report = replace(validate_file(tmp), path=path_str)
-        except MeshError as exc:
-            raise MeshError(f"the mesh written to '{path_str}' cannot be read back, so it "
-                            f"was not saved ({exc}). Check that the folder has room and try "
-                            "again, or write another format (.stl, .3mf, .obj, .ply).") from exc
-        if require_valid and not report.passed:
-            raise MeshError(f"the mesh written to '{path_str}' is not watertight, so it "
-                            f"was not saved: {report.summary()}. Check the input meshes with "
-                            "`jampacked validate`; parts (--mode parts) of a packing without "
-                            "a clearance can touch along non-manifold edges: re-pack with "
-                            "--clearance, or export with --mode union or connect. A union or "
-                            "connect export that fails here is a defect: report it with the "
-                            "packing file.")
-        reports.append(report)
-
-    write_mesh_file(path_str, vertices, faces, names=names, protect=protect,
-                    check=check if validate else None)
+    reports = write_meshes([MeshOutput(path, vertices, faces, names)], protect=protect,
+                           validate=validate, require_valid=require_valid)
     return reports[0] if reports else None
+
+
+def write_meshes(
+    outputs: Sequence[MeshOutput],
+    *,
+    protect: Iterable[str | os.PathLike] = (),
+    validate: bool = True,
+    require_valid: bool = True,
+    check_cancel: Callable[[], None] | None = None,
+) -> list[ValidationReport]:
+    """Write several mesh files all or none; the reports of the files as written (in the
+    order given; empty when ``validate`` is False).
+
+    Every path is checked first (format, not an input in ``protect``, not named twice, its
+    folder exists); then each file is written to a temporary beside its target and (with
+    ``validate``) read back and validated; ``check_cancel`` (which raises to cancel, e.g.
+    Cancelled) is called after each. Only when every file passed are the temporaries
+    renamed over their targets, with Ctrl-C held back meanwhile. Anything raised before
+    that (a failed file, a cancel, a KeyboardInterrupt) removes the temporaries and leaves
+    every target as it was; a rename that fails half-way raises MeshError naming the files
+    already replaced (:func:`jampacked.export.mesh_write.replace_files`).
+
+    Raises InputError and MeshError as :func:`write_mesh`.
+    """
+    protect = [os.fspath(p) for p in protect]
+    paths = [os.fspath(o.path) for o in outputs]
+    if not paths:
+        raise InputError("no output file given: name at least one (-o out.3mf).")
+    check_output_paths(paths, protect)
+    staged: list[tuple[str, str]] = []
+    reports: list[ValidationReport] = []
+    try:
+        for out, path in zip(outputs, paths, strict=True):
+            tmp = stage_mesh_file(path, out.vertices, out.faces, names=out.names,
+                                  protect=protect)
+            staged.append((tmp, path))
+            if validate:
+                reports.append(_validated(tmp, path, out, require_valid, len(paths)))
+            if check_cancel is not None:
+                check_cancel()
+        replace_files(staged)
+    finally:
+        remove_temporaries(staged)
+    return reports
+
+
+def check_output_paths(paths: Sequence[str], protect: Iterable[str | os.PathLike] = ()
+                       ) -> None:
+    """Check every output path before anything is built or written: a format the writer
+    knows, not an input (``protect``), its folder there, not a folder, and no file named
+    twice. Raises InputError or MeshError (see
+    :func:`jampacked.export.mesh_write.check_output_path`)."""
+    protect = [os.fspath(p) for p in protect]
+    seen: dict[str, str] = {}
+    for p in paths:
+        check_output_path(p, protect)
+        key = os.path.normcase(os.path.realpath(p))
+        if key in seen:
+            raise InputError(f"'{p}' is named twice among the output files (also as "
+                             f"'{seen[key]}'); give each output once.")
+        seen[key] = p
+
+
+def _validated(tmp: str, path: str, out: MeshOutput, require_valid: bool,
+               count: int) -> ValidationReport:
+    """Validate the temporary ``tmp`` written for ``path``; its report, named ``path``."""
+    nothing = "it was not saved" if count == 1 else "no file was written"
+    try:
+        report = replace(validate_file(tmp), path=path)
+    except MeshError as exc:
+        raise MeshError(f"the mesh written to '{path}' cannot be read back, so {nothing} "
+                        f"({exc}). Check that the folder has room and try again, or write "
+                        "another format (.stl, .3mf, .obj, .ply).") from exc
+    if not require_valid or report.passed:
+        return report
+    raise MeshError(f"the mesh written to '{path}' is not watertight, so {nothing}: "
+                    f"{report.summary()}. Check the input meshes with `jampacked validate`; "
+                    "parts (--mode parts) of a packing without a clearance can touch along "
+                    "non-manifold edges: re-pack with --clearance, or export with --mode "
+                    "union or connect. A union or connect export that fails here is a "
+                    "defect: report it with the packing file.")

@@ -6,24 +6,31 @@ STL (binary), OBJ and PLY (binary) go through trimesh's exporters on
 names are given, one build item each, in millimetres. Units and frame are the caller's
 (container units, mm for printing). Validating what was written is
 :func:`jampacked.export.io.write_mesh`'s job.
+
+A file is first written to a temporary beside its target (:func:`stage_mesh_file`) and
+renamed over it later (:func:`replace_files`), so that several files of one export can be
+checked before any of them replaces what was there.
 """
 
 from __future__ import annotations
 
 import contextlib
 import os
-from collections.abc import Callable, Iterable, Sequence
+import signal
+import tempfile
+import threading
+from collections.abc import Callable, Iterable, Iterator, Sequence
 from dataclasses import dataclass
 
 import numpy as np
 import trimesh
 
-from jampacked.core.atomic import atomic_output
 from jampacked.core.errors import InputError, MeshError
 from jampacked.core.mesh_files import extension
 from jampacked.core.threemf import encode_3mf, encode_3mf_components
 
-__all__ = ["WRITE_FORMATS", "Instances", "encode_mesh", "write_mesh_file"]
+__all__ = ["WRITE_FORMATS", "Instances", "as_arrays", "check_output_path", "encode_mesh",
+           "remove_temporaries", "replace_files", "stage_mesh_file", "write_mesh_file"]
 
 #: file extensions write_mesh_file can write
 WRITE_FORMATS = ("stl", "obj", "ply", "3mf")
@@ -83,6 +90,13 @@ def _concatenate(bodies: Sequence[Body]) -> Body:
             np.concatenate([f + o for (_, f), o in zip(bodies, offsets, strict=True)]))
 
 
+def as_arrays(vertices: object, faces: object = None) -> Body:
+    """One ``(vertices (V, 3) float64, faces (F, 3))`` pair of what the writers take (one
+    mesh, a list of bodies, or :class:`Instances`): the bodies concatenated, as an STL, OBJ
+    or PLY holds them."""
+    return _concatenate(_as_bodies(vertices, faces))
+
+
 def encode_mesh(ext: str, bodies: Sequence[Body] | Instances,
                 names: Sequence[str] | None = None) -> bytes:
     """The bytes of a mesh file of format ``ext`` (one of ``WRITE_FORMATS``) holding
@@ -125,6 +139,160 @@ def write_format(path: str) -> str:
     return ext
 
 
+def check_output_path(path: str | os.PathLike,
+                      protect: Iterable[str | os.PathLike] = ()) -> str:
+    """Check that a mesh file can be written at ``path`` before anything is built for it;
+    returns its format (the extension, lower case).
+
+    Raises InputError (unknown format, or ``path`` is one of ``protect``: the inputs, compared
+    as resolved paths) or MeshError (its folder does not exist, or it is a folder).
+    """
+    path_str = os.fspath(path)
+    ext = write_format(path_str)
+    for p in protect:
+        if _same_file(path_str, os.fspath(p)):
+            raise InputError(f"refusing to write '{path_str}': it is an input file "
+                             f"('{os.fspath(p)}'); choose another output name.")
+    folder = os.path.dirname(os.path.abspath(path_str))
+    if not os.path.isdir(folder):
+        raise MeshError(f"cannot write '{path_str}': the folder '{folder}' does not exist; "
+                        "create it first.")
+    if os.path.isdir(path_str):
+        raise MeshError(f"cannot write '{path_str}': it is a folder; give a file name.")
+    return ext
+
+
+def stage_mesh_file(
+    path: str | os.PathLike,
+    vertices: object,
+    faces: object = None,
+    *,
+    names: Sequence[str] | None = None,
+    protect: Iterable[str | os.PathLike] = (),
+) -> str:
+    """Write the mesh for ``path`` to a temporary file beside it and return the
+    temporary's path; ``path`` itself is not touched (:func:`replace_files` puts it in
+    place). The temporary is hidden (``.NAME.XXXX.tmp.EXT``), ends in the real extension so
+    it reads back, is flushed to disk and has the permissions ``path`` has (0o644 for a new
+    file). Arguments and errors as :func:`write_mesh_file`; on an error no temporary is left.
+    """
+    path_str = os.fspath(path)
+    ext = check_output_path(path_str, protect)
+    # a 3MF of instances is written without moving every mesh
+    bodies: Sequence[Body] | Instances = (
+        vertices if isinstance(vertices, Instances) and ext == "3mf"
+        else _as_bodies(vertices, faces))
+    count = len(bodies.index) if isinstance(bodies, Instances) else len(bodies)
+    if names is not None and len(names) != count:
+        raise InputError(f"{len(names)} names for {count} bodies writing '{path_str}': "
+                         "give one name per body.")
+    data = encode_mesh(ext, bodies, names)
+    folder, name = os.path.split(os.path.abspath(path_str))
+    tmp = None
+    try:
+        fd, tmp = tempfile.mkstemp(prefix=f".{name}.", suffix=f".tmp.{ext}", dir=folder)
+        with os.fdopen(fd, "wb") as handle:
+            handle.write(data)
+            handle.flush()
+            os.fsync(handle.fileno())
+        try:
+            perm = os.stat(path_str).st_mode & 0o777
+        except FileNotFoundError:
+            perm = 0o644
+        os.chmod(tmp, perm)
+    except BaseException as exc:
+        if tmp is not None:
+            with contextlib.suppress(FileNotFoundError):
+                os.unlink(tmp)
+        if isinstance(exc, OSError):
+            raise MeshError(f"cannot write '{path_str}' ({exc.strerror or exc}): check the "
+                            "folder's permissions and free space.") from exc
+        raise
+    return tmp
+
+
+def remove_temporaries(staged: Iterable[tuple[str, str]]) -> None:
+    """Remove the temporary files of ``(temporary, target)`` pairs that are still there."""
+    for tmp, _ in staged:
+        with contextlib.suppress(FileNotFoundError):
+            os.unlink(tmp)
+
+
+@contextlib.contextmanager
+def _interrupts_deferred() -> Iterator[None]:
+    """Hold Ctrl-C (SIGINT) back until the block ends, so that it cannot stop a set of
+    renames half-way: in the main thread its handler only records it meanwhile, and once
+    the block has completed it is raised again for the handler that was there (a
+    KeyboardInterrupt, if that handler raises one, comes out of this block's end). When the
+    block fails, the error already says what is on disk and the Ctrl-C is dropped."""
+    previous = None
+    if threading.current_thread() is threading.main_thread():
+        previous = signal.getsignal(signal.SIGINT)
+    if previous is None:  # not the main thread, or a handler not installed from Python
+        yield
+        return
+    held: list[int] = []
+    signal.signal(signal.SIGINT, lambda signum, frame: held.append(signum))
+    try:
+        yield
+    except BaseException:
+        signal.signal(signal.SIGINT, previous)
+        raise
+    signal.signal(signal.SIGINT, previous)
+    if held:
+        signal.raise_signal(signal.SIGINT)
+
+
+def replace_files(staged: Sequence[tuple[str, str]]) -> None:
+    """Rename each ``(temporary, target)`` temporary over its target, all of them or (where
+    the file system refuses one) as many as it allows, with Ctrl-C held back meanwhile.
+
+    Raises MeshError when a rename fails; the temporaries not renamed are removed, and the
+    message names every target already replaced and every one that kept its previous
+    contents (or was not created), so the user knows exactly what is on disk. A Ctrl-C
+    held back meanwhile surfaces afterwards as a KeyboardInterrupt whose ``replaced``
+    attribute lists the targets replaced (all of them), for a true message.
+    """
+    done: list[str] = []
+    try:
+        with _interrupts_deferred():
+            for k, (tmp, path) in enumerate(staged):
+                try:
+                    os.replace(tmp, path)
+                except OSError as exc:
+                    remove_temporaries(staged[k:])
+                    raise MeshError(_rename_failure(path, exc, done,
+                                                    [p for _, p in staged[k:]])) from exc
+                done.append(path)
+    except KeyboardInterrupt as exc:
+        exc.replaced = list(done)  # type: ignore[attr-defined]
+        raise
+
+
+def _rename_failure(path: str, exc: OSError, done: list[str], left: list[str]) -> str:
+    """The message for a rename onto ``path`` that failed after ``done`` were renamed;
+    ``left`` (``path`` first) were not touched."""
+    first = (f"cannot put '{path}' in place ({exc.strerror or exc}): check the folder's "
+             "permissions and free space.")
+    if not done:
+        return first + " No file was written; every output file is as it was."
+
+    def names(paths: list[str]) -> str:
+        return ", ".join(f"'{p}'" for p in paths)
+
+    kept = [p for p in left if os.path.lexists(p)]
+    absent = [p for p in left if p not in kept]
+    parts = [f"{names(done)} {'was' if len(done) == 1 else 'were'} replaced by the new "
+             "export"]
+    if kept:
+        parts.append(f"{names(kept)} kept {'its' if len(kept) == 1 else 'their'} previous "
+                     "contents")
+    if absent:
+        parts.append(f"{names(absent)} {'was' if len(absent) == 1 else 'were'} not written")
+    return (f"{first} Only part of the export is on disk: {'; '.join(parts)}. Export again "
+            "to make the files agree.")
+
+
 def write_mesh_file(
     path: str | os.PathLike,
     vertices: object,
@@ -157,30 +325,11 @@ def write_mesh_file(
         MeshError: the file cannot be written (missing folder, permissions, disk full).
     """
     path_str = os.fspath(path)
-    ext = write_format(path_str)
-    for p in protect:
-        if _same_file(path_str, os.fspath(p)):
-            raise InputError(f"refusing to write '{path_str}': it is an input file "
-                             f"('{os.fspath(p)}'); choose another output name.")
-    # a 3MF of instances is written without moving every mesh
-    bodies: Sequence[Body] | Instances = (
-        vertices if isinstance(vertices, Instances) and ext == "3mf"
-        else _as_bodies(vertices, faces))
-    count = len(bodies.index) if isinstance(bodies, Instances) else len(bodies)
-    if names is not None and len(names) != count:
-        raise InputError(f"{len(names)} names for {count} bodies writing '{path_str}': "
-                         "give one name per body.")
-    folder = os.path.dirname(os.path.abspath(path_str))
-    if not os.path.isdir(folder):
-        raise MeshError(f"cannot write '{path_str}': the folder '{folder}' does not exist; "
-                        "create it first.")
-    if os.path.isdir(path_str):
-        raise MeshError(f"cannot write '{path_str}': it is a folder; give a file name.")
-    data = encode_mesh(ext, bodies, names)
+    tmp = stage_mesh_file(path_str, vertices, faces, names=names, protect=protect)
+    staged = [(tmp, path_str)]
     try:
-        # a hidden name in the same folder, ending in the real extension so it reads back
-        with atomic_output(path_str, "wb", suffix=f".tmp.{ext}", check=check) as handle:
-            handle.write(data)
-    except OSError as exc:
-        raise MeshError(f"cannot write '{path_str}' ({exc.strerror or exc}): check the "
-                        "folder's permissions and free space.") from exc
+        if check is not None:
+            check(tmp)
+        replace_files(staged)
+    finally:
+        remove_temporaries(staged)

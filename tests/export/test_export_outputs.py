@@ -1,0 +1,261 @@
+"""Several output files of one export: all of them or none, every path checked before any
+work, and true messages when something stops the export half-way."""
+
+from __future__ import annotations
+
+import dataclasses
+import os
+import signal
+from pathlib import Path
+
+import numpy as np
+import pytest
+import trimesh
+from testdata import mesh_path
+
+from jampacked.core.errors import Cancelled, InputError, MeshError
+from jampacked.core.meshes import load_mesh
+from jampacked.core.packing import Packing, TypeRecord
+from jampacked.core.packing_json import save_packing
+from jampacked.core.report import PackInputs
+from jampacked.export import assemble
+from jampacked.export.assemble import export_packing
+from jampacked.export.options import ExportOptions
+from jampacked.export.validate import validate_file
+
+P1 = mesh_path("polyhedra/convex5/polytope1.obj")
+OLD = b"old"
+
+
+def _cubes(tmp: Path, offset: float = 0.0, gap: float = 2e-4) -> Path:
+    """Two 4-unit cubes ``gap`` apart in a 40-unit box container, everything moved by
+    ``offset`` on every axis: the container is a mesh file, so the scene's coordinates are
+    ``offset`` large. Returns the packing file."""
+    cube = tmp / "cube.obj"
+    trimesh.creation.box(extents=(4.0, 4.0, 4.0)).export(cube)
+    box = trimesh.creation.box(extents=(40.0, 40.0, 40.0))
+    box.apply_translation([offset] * 3)
+    container = tmp / "container.stl"
+    box.export(container)
+    m, c = load_mesh(cube), load_mesh(container)
+    rec = TypeRecord(name="cube", path=str(cube), sha256=m.sha256, share=1.0,
+                     local_from_file=np.eye(4), volume=m.volume)
+    pos = np.array([[offset - 2 - gap / 2, offset, offset],
+                    [offset + 2 + gap / 2, offset + 1, offset + 1]])
+    p = Packing(container_path=str(container), container_sha256=c.sha256,
+                frame_from_file=np.eye(4), container_volume=c.volume, types=[rec],
+                type_index=np.zeros(2, int), rotations=np.tile([1.0, 0, 0, 0], (2, 1)),
+                translations=pos, scales=np.ones(2), inputs=PackInputs(clearance=0.0))
+    out = tmp / "cubes.json"
+    save_packing(p, out)
+    return out
+
+
+def _old_outputs(tmp: Path, *names: str) -> list[Path]:
+    """Output files holding b"old", as a previous export would have left them."""
+    paths = [tmp / n for n in names]
+    for p in paths:
+        p.write_bytes(OLD)
+    return paths
+
+
+def _temporaries(tmp: Path) -> list[str]:
+    return [f for f in os.listdir(tmp) if ".tmp." in f]
+
+
+UNION = ExportOptions(mode="union")
+
+
+# --------------------------------------------------------------------------- interrupts
+
+
+def test_cancel_after_the_first_file_leaves_every_previous_file(tmp_path):
+    """Issue: Ctrl-C during ``-o a.3mf -o a.stl`` replaced a.3mf, kept the old a.stl and
+    said "no file was written". A cancel that comes once the first file is done now leaves
+    both previous files as they were, no temporaries, and the message is true."""
+    src = _cubes(tmp_path)
+    a3, astl = _old_outputs(tmp_path, "a.3mf", "a.stl")
+
+    def cancel() -> bool:  # true once anything of the first file is on disk
+        return a3.read_bytes() != OLD or any(".a.3mf." in f for f in os.listdir(tmp_path))
+
+    with pytest.raises(Cancelled, match="no file was written"):
+        export_packing(src, [a3, astl], UNION, should_cancel=cancel)
+    assert a3.read_bytes() == OLD and astl.read_bytes() == OLD
+    assert _temporaries(tmp_path) == []
+
+
+def test_a_second_interrupt_while_validating_leaves_no_file_and_no_temporary(tmp_path,
+                                                                            monkeypatch):
+    """A second Ctrl-C (KeyboardInterrupt) while the second file is validated: the first
+    file is not in place either."""
+    src = _cubes(tmp_path)
+    a3, astl = _old_outputs(tmp_path, "a.3mf", "a.stl")
+    from jampacked.export import io
+
+    calls = []
+
+    def interrupted(path, **kw):
+        calls.append(path)
+        if len(calls) == 2:
+            raise KeyboardInterrupt
+        return validate_file(path, **kw)
+
+    monkeypatch.setattr(io, "validate_file", interrupted)
+    with pytest.raises(KeyboardInterrupt):
+        export_packing(src, [a3, astl], UNION)
+    assert a3.read_bytes() == OLD and astl.read_bytes() == OLD
+    assert _temporaries(tmp_path) == []
+
+
+# --------------------------------------------------------------------------- all or nothing
+
+
+def test_a_later_output_that_fails_validation_leaves_the_earlier_unwritten(tmp_path,
+                                                                          monkeypatch):
+    src = _cubes(tmp_path)
+    a3, astl = _old_outputs(tmp_path, "a.3mf", "a.stl")
+    from jampacked.export import io
+
+    def fails_stl(path, **kw):
+        report = validate_file(path, **kw)
+        if str(path).endswith(".stl"):
+            return dataclasses.replace(report, problems=("made to fail by the test",))
+        return report
+
+    monkeypatch.setattr(io, "validate_file", fails_stl)
+    with pytest.raises(MeshError, match="a.stl") as info:
+        export_packing(src, [a3, astl], UNION)
+    assert "no file was written" in str(info.value) and "32-bit" not in str(info.value)
+    assert a3.read_bytes() == OLD and astl.read_bytes() == OLD
+    assert _temporaries(tmp_path) == []
+
+
+def _no_build(monkeypatch) -> None:
+    """Fail the test if the export starts loading meshes."""
+    def boom(*a, **k):
+        raise AssertionError("the export started building before refusing an output")
+
+    monkeypatch.setattr(assemble, "load_sources", boom)
+
+
+@pytest.mark.parametrize("order", ["first", "last"])
+def test_an_output_over_an_input_mesh_is_refused_before_any_work(tmp_path, monkeypatch,
+                                                                 order):
+    src = _cubes(tmp_path)
+    cube = tmp_path / "cube.obj"
+    before = cube.read_bytes()
+    ok = tmp_path / "ok.3mf"
+    outs = [ok, cube] if order == "last" else [cube, ok]
+    _no_build(monkeypatch)
+    with pytest.raises(InputError, match=r"cube\.obj.*input file"):
+        export_packing(src, outs, UNION)
+    assert not ok.exists() and cube.read_bytes() == before
+
+
+def test_outputs_are_all_checked_before_any_work(tmp_path, monkeypatch):
+    src = _cubes(tmp_path)
+    ok = tmp_path / "ok.3mf"
+    _no_build(monkeypatch)
+    with pytest.raises(InputError, match="input file"):
+        export_packing(src, [ok, tmp_path / "container.stl"], UNION)
+    with pytest.raises(MeshError, match="does not exist"):
+        export_packing(src, [ok, tmp_path / "missing" / "x.stl"], UNION)
+    (tmp_path / "dir.stl").mkdir()
+    with pytest.raises(MeshError, match="is a folder"):
+        export_packing(src, [ok, tmp_path / "dir.stl"], UNION)
+    with pytest.raises(InputError, match="twice"):
+        export_packing(src, [ok, tmp_path / "." / "ok.3mf"], UNION)
+    assert not ok.exists()
+
+
+def test_the_packing_file_itself_is_never_an_output(tmp_path, monkeypatch):
+    src = _cubes(tmp_path)
+    renamed = tmp_path / "cubes.stl"  # a packing file named like a mesh
+    src.rename(renamed)
+    before = renamed.read_bytes()
+    _no_build(monkeypatch)
+    with pytest.raises(InputError, match="input file"):
+        export_packing(renamed, [tmp_path / "ok.3mf", renamed], UNION)
+    assert renamed.read_bytes() == before and not (tmp_path / "ok.3mf").exists()
+
+
+def test_a_rename_that_fails_midway_names_the_files_replaced(tmp_path, monkeypatch):
+    src = _cubes(tmp_path)
+    a3, astl = _old_outputs(tmp_path, "a.3mf", "a.stl")
+    real = os.replace
+    done = []
+
+    def second_fails(a, b):
+        if done:
+            raise OSError(28, "No space left on device")
+        done.append(b)
+        real(a, b)
+
+    monkeypatch.setattr(os, "replace", second_fails)
+    with pytest.raises(MeshError) as info:
+        export_packing(src, [a3, astl], UNION)
+    text = str(info.value)
+    assert "a.3mf" in text and "replaced" in text and "No space left" in text
+    assert "a.stl" in text and "previous" in text
+    assert a3.read_bytes() != OLD and astl.read_bytes() == OLD
+    assert _temporaries(tmp_path) == []
+
+
+def test_cli_multi_output_all_or_nothing(tmp_path, capsys):
+    from jampacked.cli.main import main
+
+    src = _cubes(tmp_path)
+    a3, astl = tmp_path / "a.3mf", tmp_path / "a.stl"
+    rc = main(["export", str(src), "--mode", "union", "-o", str(a3), "-o",
+               str(tmp_path / "cube.obj")])
+    err = capsys.readouterr().err
+    assert rc in (1, 2) and "cube.obj" in err and not a3.exists()
+    rc = main(["export", str(src), "--mode", "union", "-o", str(a3), "-o", str(astl), "-q"])
+    assert rc == 0 and validate_file(a3).passed and validate_file(astl).passed
+
+
+# --------------------------------------------------------------------------- Ctrl-C at the end
+
+
+def _ctrl_c_on_first_rename(monkeypatch) -> None:
+    """A Ctrl-C (SIGINT to this process) just as the first file is renamed into place."""
+    real = os.replace
+    sent = []
+
+    def replace(a, b):
+        if not sent:
+            sent.append(b)
+            os.kill(os.getpid(), signal.SIGINT)
+        real(a, b)
+
+    monkeypatch.setattr(os, "replace", replace)
+
+
+def test_ctrl_c_while_files_are_put_in_place_waits_until_all_are(tmp_path, monkeypatch):
+    """A KeyboardInterrupt between two renames would leave a mixed pair: it is held back
+    until every file is in place, then raised naming them."""
+    from jampacked.export.io import MeshOutput, write_meshes
+
+    a3, astl = _old_outputs(tmp_path, "a.3mf", "a.stl")
+    box = trimesh.creation.box()
+    _ctrl_c_on_first_rename(monkeypatch)
+    with pytest.raises(KeyboardInterrupt) as info:
+        write_meshes([MeshOutput(a3, box.vertices, box.faces),
+                      MeshOutput(astl, box.vertices, box.faces)])
+    assert info.value.replaced == [str(a3), str(astl)]
+    assert a3.read_bytes() != OLD and astl.read_bytes() != OLD
+    assert _temporaries(tmp_path) == []
+
+
+def test_cli_ctrl_c_after_validation_says_the_files_were_written(tmp_path, monkeypatch,
+                                                                 capsys):
+    from jampacked.cli.main import main
+
+    src = _cubes(tmp_path)
+    a3, astl = _old_outputs(tmp_path, "a.3mf", "a.stl")
+    _ctrl_c_on_first_rename(monkeypatch)
+    rc = main(["export", str(src), "--mode", "union", "-o", str(a3), "-o", str(astl), "-q"])
+    err = " ".join(capsys.readouterr().err.split())
+    assert rc == 0 and "export was completed and its files written" in err
+    assert validate_file(a3).passed and validate_file(astl).passed
