@@ -18,6 +18,7 @@ from pathlib import Path
 
 from jampacked.cli.args import UsageError
 from jampacked.core.errors import InputError
+from jampacked.core.mesh_files import MESH_EXTENSIONS
 from jampacked.core.meshes import parse_box_spec
 from jampacked.core.packing import is_spec
 
@@ -112,10 +113,6 @@ def shares_note(shares: Sequence[float] | None, labels: Sequence[str]) -> str | 
                        for lab, s in zip(labels, shares, strict=True))
     return (f"the shares add up to {total:.0%}, not 100%; they are taken as proportions: "
             f"{scaled}")
-
-
-#: file types `pack -o` refuses: it writes JSON, and these name meshes (`export` writes them)
-MESH_EXTENSIONS = ("stl", "obj", "ply", "off", "3mf", "glb", "gltf")
 
 
 def check_mesh_file(path: str, role: str) -> None:

@@ -30,6 +30,7 @@ from .errors import InputError, MeshError
 from .threemf import UNIT_MM, ThreeMFError, read_3mf_model
 
 __all__ = [
+    "MESH_EXTENSIONS",
     "extension",
     "file_sha256",
     "obj_malformed_polygons",
@@ -46,6 +47,10 @@ _OBJ_FACE_COMMENT = re.compile(rb"^[ \t]*f[ \t][^\n#]*#", re.MULTILINE)
 _OBJ_RELATIVE_INDEX = re.compile(rb"^[ \t]*[fl][ \t][^\n#]*(?<![\w.])-[0-9]", re.MULTILINE)
 
 Arrays = tuple[np.ndarray, np.ndarray]
+
+#: the mesh file types people pass around (a file named so is taken for a mesh in messages;
+#: any type trimesh or meshio reads is read)
+MESH_EXTENSIONS = ("stl", "obj", "ply", "off", "3mf", "glb", "gltf")
 
 
 # --------------------------------------------------------------------------------------------
@@ -291,8 +296,7 @@ def read_arrays(path: str, data: bytes, label: str, notes: list[str] | None = No
 
     meshio_formats = {e.lstrip(".") for e in meshio.extension_to_filetypes}
     if ext not in trimesh_formats and ext not in meshio_formats:
-        common = {"stl", "obj", "ply", "off", "glb", "gltf"} & trimesh_formats
-        shown = ", ".join(sorted(common | {"3mf"}))
+        shown = ", ".join(sorted(set(MESH_EXTENSIONS) & (trimesh_formats | {"3mf"})))
         raise MeshError(
             f"{label} has an unknown file type '.{ext}' (no reader for it): "
             f"export it as one of {shown} (or another format meshio reads)."

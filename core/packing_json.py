@@ -24,6 +24,7 @@ import numpy as np
 
 from .atomic import atomic_output
 from .errors import InputError
+from .mesh_files import MESH_EXTENSIONS, extension
 from .meshes import file_sha256
 from .options import FLAT_KEYS
 from .packing_types import Packing, TypeRecord, is_spec
@@ -296,6 +297,10 @@ def load_packing(path: str | os.PathLike) -> Packing:
     except OSError as exc:
         raise InputError(f"cannot read packing file {src}: {exc.strerror or exc}") from exc
     except (json.JSONDecodeError, UnicodeDecodeError) as exc:
+        if extension(src) in MESH_EXTENSIONS:
+            raise r.fail(f"not valid JSON ({exc}): this is a mesh file, not a packing (the "
+                         "JSON file `pack -o` writes); `jampacked validate` checks meshes",
+                         "") from exc
         raise r.fail(f"not valid JSON ({exc}); was it truncated or edited?", "") from exc
     except RecursionError:
         raise r.fail("nested too deeply to be a packing (JSON lists or objects inside each "

@@ -554,3 +554,23 @@ def test_outputs_that_are_inputs_are_refused_and_left_alone(packed, tmp_path):
     assert rc == 2 and "is the input mesh" in se and mesh.read_bytes() == before_mesh
     rc, _, se = run(["export", str(out), "-o", str(out)])
     assert rc == 2 and "is the packing file" in se and out.read_bytes() == before_packing
+
+
+def test_info_on_a_mesh_file_says_it_is_a_mesh(capsys):
+    """`info spot.obj` asked whether the file was truncated or edited."""
+    assert main(["info", str(P1)]) == 1
+    err = " ".join(capsys.readouterr().err.split())
+    assert "mesh file, not a packing" in err and "jampacked validate" in err
+    assert "truncated" not in err
+
+
+def test_output_into_a_closed_pipe_ends_quietly():
+    """`jampacked validate --json FILE | head` ended in a BrokenPipeError traceback."""
+    proc = subprocess.Popen(
+        [sys.executable, "-c", "import sys; from jampacked.cli.main import main; "
+         "sys.exit(main())", "validate", "--json", str(P1)],
+        stdout=subprocess.PIPE, stderr=subprocess.PIPE)
+    proc.stdout.close()  # the reader is gone before anything is written
+    err = proc.stderr.read().decode()
+    proc.wait(timeout=300)
+    assert "Traceback" not in err and "BrokenPipe" not in err, err
