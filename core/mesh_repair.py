@@ -40,6 +40,9 @@ __all__ = [
 
 # Vertices closer than this fraction of the bounding-box diagonal are the same vertex.
 MERGE_TOLERANCE = 1e-9
+# Open-boundary vertices this close (fraction of the diagonal) to another are a crack
+# between unwelded faces, for the message's advice; nothing is merged at this distance.
+CRACK_TOLERANCE = 1e-5
 #: coordinates beyond this are refused: a volume (a length cubed) overflows past 1e102
 MAX_COORDINATE = 1e100
 # A face whose height is below MERGE_TOLERANCE * diagonal is degenerate (zero area).
@@ -362,15 +365,38 @@ def _drop_zero_area_pieces(vertices: np.ndarray, faces: np.ndarray
     return faces, topo, n_comp2, labels, int(np.sum(sliver_comp)), int(np.sum(drop))
 
 
-def _require_closed(topo: EdgeTopology, cap: str) -> None:
-    """Every edge used by exactly two faces, or a MeshError naming holes and fins."""
+def _unwelded_share(vertices: np.ndarray, topo: EdgeTopology, diagonal: float) -> float:
+    """The share of the open boundary's vertices with another one within CRACK_TOLERANCE *
+    diagonal: faces whose corners nearly meet but were never joined (a mesh written
+    without welding its vertices, or with rounded coordinates), not holes."""
+    rim = np.unique(topo.edge_vertices[topo.counts == 1])
+    if len(rim) < 2 or diagonal <= 0:
+        return 0.0
+    near, _ = cKDTree(vertices[rim]).query(vertices[rim], k=2)
+    return float(np.mean(near[:, 1] <= CRACK_TOLERANCE * diagonal))
+
+
+def _require_closed(vertices: np.ndarray, topo: EdgeTopology, diagonal: float,
+                    cap: str) -> None:
+    """Every edge used by exactly two faces, or a MeshError naming holes (or unwelded
+    vertices) and fins."""
     n_open = int(np.sum(topo.counts == 1))
     n_nonmanifold = int(np.sum(topo.counts > 2))
     if not (n_open or n_nonmanifold):
         return
     defects = []
     fixes = []
-    if n_open:
+    if n_open and _unwelded_share(vertices, topo, diagonal) >= 0.5:
+        defects.append(
+            f"its faces are not joined ({plural(n_open, 'open boundary edge')} whose "
+            f"corners lie within {CRACK_TOLERANCE * diagonal:.3g} units of another face's: "
+            "its vertices were never welded, or were rounded apart)"
+        )
+        fixes.append(
+            "merge the vertices by distance (Blender: Mesh > Clean Up > Merge by Distance; "
+            "MeshLab: Merge Close Vertices)"
+        )
+    elif n_open:
         holes = len(np.unique(open_edge_loops(topo)[1]))
         defects.append(
             f"it is not closed ({plural(n_open, 'open boundary edge')} "
@@ -547,7 +573,7 @@ def check_and_repair(
             f"{cap}: removed {plural(n_opposite, 'zero-volume sliver')} (pairs of coincident "
             f"faces facing opposite ways, {plural(2 * n_opposite, 'face')} in all)."
         )
-    _require_closed(topo, cap)
+    _require_closed(vertices, topo, diagonal, cap)
     faces = _orient_consistently(faces, topo, labels, n_comp, cap, warns)
     faces, labels, n_comp, comp_volume, bodies, dropped = _drop_zero_volume_bodies(
         vertices, faces, labels, n_comp, diagonal, cap)

@@ -496,3 +496,20 @@ def test_3mf_unknown_unit_is_a_clear_error(tmp_path):
     path = write_3mf(tmp_path / "box.3mf", v, f, "furlong")
     with pytest.raises(MeshError, match=r"unit 'furlong' is not one of 3MF's units .*inch"):
         load_mesh(path)
+
+
+def test_unwelded_faces_are_told_apart_from_holes(tmp_path):
+    """Faces whose corners were rounded apart (every triangle its own piece) were reported
+    as hundreds of holes, with 'fill the holes' as the fix; the fix is to merge vertices."""
+    import trimesh as tm
+
+    s = tm.creation.icosphere(subdivisions=2, radius=10.0)
+    corners = np.asarray(s.vertices)[np.asarray(s.faces)].reshape(-1, 3)
+    corners = corners + np.random.default_rng(3).normal(scale=1e-6, size=corners.shape)
+    path = write_obj(tmp_path / "cracked.obj", corners, np.arange(len(corners)).reshape(-1, 3))
+    with pytest.raises(MeshError) as info:
+        load_mesh(path)
+    text = " ".join(str(info.value).split())
+    assert "not joined" in text and "Merge by Distance" in text and "fill the holes" not in text
+    with pytest.raises(MeshError, match="fill the holes"):  # a real hole keeps its advice
+        load_mesh(write_obj(tmp_path / "holed.obj", s.vertices, np.asarray(s.faces)[1:]))
