@@ -32,7 +32,7 @@ from jampacked.core.solids import solid_arrays
 
 from .connect import connect_scene, default_diameter
 from .cost import check_export_cost, estimate_export
-from .io import MeshOutput, check_output_paths, write_meshes
+from .io import FLOAT32_FORMATS, MeshOutput, check_output_paths, float32_failure, write_meshes
 from .mesh_write import Instances, write_format
 from .openings import drain_cover, solid_boxes
 from .options import ExportOptions, check_scale, rotate_axis, up_rotation
@@ -40,6 +40,7 @@ from .parts import require_gap, separate_parts
 from .report import ExportReport
 from .scene import PlacedScene, load_sources, packing_clearance, place, smallest_object
 from .union import clean_bodies, union_arrays
+from .validate import validate_arrays
 
 __all__ = ["ExportReport", "export_packing"]
 
@@ -69,8 +70,9 @@ def export_packing(packing: Packing | str | os.PathLike,
     Raises InputError (bad options, missing/changed sources, an output that is an input,
     placements that cannot be exported, parts of a packing without clearance, an export
     that needs more memory than the machine has: see :mod:`jampacked.export.cost`), MeshError (a
-    file cannot be written, or the result does not validate: nothing is put in place then),
-    Cancelled (should_cancel() said so; nothing is written).
+    file cannot be written, or the result does not validate: nothing is put in place then;
+    an STL or PLY whose 32-bit floats cannot hold the result watertight is named so before
+    anything is written), Cancelled (should_cancel() said so; nothing is written).
     """
     t0 = time.perf_counter()
     options = options or ExportOptions()
@@ -87,7 +89,7 @@ def export_packing(packing: Packing | str | os.PathLike,
         packing = load_packing(source)
     paths = _output_paths(out_paths)
     # STL and PLY store float32 positions: the union is checked as they will store it
-    float32 = any(Path(p).suffix.lower() in (".stl", ".ply") for p in paths)
+    float32 = [p for p in paths if write_format(p) in FLOAT32_FORMATS]
     protect = [p for p in ([source, packing.container_path]
                            + [t.path for t in packing.types]) if p and not is_spec(p)]
     part_names = None
@@ -147,7 +149,7 @@ def export_packing(packing: Packing | str | os.PathLike,
         out.volume = float(sum(s.volume() for s in scene.solids))
     else:
         bodies, names = _one_body(packing, scene, shell, options, out, report, cancel,
-                                  check_cancel, float32)
+                                  check_cancel, float32, len(paths))
     out.timings["assemble"] = time.perf_counter() - t
     out.triangles = int(sum(len(b[1]) for b in bodies))
     check_cancel()
@@ -245,8 +247,9 @@ def _drain_warning(packing: Packing, scene: PlacedScene, options: ExportOptions,
 def _one_body(packing: Packing, scene: PlacedScene, shell: m3.Manifold | None,
               options: ExportOptions, out: ExportReport, report: Progress,
               cancel: Callable[[], bool], check_cancel: Callable[[], None],
-              float32: bool) -> tuple[Bodies, list[str]]:
-    """Union (with struts in connect mode) of the objects and the shell, cleaned."""
+              float32: list[str], count: int) -> tuple[Bodies, list[str]]:
+    """Union (with struts in connect mode) of the objects and the shell, cleaned.
+    ``float32``: the outputs that store 32-bit floats (STL, PLY), of ``count`` outputs."""
     for attempt in range(3 if options.mode == "connect" else 1):
         out.triangles_saved = scene.triangles_saved
         struts: list[m3.Manifold] = []
@@ -255,7 +258,7 @@ def _one_body(packing: Packing, scene: PlacedScene, shell: m3.Manifold | None,
             check_cancel()
         report(0.6, "union")
         v, f, left, saved = union_arrays(scene.solids + struts, shell, options.resolution,
-                                         float32=float32)
+                                         float32=bool(float32))
         out.triangles_saved += saved
         if left == 0:
             break
@@ -273,7 +276,21 @@ def _one_body(packing: Packing, scene: PlacedScene, shell: m3.Manifold | None,
                         "written. The struts could not tie every object in (struts that "
                         "would leave the container are refused). Try a larger --connector "
                         "diameter, or export with --mode union or --mode parts.")
+    if float32 and left > 0:
+        _check_float32(cleaned.vertices, cleaned.faces, float32, count)
     return [(cleaned.vertices, cleaned.faces)], ["jampacked"]
+
+
+def _check_float32(v: np.ndarray, f: np.ndarray, float32: list[str], count: int) -> None:
+    """Raise MeshError, before anything is written, when the result is watertight but not
+    once its positions are rounded to 32-bit floats as an STL or PLY stores them (far from
+    the origin, where the rounding step nears the size of the booleans' slivers). A result
+    that fails at full precision too is left to the validation of the files written."""
+    rounded = validate_arrays(v.astype(np.float32).astype(np.float64), f,
+                              check_manifold3d=False)
+    if rounded.passed or not validate_arrays(v, f, check_manifold3d=False).passed:
+        return
+    raise MeshError(float32_failure(float32[0], v, rounded.failures(), count))
 
 
 def _struts(packing: Packing, scene: PlacedScene, shell: m3.Manifold | None,

@@ -15,19 +15,26 @@ import os
 from collections.abc import Callable, Iterable, Sequence
 from dataclasses import dataclass, replace
 
+import numpy as np
+
 from jampacked.core.errors import InputError, MeshError
 from jampacked.core.mesh_files import read_mesh_arrays
 
 from .mesh_write import (
     WRITE_FORMATS,
+    as_arrays,
     check_output_path,
     remove_temporaries,
     replace_files,
     stage_mesh_file,
 )
-from .validate import ValidationReport, validate_file
+from .validate import ValidationReport, validate_arrays, validate_file
 
-__all__ = ["WRITE_FORMATS", "MeshOutput", "read_mesh_arrays", "write_mesh", "write_meshes"]
+__all__ = ["FLOAT32_FORMATS", "WRITE_FORMATS", "MeshOutput", "float32_failure",
+           "read_mesh_arrays", "write_mesh", "write_meshes"]
+
+#: formats that store positions as 32-bit floats (3MF and OBJ keep full precision)
+FLOAT32_FORMATS = {"stl": "STL", "ply": "PLY"}
 
 
 @dataclass(frozen=True)
@@ -76,7 +83,9 @@ def write_mesh(
     Raises:
         InputError: unknown format, a protected input path, names that do not match the
             bodies, or bad arrays.
-        MeshError: the file cannot be written, or (``require_valid``) it fails validation.
+        MeshError: the file cannot be written, or (``require_valid``) it fails validation;
+            an STL or PLY that fails only because its 32-bit floats round the positions is
+            named as such, with the way out.
 
     The data goes to a temporary file in the same folder, which is flushed, synced,
     validated and renamed over ``path``; on any failure the temporary file is removed and
@@ -160,9 +169,38 @@ def _validated(tmp: str, path: str, out: MeshOutput, require_valid: bool,
                         "another format (.stl, .3mf, .obj, .ply).") from exc
     if not require_valid or report.passed:
         return report
+    ext = os.path.splitext(path)[1].lower().lstrip(".")
+    if ext in FLOAT32_FORMATS:
+        # the cause is the format's precision when the mesh rounded to float32 in memory
+        # fails too, and passes as given
+        v, f = as_arrays(out.vertices, out.faces)
+        rounded = validate_arrays(v.astype(np.float32).astype(np.float64), f,
+                                  check_manifold3d=False)
+        if not rounded.passed and validate_arrays(v, f, check_manifold3d=False).passed:
+            raise MeshError(float32_failure(path, v, rounded.failures(), count))
     raise MeshError(f"the mesh written to '{path}' is not watertight, so {nothing}: "
                     f"{report.summary()}. Check the input meshes with `jampacked validate`; "
                     "parts (--mode parts) of a packing without a clearance can touch along "
                     "non-manifold edges: re-pack with --clearance, or export with --mode "
                     "union or connect. A union or connect export that fails here is a "
                     "defect: report it with the packing file.")
+
+
+def float32_failure(path: str, vertices: np.ndarray, failures: Sequence[str],
+                    count: int = 1) -> str:
+    """The message for a mesh, watertight at full precision, that ``path``'s format (STL or
+    PLY: 32-bit floats) cannot store watertight: the format, the coordinates' magnitude and
+    rounding step, what the rounding breaks (``failures``), and the way out. ``count``: how
+    many files the export writes (none of them is)."""
+    ext = os.path.splitext(path)[1].lower().lstrip(".")
+    fmt = FLOAT32_FORMATS.get(ext, ext.upper())
+    largest = float(np.abs(vertices).max()) if len(vertices) else 0.0
+    step = float(np.spacing(np.float32(largest)))
+    broken = "; ".join(failures[:2]) or "faces that cross"
+    nothing = "it was not saved" if count == 1 else "no file was written"
+    return (f"'{path}' cannot hold this mesh watertight, so {nothing}: {fmt} stores "
+            f"positions as 32-bit floats, and at coordinates up to {largest:.0e} units (mm) "
+            f"they round in steps of {step:.1g}, which makes surfaces that nearly touch "
+            f"meet or cross ({broken}); at full precision the mesh is watertight. Write 3MF "
+            "(.3mf keeps full precision), or move the container mesh near the origin and "
+            "pack again.")

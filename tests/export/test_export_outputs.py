@@ -20,6 +20,7 @@ from jampacked.core.packing_json import save_packing
 from jampacked.core.report import PackInputs
 from jampacked.export import assemble
 from jampacked.export.assemble import export_packing
+from jampacked.export.io import write_mesh
 from jampacked.export.options import ExportOptions
 from jampacked.export.validate import validate_file
 
@@ -213,6 +214,52 @@ def test_cli_multi_output_all_or_nothing(tmp_path, capsys):
     assert rc in (1, 2) and "cube.obj" in err and not a3.exists()
     rc = main(["export", str(src), "--mode", "union", "-o", str(a3), "-o", str(astl), "-q"])
     assert rc == 0 and validate_file(a3).passed and validate_file(astl).passed
+
+
+# --------------------------------------------------------------------------- float32 files
+
+
+def test_float32_rounding_far_from_the_origin_is_named_and_nothing_written(tmp_path,
+                                                                          monkeypatch):
+    """Issue: a scene 1e4 units from the origin exported to 3MF and STL left the 3MF
+    written and refused the STL as "not watertight ... a defect: report it". STL stores
+    32-bit floats: at 1e4 their step is about 1e-3, which closes the 2e-4 gap between the
+    cubes. The export now says so, before writing anything."""
+    from jampacked.export import io
+
+    src = _cubes(tmp_path, offset=1e4)
+    a3, astl = tmp_path / "far.3mf", tmp_path / "far.stl"
+    with monkeypatch.context() as m:
+        def no_write(*a, **k):
+            raise AssertionError("a file was written before the float32 check")
+
+        m.setattr(io, "stage_mesh_file", no_write)
+        with pytest.raises(MeshError) as info:
+            export_packing(src, [a3, astl], UNION)
+    text = str(info.value)
+    assert "far.stl" in text and "32-bit" in text and "1e+04" in text
+    assert "3MF" in text and "origin" in text and "report" not in text
+    assert not a3.exists() and not astl.exists() and _temporaries(tmp_path) == []
+    # the same scene as 3MF alone, and near the origin as STL, pass
+    assert export_packing(src, a3, UNION).passed
+    near = tmp_path / "near"
+    near.mkdir()
+    assert export_packing(_cubes(near), near / "near.stl", UNION).passed
+
+
+def test_write_mesh_names_float32_rounding_as_the_cause(tmp_path):
+    """The writer's own message, for any caller: a mesh that is watertight in float64 but
+    not once rounded to float32 (STL, PLY) is refused naming the format's precision."""
+    a = trimesh.creation.box(bounds=[[0, 0, 0], [1, 1, 1]])
+    b = trimesh.creation.box(bounds=[[1 + 2e-4, 0, 0], [2, 1, 1]])
+    bodies = [(np.asarray(m.vertices) + 1e4, np.asarray(m.faces)) for m in (a, b)]
+    assert write_mesh(tmp_path / "ok.3mf", bodies).passed
+    for ext, name in (("stl", "STL"), ("ply", "PLY")):
+        with pytest.raises(MeshError) as info:
+            write_mesh(tmp_path / f"x.{ext}", bodies)
+        text = str(info.value)
+        assert f"{name} stores" in text and "32-bit" in text and "1e+04" in text
+        assert "report" not in text and not (tmp_path / f"x.{ext}").exists()
 
 
 # --------------------------------------------------------------------------- Ctrl-C at the end
