@@ -477,11 +477,16 @@ def _require_one_body(vertices: np.ndarray, faces: np.ndarray, labels: np.ndarra
         if nested
         else ""
     )
-    if role == "container":
+    if role == "container" and nested:
         fix = (
-            "a container must be one closed surface: join the parts with a boolean union, "
-            "or delete the extra surfaces (keep only the surface that bounds the space to "
-            "fill)"
+            "a container must be one closed surface: delete the extra surfaces (keep only "
+            "the surface that bounds the space to fill)"
+        )
+    elif role == "container":
+        fix = (
+            "a container must be one closed space: pack each part on its own (export each "
+            "body as its own file), or make them one space (a boolean union where they "
+            "overlap; parts apart need a channel joining them)"
         )
     else:
         fix = (

@@ -292,12 +292,15 @@ def test_two_bodies_is_an_error(tmp_path):
         with pytest.raises(MeshError) as info:
             load_mesh(path, role=role)
         assert "two.obj" in str(info.value) and "2 separate bodies" in str(info.value)
+    # two rooms apart: a union alone would leave them two (the advice said to union them)
+    assert "pack each part on its own" in " ".join(str(info.value).split())
     # a hollow solid: an inner surface nested inside the outer one
     nested = np.vstack([v, 0.5 * v])
     faces = np.vstack([f, f[:, ::-1] + len(v)])
     with pytest.raises(MeshError) as info:
         load_mesh(write_obj(tmp_path / "hollow.obj", nested, faces), role="container")
     assert "2 separate bodies" in str(info.value) and "inside another" in str(info.value)
+    assert "delete the extra surfaces" in str(info.value)
 
 
 def test_non_orientable_is_an_error(tmp_path):
