@@ -5,12 +5,28 @@ from __future__ import annotations
 
 import argparse
 import math
+import re
 import textwrap
 from collections.abc import Callable
 
 
 class UsageError(Exception):
     """A bad command-line argument: reported on one line, exit status 2."""
+
+
+#: options whose values may start with '-' (a negative axis)
+SIGNED_AXIS_OPTIONS = ("--up", "--open-plane", "--window")
+
+
+class Parser(argparse.ArgumentParser):
+    """argparse's parser, whose "expected one argument" for an axis option says how to give
+    a negative axis (``--up -y`` reads -y as an option)."""
+
+    def error(self, message: str):
+        match = re.match(r"argument (\S+): expected one argument$", message)
+        if match and match.group(1) in SIGNED_AXIS_OPTIONS:
+            message += (f" (a negative axis is written with '=': {match.group(1)}=-y)")
+        super().error(message)
 
 
 #: help layout of every parser: the epilogs keep their own line breaks

@@ -5,7 +5,7 @@ from __future__ import annotations
 
 import argparse
 
-from jampacked.cli.args import FORMATTER, fill
+from jampacked.cli.args import FORMATTER, Parser, fill
 from jampacked.cli.batch_cmd import add_batch_parser
 from jampacked.cli.export_cmd import add_export_parser
 from jampacked.cli.info_cmd import add_info_parser
@@ -36,7 +36,7 @@ COMMANDS = (add_pack_parser, add_export_parser, add_info_parser, add_validate_pa
 
 def build_parser() -> argparse.ArgumentParser:
     """The argument parser of the ``jampacked`` command."""
-    parser = argparse.ArgumentParser(
+    parser = Parser(
         prog="jampacked",
         description=fill(
             "Pack 3D objects densely into a container mesh: mixed types at target shares, "

@@ -574,3 +574,11 @@ def test_output_into_a_closed_pipe_ends_quietly():
     err = proc.stderr.read().decode()
     proc.wait(timeout=300)
     assert "Traceback" not in err and "BrokenPipe" not in err, err
+
+
+def test_a_negative_axis_without_equals_says_how_to_write_it(capsys):
+    """`--up -y` reads -y as an option; argparse said only 'expected one argument'."""
+    assert main(["export", "p.json", "--up", "-y", "-o", "a.stl"]) == 2
+    assert "--up=-y" in capsys.readouterr().err
+    assert main(["pack", "box:9x9x9", "--type", str(P1), "-o"]) == 2
+    assert "negative axis" not in capsys.readouterr().err  # a value simply missing
