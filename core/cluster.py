@@ -200,7 +200,8 @@ CONNECT_TIMEOUT = "10s"
 def client_for(target=None, *, workers: int | None = None) -> Iterator:
     """A distributed.Client for what the user gave: a Client (used as is, left open), a
     scheduler address ("tcp://host:8786"; connected, closed after) or, with `workers`, a new
-    LocalCluster of that many single-threaded worker processes (closed after)."""
+    LocalCluster of that many single-threaded worker processes (closed after). An address
+    that is not of the form tcp://HOST:PORT, or that nothing answers at, is an InputError."""
     from distributed import Client, LocalCluster
 
     if target is not None and workers is not None:
@@ -212,6 +213,10 @@ def client_for(target=None, *, workers: int | None = None) -> Iterator:
     if isinstance(target, str):
         try:
             client = Client(target, timeout=CONNECT_TIMEOUT)
+        except ValueError as exc:  # distributed's parse of the address ("missing port ...")
+            raise InputError(f"the Dask scheduler address {target!r} is not of the form "
+                             f"tcp://HOST:PORT ({exc}); give the address 'dask scheduler' "
+                             "prints, e.g. tcp://10.0.0.5:8786.") from None
         except OSError as exc:
             raise InputError(f"cannot reach the Dask scheduler at {target}: {exc}. Start one "
                              "(dask scheduler) or check the address.") from None

@@ -157,6 +157,14 @@ def test_an_unreachable_scheduler_is_a_clear_error(folder, monkeypatch):
     assert not (folder / "out").exists()
 
 
+@pytest.mark.parametrize("address", ["127.0.0.1", "nonsense", "tcp://127.0.0.1:port"])
+def test_a_scheduler_address_without_a_port_is_a_clear_error(folder, address):
+    rc, _, err = run(["batch", str(write(folder, GOOD)), "-o", str(folder / "out"), "-q",
+                      "--scheduler", address])
+    assert rc == 1 and f"address {address!r} is not of the form tcp://HOST:PORT" in err
+    assert not (folder / "out").exists()
+
+
 def test_batch_exports_each_packing_and_a_rerun_makes_only_missing_files(folder):
     path = write(folder, """\
         [[scene]]
