@@ -196,6 +196,22 @@ def cluster_threads(client) -> int:
 CONNECT_TIMEOUT = "10s"
 
 
+def _check_address(target: str) -> None:
+    """Refuse a TCP or TLS scheduler address without a host and a port, before a Client is
+    made of it: distributed raises a bare ValueError then, and the Client it leaves half
+    made stops the next one in the same process from starting."""
+    from distributed.comm.addressing import get_address_host_port, parse_address
+
+    try:
+        scheme, _ = parse_address(target, strict=False)
+        if scheme in ("tcp", "tls"):
+            get_address_host_port(target, strict=False)
+    except ValueError as exc:
+        raise InputError(f"the Dask scheduler address {target!r} is not of the form "
+                         f"tcp://HOST:PORT ({exc}); give the address 'dask scheduler' "
+                         "prints, e.g. tcp://10.0.0.5:8786.") from None
+
+
 @contextlib.contextmanager
 def client_for(target=None, *, workers: int | None = None) -> Iterator:
     """A distributed.Client for what the user gave: a Client (used as is, left open), a
@@ -211,12 +227,9 @@ def client_for(target=None, *, workers: int | None = None) -> Iterator:
         yield target
         return
     if isinstance(target, str):
+        _check_address(target)
         try:
             client = Client(target, timeout=CONNECT_TIMEOUT)
-        except ValueError as exc:  # distributed's parse of the address ("missing port ...")
-            raise InputError(f"the Dask scheduler address {target!r} is not of the form "
-                             f"tcp://HOST:PORT ({exc}); give the address 'dask scheduler' "
-                             "prints, e.g. tcp://10.0.0.5:8786.") from None
         except OSError as exc:
             raise InputError(f"cannot reach the Dask scheduler at {target}: {exc}. Start one "
                              "(dask scheduler) or check the address.") from None
