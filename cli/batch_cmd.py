@@ -15,7 +15,14 @@ from jampacked.cli.cluster_args import add_cluster_arguments, cluster_client
 from jampacked.cli.exits import EXIT_INTERRUPTED
 from jampacked.cli.interrupt import CancelOnInterrupt
 from jampacked.cli.reports import consoles, warn
-from jampacked.core.batch import SUMMARY, SceneResult, check_done, run_batch, scene_file
+from jampacked.core.batch import (
+    SUMMARY,
+    SceneResult,
+    check_done,
+    check_output,
+    run_batch,
+    scene_file,
+)
 from jampacked.core.batch_file import read_batch
 
 BATCH_EPILOG = """\
@@ -73,6 +80,7 @@ def cmd_batch(args: argparse.Namespace) -> int:
     """Run ``jampacked batch``; returns the exit status."""
     out, err = consoles()
     scenes = read_batch(args.file)
+    check_output(scenes, args.output)  # before a cluster starts or a scene is packed
     with contextlib.ExitStack() as stack:
         # no cluster to start when every scene is already done and verified
         todo = any(check_done(s, scene_file(args.output, s))[0] is None for s in scenes)

@@ -22,6 +22,7 @@ import hashlib
 import io
 import json
 import os
+import tempfile
 import time
 import uuid
 from collections.abc import Callable
@@ -245,12 +246,14 @@ def run_batch(scenes: list[SceneSpec], out_dir: str | os.PathLike, client=None,
     distributed.Client (its workers run the scenes) or None (here, one after another).
     progress(done, total, message) after each scene; should_cancel() is polled."""
     out = Path(out_dir)
+    check_output(scenes, out)
     if not out.is_dir():
         try:
             out.mkdir(parents=True)
         except OSError as exc:
-            raise InputError(f"cannot create output folder {out}: {exc.strerror or exc}"
-                             ) from None
+            raise InputError(f"cannot create output folder {out}: {exc.strerror or exc}. "
+                             "Give another folder with -o.") from None
+        check_output(scenes, out)
     report = progress or (lambda d, t, m: None)
     cancel = should_cancel or (lambda: False)
     results: dict[str, SceneResult] = {}
@@ -280,7 +283,12 @@ def run_batch(scenes: list[SceneSpec], out_dir: str | os.PathLike, client=None,
             path = scene_file(out, spec)
             if packing.certificate.get("certified") is True:
                 packing.certificate[DIGEST] = placements_digest(packing)
-            save_packing(packing, path)
+            try:
+                save_packing(packing, path)
+            except OSError as exc:
+                raise InputError(f"cannot write {path}: {exc.strerror or exc}; finished "
+                                 "scenes stay written. Free the folder and run the batch "
+                                 "again.") from None
             results[spec.id] = SceneResult(spec, "packed", str(path), packing,
                                            seconds=packing.timings.get("total"),
                                            repacked=why_not.get(spec.id, ""))
@@ -305,6 +313,48 @@ def run_batch(scenes: list[SceneSpec], out_dir: str | os.PathLike, client=None,
         ordered = [results[s.id] for s in scenes]
         write_summary(ordered, out / SUMMARY)
     return ordered
+
+
+def output_paths(spec: SceneSpec, out: Path) -> list[Path]:
+    """The files a scene writes in `out`: its packing and its exports."""
+    return [scene_file(out, spec), *(out / f"{spec.id}.{fmt}" for fmt in spec.export)]
+
+
+def check_output(scenes: list[SceneSpec], out_dir: str | os.PathLike) -> None:
+    """Refuse, before anything is packed, an output folder the batch cannot write in: a
+    file where the folder should be, a folder (or its nearest existing parent, when it is
+    not there yet) that refuses new files (permissions, an immutable attribute, a
+    read-only disk), or a folder where a packing, an export or the summary is to go.
+    Raises InputError naming the path and how to fix it."""
+    out = Path(out_dir)
+    if out.exists() and not out.is_dir():
+        raise InputError(f"output folder {out} is a file, not a folder; give a folder with "
+                         "-o (it is created if missing).")
+    if not out.is_dir():
+        parent = next((p for p in out.absolute().parents if p.exists()), None)
+        if parent is not None and not parent.is_dir():
+            raise InputError(f"cannot create output folder {out}: {parent} is a file, not a "
+                             "folder. Give another folder with -o.")
+        if parent is not None and not os.access(parent, os.W_OK | os.X_OK):
+            raise InputError(f"cannot create output folder {out}: {parent} is not writable. "
+                             "Make it writable or give another folder with -o.")
+        return
+    try:
+        fd, probe = tempfile.mkstemp(prefix=".jampacked-write-test.", dir=out)
+    except OSError as exc:
+        raise InputError(
+            f"cannot write in output folder {out}: {exc.strerror or exc}. Make it writable "
+            f"(e.g. chmod u+w {out}; 'lsattr -d {out}' shows an immutable 'i' flag, which "
+            f"'chattr -i {out}' removes) or give another folder with -o.") from None
+    os.close(fd)
+    os.unlink(probe)
+    for spec in scenes:
+        for path in [*output_paths(spec, out), out / SUMMARY]:
+            if path.is_dir():
+                raise InputError(
+                    f"{path} is a folder, but the batch writes "
+                    f"{'its summary' if path.name == SUMMARY else f'scene {spec.id}'} "
+                    "there. Move or remove that folder, or give another folder with -o.")
 
 
 def export_scene(result: SceneResult, out: Path, cancel: Callable[[], bool],
@@ -363,5 +413,9 @@ def write_summary(results: list[SceneResult], path: str | os.PathLike) -> None:
     w.writeheader()
     for r in results:
         w.writerow(r.row())
-    with atomic_output(path, "w") as f:
-        f.write(buf.getvalue())
+    try:
+        with atomic_output(path, "w") as f:
+            f.write(buf.getvalue())
+    except OSError as exc:
+        raise InputError(f"cannot write the batch's summary {path}: {exc.strerror or exc}."
+                         ) from None

@@ -200,3 +200,58 @@ def test_a_rerun_with_nothing_to_do_starts_no_cluster(folder, monkeypatch):
     assert run(["batch", str(path), "-o", str(out), "-q", "--workers", "2"])[0] == 0
     with open(out / "summary.csv", newline="") as f:
         assert [r["status"] for r in csv.DictReader(f)] == ["skipped"]
+
+
+def _read_only(path):
+    """Make the folder refuse new files (chmod, or chattr +i where the tests run as root,
+    whom permissions do not stop); returns the undo, or None where neither works."""
+    import os
+    import subprocess
+
+    path.chmod(0o555)
+    if not os.access(path, os.W_OK):
+        return lambda: path.chmod(0o755)
+    path.chmod(0o755)
+    if shutil.which("chattr") and subprocess.run(["chattr", "+i", str(path)],
+                                                 capture_output=True).returncode == 0:
+        return lambda: subprocess.run(["chattr", "-i", str(path)], check=True)
+    return None
+
+
+def test_an_output_folder_that_refuses_files_is_refused_before_packing(folder, monkeypatch):
+    from jampacked.core import batch
+
+    def no_packing(*a, **k):
+        raise AssertionError("a scene was packed")
+
+    monkeypatch.setattr(batch, "pack_scene", no_packing)
+    out = folder / "out"
+    out.mkdir()
+    undo = _read_only(out)
+    if undo is None:
+        pytest.skip("no way to make a folder read-only here")
+    try:
+        rc, _, err = run(["batch", str(write(folder, GOOD)), "-o", str(out), "-q"])
+        rc_sub, _, err_sub = run(["batch", str(write(folder, GOOD)), "-o", str(out / "sub"),
+                                  "-q"])
+    finally:
+        undo()
+    assert rc == 1 and f"cannot write in output folder {out}" in err and "-o" in err
+    assert rc_sub == 1 and f"{out} is not writable" in err_sub
+    assert "Traceback" not in err + err_sub
+
+
+@pytest.mark.parametrize("name, what", [("small-c2-s1.json", "scene small-c2-s1"),
+                                        ("summary.csv", "its summary")])
+def test_a_folder_in_place_of_an_output_file_is_refused_before_packing(folder, monkeypatch,
+                                                                        name, what):
+    from jampacked.core import batch
+
+    def no_packing(*a, **k):
+        raise AssertionError("a scene was packed")
+
+    monkeypatch.setattr(batch, "pack_scene", no_packing)
+    (folder / "out" / name).mkdir(parents=True)
+    rc, _, err = run(["batch", str(write(folder, GOOD)), "-o", str(folder / "out"), "-q"])
+    assert rc == 1 and f"{folder / 'out' / name} is a folder" in err and what in err
+    assert sorted(p.name for p in (folder / "out").iterdir()) == [name]
