@@ -128,8 +128,10 @@ def _expand(scene: dict, defaults: dict, base: Path, where: str, k: int) -> list
             raise InputError(f"{where}: unknown key {key!r}; known: {', '.join(SCENE_KEYS)}.")
     merged = {**defaults, **scene}
     name = merged.get("name", f"scene{k + 1}")
-    if not isinstance(name, str) or not _ID_RE.sub("", name):
-        raise InputError(f"{where}: 'name' must be a non-empty string, got {name!r}.")
+    if not isinstance(name, str) or not _file_name(name):
+        raise InputError(f"{where}: 'name' must be a string with a letter or digit, got "
+                         f"{name!r}.")
+    name = _file_name(name)
     containers = _one_or_many(merged, "container", "containers", where, str)
     containers = [_mesh(c, base, f"{where}, container", container=True) for c in containers]
     sets = _type_sets(merged, where)
@@ -152,10 +154,17 @@ def _expand(scene: dict, defaults: dict, base: Path, where: str, k: int) -> list
             for seed in seeds:
                 parts = [name] + ([f"c{ci + 1}"] if len(containers) > 1 else []) + (
                     [f"t{ti + 1}"] if len(sets) > 1 else []) + [f"s{seed}"]
-                out.append(SceneSpec(id=_ID_RE.sub("_", "-".join(parts)), container=container,
+                out.append(SceneSpec(id="-".join(parts), container=container,
                                      types=types, seed=seed, shares=shares, where=where,
                                      **settings))
     return out
+
+
+def _file_name(name: str) -> str:
+    """`name` as the start of a file name: runs of characters other than letters, digits,
+    '_', '.' and '-' become '_', and leading '.', '-' and '_' go (a leading dot would hide
+    the files, a leading dash reads as a command-line option)."""
+    return _ID_RE.sub("_", name).lstrip("._-")
 
 
 def _one_or_many(d: dict, one: str, many: str, where: str, kind: type) -> list:

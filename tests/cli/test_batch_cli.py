@@ -255,3 +255,19 @@ def test_a_folder_in_place_of_an_output_file_is_refused_before_packing(folder, m
     rc, _, err = run(["batch", str(write(folder, GOOD)), "-o", str(folder / "out"), "-q"])
     assert rc == 1 and f"{folder / 'out' / name} is a folder" in err and what in err
     assert sorted(p.name for p in (folder / "out").iterdir()) == [name]
+
+
+@pytest.mark.parametrize("name, scene_id", [("../escaped", "escaped-s1"),
+                                            (".hidden", "hidden-s1"),
+                                            ("-dash", "dash-s1"),
+                                            ("a b/c", "a_b_c-s1")])
+def test_scene_names_make_plain_visible_file_names(folder, name, scene_id):
+    [spec] = read_batch(write(folder, f"[[scene]]\nname = {name!r}\ncontainer = 'box:9x9x9'\n"
+                                      "types = ['a.obj']\nseed = 1\n"))
+    assert spec.id == scene_id
+
+
+def test_a_name_with_no_letter_or_digit_is_refused(folder):
+    with pytest.raises(InputError, match=r"'name' must be a string with a letter or digit"):
+        read_batch(write(folder, "[[scene]]\nname = '../'\ncontainer = 'box:9x9x9'\n"
+                                 "types = ['a.obj']\nseed = 1\n"))
