@@ -141,6 +141,7 @@ def _expand(scene: dict, defaults: dict, base: Path, where: str, k: int) -> list
         if s < 0:
             raise InputError(f"{where}: seeds must be whole numbers >= 0, got {s}.")
     settings = _settings(merged, where)
+    _check_export(settings, where)
     shares = settings.pop("shares", None)
     if shares is not None and len(sets) == 1 and len(shares) != len(sets[0]):
         raise InputError(f"{where}: 'shares' has {len(shares)} values for "
@@ -207,8 +208,13 @@ def _type_sets(d: dict, where: str) -> list[list[str]]:
 
 
 def _mesh(text: str, base: Path, where: str, container: bool = False) -> str:
-    if container and parse_box_spec(text) is not None:
-        return text
+    if container:
+        try:
+            box = parse_box_spec(text)
+        except InputError as exc:
+            raise InputError(f"{where}: {exc}") from None
+        if box is not None:
+            return text
     p = Path(text).expanduser()
     p = p if p.is_absolute() else base / p
     if not p.is_file():
@@ -259,6 +265,25 @@ def _settings(d: dict, where: str) -> dict[str, Any]:
             v = float(v)
         out[key] = v
     return out
+
+
+def _check_export(settings: dict[str, Any], where: str) -> None:
+    """Refuse, in the batch file's words, an export its packings cannot give: parts need a
+    clearance (objects that touch fuse into one part) and have no shell (it would trap
+    them). Checked when the file is read, so no scene is packed for an export that fails."""
+    if not settings.get("export") or settings.get("export_mode") != "parts":
+        return
+    if settings.get("clearance", 0.0) <= 0:
+        raise InputError(
+            f"{where}: export_mode = \"parts\" needs a gap between the objects, but "
+            "'clearance' is 0 (touching objects would print fused). Give e.g. clearance = "
+            "0.2 in this scene (or in [defaults]), or export_mode = \"union\" or "
+            "\"connect\".")
+    if settings.get("export_shell") is not None:
+        raise InputError(
+            f"{where}: export_mode = \"parts\" writes the objects only, and 'export_shell' "
+            "would trap them; drop export_shell, or use export_mode = \"union\" or "
+            "\"connect\".")
 
 
 def _real(v: Any) -> bool:

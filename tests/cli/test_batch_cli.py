@@ -93,6 +93,15 @@ def test_a_scene_expands_to_containers_times_sets_times_seeds(folder):
      r"'export' must be a list of formats from 3mf, stl, obj, ply, got \['step'\]"),
     ("[[scene]]\ncontainer='box:9x9x9'\ntypes=['a.obj']\nseeds=[1, 1]\n",
      r"scene id 'scene1-s1' is also made by scene 1"),
+    ("[[scene]]\ncontainer='box:20x20'\ntypes=['a.obj']\nseed=1\n",
+     r"scenes.toml, scene 1 \(line 1\), container: box spec 'box:20x20' is malformed"),
+    ("[defaults]\nexport=['stl']\nexport_mode='parts'\n\n[[scene]]\ncontainer='box:9x9x9'\n"
+     "types=['a.obj']\nseed=1\n", r"scene 1 \(line 5\): export_mode = \"parts\" needs a gap "
+     r"between the objects, but 'clearance' is 0.*clearance = 0.2 in this scene"),
+    ("[[scene]]\ncontainer='box:9x9x9'\ntypes=['a.obj']\nseed=1\nclearance=0.2\n"
+     "export=['stl']\nexport_mode='parts'\nexport_shell=1\n",
+     r"scene 1 \(line 1\): export_mode = \"parts\" writes the objects only, and "
+     "'export_shell' would trap them"),
 ])
 def test_bad_batch_files_name_the_scene_line_and_key(folder, text, match):
     path = write(folder, text)
