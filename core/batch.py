@@ -8,7 +8,9 @@ its certificate records (`placements_digest`, written by this module when it sav
 certified packing) still matches its placements, frames and volumes, and its numbers
 (count, per-type counts, density, TVD, NNI) are what its placements give. A file that fails
 any of these (edited by hand, written by `pack` or by an older jampacked without a digest)
-is packed again, and the result says why. On a cluster a
+is packed again, and the result says why. A scene's exports are recorded beside them
+(``<out>/<scene id>.exports.json``: the packing's digest, the export settings, each file's
+sha256); a rerun makes again the ones that record does not vouch for. On a cluster a
 worker runs `pack_scene` and returns the Packing; a worker that dies mid-scene has its
 scenes run again elsewhere by Dask's scheduler, and since only this process writes, by scene
 id, a scene is never lost nor written twice. Cancel (Ctrl-C) stops waiting: finished
@@ -26,7 +28,7 @@ import tempfile
 import time
 import uuid
 from collections.abc import Callable
-from dataclasses import dataclass
+from dataclasses import dataclass, field
 from pathlib import Path
 
 import numpy as np
@@ -35,6 +37,7 @@ from .api import pack
 from .atomic import atomic_output
 from .batch_file import SceneSpec
 from .errors import InputError, JampackedError
+from .mesh_files import file_sha256
 from .metrics import compute_metrics
 from .options import CavityPassOptions, PackOptions
 from .packing_json import load_packing, save_packing, to_jsonable, verify_sources
@@ -65,6 +68,8 @@ class SceneResult:
     seconds: float | None = None
     #: why an earlier file of the scene was not trusted and the scene packed again
     repacked: str = ""
+    #: the export files made again on a skip, each with why ("scene.stl: missing")
+    reexported: list[str] = field(default_factory=list)
 
     def warnings(self) -> list[str]:
         """The run's warnings on its packing (as `jampacked pack` prints them)."""
@@ -76,6 +81,7 @@ class SceneResult:
         out = [self.message] if self.message else []
         if self.repacked:
             out.append(f"packed again: the earlier file was not trusted: {self.repacked}")
+        out += [f"exported again: {r}" for r in self.reexported]
         return out + [f"warning: {w}" for w in self.warnings()]
 
     def row(self) -> dict:
@@ -267,7 +273,7 @@ def run_batch(scenes: list[SceneSpec], out_dir: str | os.PathLike, client=None,
         if done is not None:
             results[spec.id] = SceneResult(spec, "skipped", str(path), done,
                                            seconds=done.timings.get("total"))
-            export_scene(results[spec.id], out, cancel, missing_only=True)
+            export_scene(results[spec.id], out, cancel, stale_only=True)
         else:
             todo.append(spec)
     total = len(scenes)
@@ -317,7 +323,8 @@ def run_batch(scenes: list[SceneSpec], out_dir: str | os.PathLike, client=None,
 
 def output_paths(spec: SceneSpec, out: Path) -> list[Path]:
     """The files a scene writes in `out`: its packing and its exports."""
-    return [scene_file(out, spec), *(out / f"{spec.id}.{fmt}" for fmt in spec.export)]
+    exports = [out / f"{spec.id}.{fmt}" for fmt in spec.export]
+    return [scene_file(out, spec), *exports, *([exports_record(out, spec)] if exports else [])]
 
 
 def check_output(scenes: list[SceneSpec], out_dir: str | os.PathLike) -> None:
@@ -357,28 +364,105 @@ def check_output(scenes: list[SceneSpec], out_dir: str | os.PathLike) -> None:
                     "there. Move or remove that folder, or give another folder with -o.")
 
 
+#: the record, beside a scene's exports, of how they were made: OUT/<id>.exports.json
+EXPORTS_FORMAT = "jampacked.batch-exports"
+
+
+def exports_record(out: Path, spec: SceneSpec) -> Path:
+    return out / f"{spec.id}.exports.json"
+
+
 def export_scene(result: SceneResult, out: Path, cancel: Callable[[], bool],
-                 missing_only: bool = False) -> None:
+                 stale_only: bool = False) -> None:
     """Export a written packing to the formats its scene asks for (`out`/<id>.<format>,
-    validated and written atomically by `export_packing`); `missing_only`: only the files
-    not there yet. A failed export turns the result into "failed", its packing kept."""
+    validated and written atomically by `export_packing`) and record how (`exports_record`:
+    the packing's digest, the export settings, each file's sha256). `stale_only`: only the
+    files that record does not vouch for: missing, changed since written (truncated,
+    edited), made from another packing or with other settings (export_mode, export_shell),
+    or from before the record; why is noted on the result. A failed export turns the result
+    into "failed", its packing kept."""
     spec = result.spec
-    paths = [str(out / f"{spec.id}.{fmt}") for fmt in spec.export]
-    if missing_only:
-        paths = [p for p in paths if not os.path.isfile(p)]
+    if not spec.export:
+        return
+    settings = {"mode": spec.export_mode, "shell": spec.export_shell}
+    digest = None if result.packing is None else result.packing.certificate.get(DIGEST)
+    record = _read_record(exports_record(out, spec))
+    made = record.get("files", {}) if (record.get("packing") == digest
+                                       and record.get("settings") == settings) else {}
+    paths = [out / f"{spec.id}.{fmt}" for fmt in spec.export]
+    if stale_only:
+        stale = []
+        for path in paths:
+            why = _stale_export(path, record, made, settings, digest)
+            if why:
+                stale.append(path)
+                result.reexported.append(f"{path.name}: {why}")
+        paths = stale
+        made = {k: v for k, v in made.items() if k not in {p.name for p in paths}}
+    else:
+        made = {}
     if not paths:
         return
     from jampacked.export.assemble import export_packing
     from jampacked.export.options import ExportOptions
 
     try:
-        rep = export_packing(result.file, paths, ExportOptions(
+        rep = export_packing(result.file, [str(p) for p in paths], ExportOptions(
             mode=spec.export_mode, shell=spec.export_shell), should_cancel=cancel)
     except JampackedError as exc:
         result.status, result.message = "failed", f"export: {exc}"
-        return
-    if not rep.passed:
+        rep = None
+    if rep is not None and not rep.passed:
         result.status, result.message = "failed", "export: a file did not validate"
+    elif rep is not None:
+        made.update({p.name: file_sha256(p) for p in paths})
+    _write_record(exports_record(out, spec), {
+        "format": EXPORTS_FORMAT, "version": 1, "packing": digest, "settings": settings,
+        "files": made})
+
+
+def _stale_export(path: Path, record: dict, made: dict, settings: dict,
+                  digest: str | None) -> str:
+    """Why the export file at `path` must be made again ("" if its record vouches for it)."""
+    if not path.is_file():
+        return "missing"
+    if not record:
+        return "no record of how it was made (exported by an older jampacked)"
+    if record.get("packing") != digest:
+        return "made from another packing"
+    if record.get("settings") != settings:
+        old = record.get("settings") or {}
+        changed = [f"export_{k} {old.get(k)!r} -> {v!r}" for k, v in settings.items()
+                   if old.get(k) != v]
+        return "made with " + (", ".join(changed) or "other settings")
+    if path.name not in made:
+        return "no record of how it was made"
+    try:
+        if file_sha256(path) != made[path.name]:
+            return "changed since it was written and validated (truncated or edited?)"
+    except OSError as exc:
+        return f"unreadable ({exc.strerror or exc})"
+    return ""
+
+
+def _read_record(path: Path) -> dict:
+    """The exports record at `path`, or {} when it is missing or not one."""
+    try:
+        doc = json.loads(path.read_text(encoding="utf-8"))
+    except (OSError, ValueError):
+        return {}
+    if not isinstance(doc, dict) or doc.get("format") != EXPORTS_FORMAT \
+            or not isinstance(doc.get("files"), dict):
+        return {}
+    return doc
+
+
+def _write_record(path: Path, doc: dict) -> None:
+    try:
+        with atomic_output(path, "w") as f:
+            f.write(json.dumps(doc, indent=1) + "\n")
+    except OSError as exc:
+        raise InputError(f"cannot write {path}: {exc.strerror or exc}.") from None
 
 
 def _run_on_cluster(client, todo: list[SceneSpec], finish, cancel: Callable[[], bool]

@@ -280,3 +280,44 @@ def test_a_name_with_no_letter_or_digit_is_refused(folder):
     with pytest.raises(InputError, match=r"'name' must be a string with a letter or digit"):
         read_batch(write(folder, "[[scene]]\nname = '../'\ncontainer = 'box:9x9x9'\n"
                                  "types = ['a.obj']\nseed = 1\n"))
+
+
+def test_a_rerun_exports_again_what_changed_settings_or_no_longer_matches(folder):
+    scene = """\
+        [[scene]]
+        container = "box:16x15x14"
+        types = ["a.obj", "b.obj"]
+        seed = 1
+        fidelity = "low"
+        export = ["stl", "obj"]
+        export_mode = "{mode}"
+        """
+    out = folder / "out"
+    stl, obj = out / "scene1-s1.stl", out / "scene1-s1.obj"
+
+    def rerun(mode: str) -> tuple[str, dict]:
+        rc, _, err = run(["batch", str(write(folder, scene.format(mode=mode))), "-o",
+                          str(out), "-q"])
+        assert rc == 0
+        with open(out / "summary.csv", newline="") as f:
+            [row] = csv.DictReader(f)
+        assert row["status"] in ("packed", "skipped")
+        return err, row
+
+    rerun("union")
+    union = stl.read_bytes()
+    err, row = rerun("connect")  # another export_mode: both files made again
+    assert "scene1-s1.stl: made with export_mode 'union' -> 'connect'" in err
+    assert "exported again" in row["message"] and row["status"] == "skipped"
+    connect = stl.read_bytes()
+    assert connect != union
+    stl.write_bytes(connect[:100])  # a truncated file is made again, the other kept
+    before = obj.stat().st_mtime_ns
+    err, _ = rerun("connect")
+    assert "scene1-s1.stl: changed since it was written" in err
+    assert stl.read_bytes() == connect and obj.stat().st_mtime_ns == before
+    err, row = rerun("connect")  # nothing left to do
+    assert "exported again" not in err + row["message"]
+    (out / "scene1-s1.exports.json").unlink()  # files without a record are not trusted
+    err, _ = rerun("connect")
+    assert "scene1-s1.obj: no record of how it was made" in err
