@@ -52,10 +52,10 @@ A rerun skips the scenes whose packing file is there and verified (it loads, its
 sha256 still match, it is certified, its placements are the ones certified and its numbers
 follow from them); any other file is packed again, saying why. Export files are made
 again when missing, changed since written, or made with other export settings (recorded
-in OUT/<scene>.exports.json). Each scene's warnings are
-printed and go in the summary's message column. Ctrl-C stops: finished scenes stay written
-(exit status 130). Exit status: 0 every scene packed or skipped, 1 a scene failed or the
-batch file is bad (the message names the scene and key), 2 bad arguments.
+in OUT/<scene>.exports.json). Each scene's warnings are printed and go in the summary's
+message column. Ctrl-C stops: finished scenes stay written (exit status 130). Exit status:
+0 every scene packed or skipped, 1 a scene failed or the batch file is bad (the message
+names the scene and key), 2 bad arguments.
 """
 
 
