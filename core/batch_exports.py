@@ -1,0 +1,122 @@
+"""A batch scene's export files and the record of how they were made
+(``<out>/<scene id>.exports.json``: the packing's digest, the export settings, each file's
+sha256 as written and validated); a rerun makes again the files that record does not vouch
+for.
+"""
+
+from __future__ import annotations
+
+import json
+from collections.abc import Callable
+from pathlib import Path
+from typing import TYPE_CHECKING
+
+from .atomic import atomic_output
+from .batch_file import SceneSpec
+from .batch_verify import DIGEST
+from .errors import InputError, JampackedError
+from .mesh_files import file_sha256
+
+if TYPE_CHECKING:
+    from .batch import SceneResult
+
+
+#: the record, beside a scene's exports, of how they were made: OUT/<id>.exports.json
+EXPORTS_FORMAT = "jampacked.batch-exports"
+
+
+def exports_record(out: Path, spec: SceneSpec) -> Path:
+    return out / f"{spec.id}.exports.json"
+
+
+def export_scene(result: SceneResult, out: Path, cancel: Callable[[], bool],
+                 stale_only: bool = False) -> None:
+    """Export a written packing to the formats its scene asks for (`out`/<id>.<format>,
+    validated and written atomically by `export_packing`) and record how (`exports_record`:
+    the packing's digest, the export settings, each file's sha256). `stale_only`: only the
+    files that record does not vouch for: missing, changed since written (truncated,
+    edited), made from another packing or with other settings (export_mode, export_shell),
+    or from before the record; why is noted on the result. A failed export turns the result
+    into "failed", its packing kept."""
+    spec = result.spec
+    if not spec.export:
+        return
+    settings = {"mode": spec.export_mode, "shell": spec.export_shell}
+    digest = None if result.packing is None else result.packing.certificate.get(DIGEST)
+    record = _read_record(exports_record(out, spec))
+    made = record.get("files", {}) if (record.get("packing") == digest
+                                       and record.get("settings") == settings) else {}
+    paths = [out / f"{spec.id}.{fmt}" for fmt in spec.export]
+    if stale_only:
+        stale = []
+        for path in paths:
+            why = _stale_export(path, record, made, settings, digest)
+            if why:
+                stale.append(path)
+                result.reexported.append(f"{path.name}: {why}")
+        paths = stale
+        made = {k: v for k, v in made.items() if k not in {p.name for p in paths}}
+    else:
+        made = {}
+    if not paths:
+        return
+    from jampacked.export.assemble import export_packing
+    from jampacked.export.options import ExportOptions
+
+    try:
+        rep = export_packing(result.file, [str(p) for p in paths], ExportOptions(
+            mode=spec.export_mode, shell=spec.export_shell), should_cancel=cancel)
+    except JampackedError as exc:
+        result.status, result.message = "failed", f"export: {exc}"
+        rep = None
+    if rep is not None and not rep.passed:
+        result.status, result.message = "failed", "export: a file did not validate"
+    elif rep is not None:
+        made.update({p.name: file_sha256(p) for p in paths})
+    _write_record(exports_record(out, spec), {
+        "format": EXPORTS_FORMAT, "version": 1, "packing": digest, "settings": settings,
+        "files": made})
+
+
+def _stale_export(path: Path, record: dict, made: dict, settings: dict,
+                  digest: str | None) -> str:
+    """Why the export file at `path` must be made again ("" if its record vouches for it)."""
+    if not path.is_file():
+        return "missing"
+    if not record:
+        return "no record of how it was made (exported by an older jampacked)"
+    if record.get("packing") != digest:
+        return "made from another packing"
+    if record.get("settings") != settings:
+        old = record.get("settings") or {}
+        changed = [f"export_{k} {old.get(k)!r} -> {v!r}" for k, v in settings.items()
+                   if old.get(k) != v]
+        return "made with " + (", ".join(changed) or "other settings")
+    if path.name not in made:
+        return "no record of how it was made"
+    try:
+        if file_sha256(path) != made[path.name]:
+            return "changed since it was written and validated (truncated or edited?)"
+    except OSError as exc:
+        return f"unreadable ({exc.strerror or exc})"
+    return ""
+
+
+def _read_record(path: Path) -> dict:
+    """The exports record at `path`, or {} when it is missing or not one."""
+    try:
+        doc = json.loads(path.read_text(encoding="utf-8"))
+    except (OSError, ValueError):
+        return {}
+    if not isinstance(doc, dict) or doc.get("format") != EXPORTS_FORMAT \
+            or not isinstance(doc.get("files"), dict):
+        return {}
+    return doc
+
+
+def _write_record(path: Path, doc: dict) -> None:
+    try:
+        with atomic_output(path, "w") as f:
+            f.write(json.dumps(doc, indent=1) + "\n")
+    except OSError as exc:
+        raise InputError(f"cannot write {path}: {exc.strerror or exc}.") from None
