@@ -133,7 +133,7 @@ def run_batch(scenes: list[SceneSpec], out_dir: str | os.PathLike, client=None,
         if done is not None:
             results[spec.id] = SceneResult(spec, "skipped", str(path), done,
                                            seconds=done.timings.get("total"))
-            export_scene(results[spec.id], out, cancel, stale_only=True)
+            _export(results[spec.id], out, cancel, stale_only=True)
         else:
             todo.append(spec)
     total = len(scenes)
@@ -158,7 +158,7 @@ def run_batch(scenes: list[SceneSpec], out_dir: str | os.PathLike, client=None,
             results[spec.id] = SceneResult(spec, "packed", str(path), packing,
                                            seconds=packing.timings.get("total"),
                                            repacked=why_not.get(spec.id, ""))
-            export_scene(results[spec.id], out, cancel)
+            _export(results[spec.id], out, cancel)
         report(len(results), total, f"{spec.id}: {results[spec.id].status}")
 
     try:
@@ -222,6 +222,18 @@ def check_output(scenes: list[SceneSpec], out_dir: str | os.PathLike) -> None:
                     f"{path} is a folder, but the batch writes "
                     f"{'its summary' if path.name == SUMMARY else f'scene {spec.id}'} "
                     "there. Move or remove that folder, or give another folder with -o.")
+
+
+def _export(result: SceneResult, out: Path, cancel: Callable[[], bool],
+            stale_only: bool = False) -> None:
+    """`export_scene` of a written result; a failed export turns it into "failed", its
+    packing kept, and the files made again are noted on it."""
+    digest = None if result.packing is None else result.packing.certificate.get(DIGEST)
+    error, again = export_scene(result.spec, result.file, digest, out, cancel,
+                                stale_only)
+    result.reexported += again
+    if error:
+        result.status, result.message = "failed", error
 
 
 def _run_on_cluster(client, todo: list[SceneSpec], finish, cancel: Callable[[], bool]

@@ -9,17 +9,11 @@ from __future__ import annotations
 import json
 from collections.abc import Callable
 from pathlib import Path
-from typing import TYPE_CHECKING
 
 from .atomic import atomic_output
 from .batch_file import SceneSpec
-from .batch_verify import DIGEST
 from .errors import InputError, JampackedError
 from .mesh_files import file_sha256
-
-if TYPE_CHECKING:
-    from .batch import SceneResult
-
 
 #: the record, beside a scene's exports, of how they were made: OUT/<id>.exports.json
 EXPORTS_FORMAT = "jampacked.batch-exports"
@@ -29,53 +23,56 @@ def exports_record(out: Path, spec: SceneSpec) -> Path:
     return out / f"{spec.id}.exports.json"
 
 
-def export_scene(result: SceneResult, out: Path, cancel: Callable[[], bool],
-                 stale_only: bool = False) -> None:
-    """Export a written packing to the formats its scene asks for (`out`/<id>.<format>,
-    validated and written atomically by `export_packing`) and record how (`exports_record`:
-    the packing's digest, the export settings, each file's sha256). `stale_only`: only the
-    files that record does not vouch for: missing, changed since written (truncated,
-    edited), made from another packing or with other settings (export_mode, export_shell),
-    or from before the record; why is noted on the result. A failed export turns the result
-    into "failed", its packing kept."""
-    spec = result.spec
+def export_scene(spec: SceneSpec, packing_file: str, digest: str | None, out: Path,
+                 cancel: Callable[[], bool], stale_only: bool = False
+                 ) -> tuple[str, list[str]]:
+    """Export a scene's written packing (`packing_file`, whose certificate's digest is
+    `digest`) to the formats the scene asks for (`out`/<id>.<format>, validated and written
+    by `export_packing`: all or none) and record how (`exports_record`: the packing's
+    digest, the export settings, each file's sha256). `stale_only`: only the files that
+    record does not vouch for: missing, changed since written (truncated, edited), made from
+    another packing or with other settings (export_mode, export_shell), or from before the
+    record. Returns the error ("" if none: a failed export leaves the packing as it is) and
+    why each file was made again (with `stale_only`)."""
     if not spec.export:
-        return
+        return "", []
     settings = {"mode": spec.export_mode, "shell": spec.export_shell}
-    digest = None if result.packing is None else result.packing.certificate.get(DIGEST)
     record = _read_record(exports_record(out, spec))
     made = record.get("files", {}) if (record.get("packing") == digest
                                        and record.get("settings") == settings) else {}
     paths = [out / f"{spec.id}.{fmt}" for fmt in spec.export]
+    again: list[str] = []
     if stale_only:
         stale = []
         for path in paths:
             why = _stale_export(path, record, made, settings, digest)
             if why:
                 stale.append(path)
-                result.reexported.append(f"{path.name}: {why}")
+                again.append(f"{path.name}: {why}")
         paths = stale
         made = {k: v for k, v in made.items() if k not in {p.name for p in paths}}
     else:
         made = {}
     if not paths:
-        return
+        return "", again
     from jampacked.export.assemble import export_packing
     from jampacked.export.options import ExportOptions
 
+    error = ""
     try:
-        rep = export_packing(result.file, [str(p) for p in paths], ExportOptions(
+        rep = export_packing(packing_file, [str(p) for p in paths], ExportOptions(
             mode=spec.export_mode, shell=spec.export_shell), should_cancel=cancel)
     except JampackedError as exc:
-        result.status, result.message = "failed", f"export: {exc}"
-        rep = None
-    if rep is not None and not rep.passed:
-        result.status, result.message = "failed", "export: a file did not validate"
-    elif rep is not None:
-        made.update({p.name: file_sha256(p) for p in paths})
+        error = f"export: {exc}"
+    else:
+        if rep.passed:
+            made.update({p.name: file_sha256(p) for p in paths})
+        else:
+            error = "export: a file did not validate"
     _write_record(exports_record(out, spec), {
         "format": EXPORTS_FORMAT, "version": 1, "packing": digest, "settings": settings,
         "files": made})
+    return error, again
 
 
 def _stale_export(path: Path, record: dict, made: dict, settings: dict,
