@@ -159,47 +159,48 @@ def cmd_export(args: argparse.Namespace) -> int:
                                 fill_voids=not args.keep_voids)
     except InputError as exc:
         raise UsageError(str(exc)) from None
-    with contextlib.ExitStack() as stack:
-        cancel = stack.enter_context(CancelOnInterrupt())
-        progress_cb = None if args.quiet or args.json else progress_bar(stack, err)
+    # active to the end: a Ctrl-C once the files are in place cannot undo them, and the
+    # command then says so and keeps its status
+    with CancelOnInterrupt() as cancel:
+        with contextlib.ExitStack() as stack:
+            progress_cb = None if args.quiet or args.json else progress_bar(stack, err)
+            try:
+                report = export_packing(args.packing, args.output, options,
+                                        progress=progress_cb, should_cancel=cancel)
+            except Cancelled as exc:
+                print_error(exc)
+                return EXIT_INTERRUPTED
+            except KeyboardInterrupt as exc:
+                # a second Ctrl-C held back while the files were put in place: they all were
+                replaced = getattr(exc, "replaced", None)
+                if not replaced:
+                    raise
+                print_error(f"interrupted once the export was complete: "
+                            f"{', '.join(replaced)} {'was' if len(replaced) == 1 else 'were'} "
+                            "written and validated.")
+                return EXIT_INTERRUPTED
+        if args.json:
+            print(json.dumps(report.as_dict(), indent=1, allow_nan=False))
+        elif not args.quiet:
+            print_export(report, out)
+            for v in report.validation[:1] if len(report.validation) > 4 else report.validation:
+                print_validation(v, out)
+            if len(report.validation) > 4:
+                failing = sum(not v.passed for v in report.validation)
+                out.print(f"... and {len(report.validation) - 1} more files, {failing} failing",
+                          highlight=False)
+        for w in report.warnings:
+            err.print(f"[yellow]warning:[/] {escape(w)}", highlight=False)
+        if args.render and report.paths:
+            from jampacked.cli.render import container_of, write_render
+            from jampacked.export.io import read_mesh_arrays
 
-        try:
-            report = export_packing(args.packing, args.output, options, progress=progress_cb,
-                                    should_cancel=cancel)
-        except Cancelled as exc:
-            print_error(exc)
-            return EXIT_INTERRUPTED
-        except KeyboardInterrupt as exc:
-            # a second Ctrl-C held back while the files were put in place: they all were
-            replaced = getattr(exc, "replaced", None)
-            if not replaced:
-                raise
-            print_error(f"interrupted once the export was complete: "
-                        f"{', '.join(replaced)} {'was' if len(replaced) == 1 else 'were'} "
-                        "written and validated.")
-            return EXIT_INTERRUPTED
-    if cancel.requested:
-        err.print("[yellow]warning:[/] Ctrl-C came after every file was validated: the "
-                  "export was completed and its files written.", highlight=False)
-    if args.json:
-        print(json.dumps(report.as_dict(), indent=1, allow_nan=False))
-    elif not args.quiet:
-        print_export(report, out)
-        for v in report.validation[:1] if len(report.validation) > 4 else report.validation:
-            print_validation(v, out)
-        if len(report.validation) > 4:
-            failing = sum(not v.passed for v in report.validation)
-            out.print(f"... and {len(report.validation) - 1} more files, {failing} failing",
-                      highlight=False)
-    for w in report.warnings:
-        err.print(f"[yellow]warning:[/] {escape(w)}", highlight=False)
-    if args.render and report.paths:
-        from jampacked.cli.render import container_of, write_render
-        from jampacked.export.io import read_mesh_arrays
-
-        v, f = read_mesh_arrays(report.paths[0])
-        write_render(v, f, args.render, title=f"{report.paths[0]} ({report.mode})",
-                     up=options.up, container=container_of(args.packing))
-        if not args.quiet and not args.json:
-            out.print(f"wrote {args.render}", highlight=False)
+            v, f = read_mesh_arrays(report.paths[0])
+            write_render(v, f, args.render, title=f"{report.paths[0]} ({report.mode})",
+                         up=options.up, container=container_of(args.packing))
+            if not args.quiet and not args.json:
+                out.print(f"wrote {args.render}", highlight=False)
+        if cancel.requested:
+            err.print("[yellow]warning:[/] Ctrl-C came after every file was validated: the "
+                      "export was completed and its files written.", highlight=False)
     return 0 if report.passed else EXIT_ERROR

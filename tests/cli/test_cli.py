@@ -582,3 +582,23 @@ def test_a_negative_axis_without_equals_says_how_to_write_it(capsys):
     assert "--up=-y" in capsys.readouterr().err
     assert main(["pack", "box:9x9x9", "--type", str(P1), "-o"]) == 2
     assert "negative axis" not in capsys.readouterr().err  # a value simply missing
+
+
+def test_ctrl_c_once_the_export_is_written_keeps_status_0(packed, tmp_path, monkeypatch,
+                                                         capsys):
+    """A Ctrl-C while the report was printed (the files already in place) ended the command
+    with 130, as if the export had failed."""
+    from jampacked.cli import export_cmd
+
+    _, out, *_ = packed
+    real = export_cmd.print_export
+
+    def ctrl_c_then_print(*args, **kwargs):
+        signal.raise_signal(signal.SIGINT)
+        return real(*args, **kwargs)
+
+    monkeypatch.setattr(export_cmd, "print_export", ctrl_c_then_print)
+    stl = tmp_path / "u.stl"
+    assert main(["export", str(out), "--mode", "union", "-o", str(stl)]) == 0
+    assert "export was completed" in " ".join(capsys.readouterr().err.split())
+    assert stl.is_file()
