@@ -28,14 +28,17 @@ from .mesh_topology import EdgeTopology, edge_topology, face_components, open_ed
 from .solids import to_solid
 
 __all__ = [
+    "CRACK_TOLERANCE",
     "MERGE_TOLERANCE",
     "SLIVER_AREA_FRACTION",
     "SLIVER_VOLUME_FRACTION",
     "THIN_WALL_HULL_FILL",
     "THIN_WALL_THICKNESS",
+    "UNWELDED_SHARE",
     "ZERO_VOLUME_FRACTION",
     "check_and_repair",
     "manifold_status",
+    "unwelded_share",
 ]
 
 # Vertices closer than this fraction of the bounding-box diagonal are the same vertex.
@@ -43,6 +46,9 @@ MERGE_TOLERANCE = 1e-9
 # Open-boundary vertices this close (fraction of the diagonal) to another are a crack
 # between unwelded faces, for the message's advice; nothing is merged at this distance.
 CRACK_TOLERANCE = 1e-5
+# ... and a mesh at least this share of whose open-boundary vertices are such cracks is
+# unwelded rather than holed
+UNWELDED_SHARE = 0.5
 #: coordinates beyond this are refused: a volume (a length cubed) overflows past 1e102
 MAX_COORDINATE = 1e100
 # A face whose height is below MERGE_TOLERANCE * diagonal is degenerate (zero area).
@@ -365,7 +371,7 @@ def _drop_zero_area_pieces(vertices: np.ndarray, faces: np.ndarray
     return faces, topo, n_comp2, labels, int(np.sum(sliver_comp)), int(np.sum(drop))
 
 
-def _unwelded_share(vertices: np.ndarray, topo: EdgeTopology, diagonal: float) -> float:
+def unwelded_share(vertices: np.ndarray, topo: EdgeTopology, diagonal: float) -> float:
     """The share of the open boundary's vertices with another one within CRACK_TOLERANCE *
     diagonal: faces whose corners nearly meet but were never joined (a mesh written
     without welding its vertices, or with rounded coordinates), not holes."""
@@ -386,7 +392,7 @@ def _require_closed(vertices: np.ndarray, topo: EdgeTopology, diagonal: float,
         return
     defects = []
     fixes = []
-    if n_open and _unwelded_share(vertices, topo, diagonal) >= 0.5:
+    if n_open and unwelded_share(vertices, topo, diagonal) >= UNWELDED_SHARE:
         defects.append(
             f"its faces are not joined ({plural(n_open, 'open boundary edge')} whose "
             f"corners lie within {CRACK_TOLERANCE * diagonal:.3g} units of another face's: "

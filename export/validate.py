@@ -53,10 +53,13 @@ import numpy as np
 from jampacked.core.errors import InputError, plural
 from jampacked.core.mesh_files import read_mesh_arrays
 from jampacked.core.mesh_repair import (
+    CRACK_TOLERANCE,
     MAX_COORDINATE,
     MERGE_TOLERANCE,
+    UNWELDED_SHARE,
     ZERO_VOLUME_FRACTION,
     manifold_status,
+    unwelded_share,
 )
 from jampacked.core.mesh_topology import EdgeTopology, edge_topology
 
@@ -390,6 +393,12 @@ def validate_arrays(
     bodies = _body_reports(sums, closed, self_body, inside, outside, nesting_checked,
                            ZERO_VOLUME_FRACTION * fg.diagonal**3)
     problems = _file_problems(overlapping, status, bodies)
+    if unwelded_share(m.positions, topo, fg.diagonal) >= UNWELDED_SHARE:
+        # one body per triangle, each "holed": say what it is and how to fix it
+        problems.insert(0, "its faces are not joined: the open edges' corners lie within "
+                        f"{CRACK_TOLERANCE * fg.diagonal:.3g} units of another face's (its "
+                        "vertices were never welded, or were rounded apart); merge the "
+                        "vertices by distance")
     offending = _offending(m, fg, topo, st, duplicates, pairs, hits)
     seconds["total"] = time.perf_counter() - t0
     return ValidationReport(

@@ -753,3 +753,17 @@ def test_cli_help(capsys):
     text = capsys.readouterr().out
     assert "--json" in text and "Exit status" in text and "self-intersections" in text
     assert main(["validate"]) == 2  # FILE is required
+
+
+def test_unwelded_faces_are_named_not_counted_as_thousands_of_bodies(tmp_path):
+    """validate of a mesh whose corners were rounded apart reported one body and one hole
+    per triangle; `pack` named it. Now validate says what it is, first, and the fix."""
+    s = trimesh.creation.icosphere(subdivisions=2, radius=10.0)
+    corners = np.asarray(s.vertices)[np.asarray(s.faces)].reshape(-1, 3)
+    corners = corners + np.random.default_rng(3).normal(scale=1e-6, size=corners.shape)
+    r = validate_arrays(corners, np.arange(len(corners)).reshape(-1, 3))
+    assert not r.passed
+    assert r.problems[0].startswith("its faces are not joined")
+    assert "merge the vertices by distance" in r.summary()
+    holed = validate_arrays(np.asarray(s.vertices), np.asarray(s.faces)[1:])
+    assert not any("not joined" in p for p in holed.failures())
