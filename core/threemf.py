@@ -45,6 +45,13 @@ RELATIONSHIPS = (
 #: the core specification's model units, in millimetres (``unit`` absent: millimetres)
 UNIT_MM = {"micron": 1e-3, "millimeter": 1.0, "centimeter": 10.0, "inch": 25.4,
            "foot": 304.8, "meter": 1000.0}
+#: what some writers put in place of the specification's unit names (read as those)
+UNIT_ALIASES = {"um": "micron", "µm": "micron", "micrometer": "micron", "micrometre": "micron",
+                "mm": "millimeter", "millimetre": "millimeter", "millimeters": "millimeter",
+                "millimetres": "millimeter", "cm": "centimeter", "centimetre": "centimeter",
+                "centimeters": "centimeter", "centimetres": "centimeter", "in": "inch",
+                "inches": "inch", "ft": "foot", "feet": "foot", "m": "meter", "metre": "meter",
+                "meters": "meter", "metres": "meter"}
 #: components nested deeper than this are refused (a cycle of components never ends)
 MAX_COMPONENT_DEPTH = 32
 
@@ -151,9 +158,10 @@ def read_3mf_model(data: bytes) -> tuple[Body, str]:
         root = etree.fromstring(xml, parser)
     except etree.XMLSyntaxError as exc:
         raise ThreeMFError(f"the model XML is malformed: {exc}") from exc
-    unit = root.get("unit", "millimeter")
+    declared = root.get("unit", "millimeter")
+    unit = UNIT_ALIASES.get(declared.strip().lower(), declared.strip().lower())
     if unit not in UNIT_MM:
-        raise ThreeMFError(f"the model's unit {unit!r} is not one of 3MF's units "
+        raise ThreeMFError(f"the model's unit {declared!r} is not one of 3MF's units "
                            f"({', '.join(UNIT_MM)})")
     namespace = etree.QName(root).namespace
     ns = {"m": namespace} if namespace else {}

@@ -516,3 +516,13 @@ def test_unwelded_faces_are_told_apart_from_holes(tmp_path):
     assert "not joined" in text and "Merge by Distance" in text and "fill the holes" not in text
     with pytest.raises(MeshError, match="fill the holes"):  # a real hole keeps its advice
         load_mesh(write_obj(tmp_path / "holed.obj", s.vertices, np.asarray(s.faces)[1:]))
+
+
+def test_3mf_unit_written_as_writers_write_it(tmp_path):
+    """unit="mm" or "Inches" is not the specification's spelling, but some writers use it:
+    read as millimetre and inch (it was refused once units were read)."""
+    v, f = unit_box()
+    assert load_mesh(write_3mf(tmp_path / "a.3mf", v, f, "mm")).volume == pytest.approx(24.0)
+    inch = load_mesh(write_3mf(tmp_path / "b.3mf", v, f, "Inches"))
+    assert inch.volume == pytest.approx(24.0 * 25.4 ** 3)
+    assert "unit as inch" in inch.warnings[0]
