@@ -184,8 +184,11 @@ def _targets(paths: list[str], part_names: list[str] | None) -> list[str]:
 
 
 def _part_path(path: str, name: str) -> str:
+    """The file of part `name` beside `path` (a type named "a/b", as Blender allows, stays
+    in that folder: its separators become '_')."""
     stem = Path(path)
-    return str(stem.with_name(f"{stem.stem}_{name}{stem.suffix}"))
+    safe = name.replace("/", "_").replace("\\", "_")
+    return str(stem.with_name(f"{stem.stem}_{safe}{stem.suffix}"))
 
 
 def _shell(scene: PlacedScene, options: ExportOptions, report: Progress):

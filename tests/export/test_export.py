@@ -858,3 +858,15 @@ def test_objects_scaled_to_nothing_are_refused_by_name(tmp_path):
     with pytest.raises(InputError, match=r"type 'polytope1' comes out empty.*singular"):
         export_packing(p, tmp_path / "u.stl", ExportOptions(mode="union"))
     assert not (tmp_path / "u.stl").exists()
+
+
+def test_split_parts_of_a_type_named_with_a_slash_stay_beside_the_output(tmp_path):
+    """A type named "fruit/lemon" (Blender allows '/' in names) made --split raise a
+    ValueError from pathlib; its parts now go beside the output, the '/' made '_'."""
+    p = _made(2)
+    p.types[0].name = "fruit/lemon"
+    report = export_packing(p, tmp_path / "p.stl",
+                            ExportOptions(mode="parts", split_files=True))
+    assert report.passed
+    names = sorted(f.name for f in tmp_path.iterdir())
+    assert names == ["p_fruit_lemon_000.stl", "p_polytope3_001.stl"], names
