@@ -12,6 +12,7 @@ an interrupt or a cancel leaves every output as it was.
 from __future__ import annotations
 
 import os
+import sys
 from collections.abc import Callable, Iterable, Sequence
 from dataclasses import dataclass, replace
 
@@ -151,6 +152,8 @@ def check_output_paths(paths: Sequence[str], protect: Iterable[str | os.PathLike
     for p in paths:
         check_output_path(p, protect)
         key = os.path.normcase(os.path.realpath(p))
+        if sys.platform == "darwin":  # macOS volumes ignore case too, as a rule
+            key = key.lower()
         if key in seen:
             raise InputError(f"'{p}' is named twice among the output files (also as "
                              f"'{seen[key]}'); give each output once.")

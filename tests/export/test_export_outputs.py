@@ -306,3 +306,15 @@ def test_cli_ctrl_c_after_validation_says_the_files_were_written(tmp_path, monke
     err = " ".join(capsys.readouterr().err.split())
     assert rc == 0 and "export was completed and its files written" in err
     assert validate_file(a3).passed and validate_file(astl).passed
+
+
+def test_outputs_differing_only_in_case_are_one_file_on_macos(tmp_path, monkeypatch):
+    """On macOS (a case-insensitive volume as a rule) a.stl and a.STL are one file: two
+    temporaries were renamed onto it and both reported written."""
+    from jampacked.export import io as export_io
+
+    monkeypatch.setattr(export_io.sys, "platform", "darwin")
+    with pytest.raises(InputError, match="named twice"):
+        export_io.check_output_paths([str(tmp_path / "a.stl"), str(tmp_path / "a.STL")])
+    monkeypatch.setattr(export_io.sys, "platform", "linux")
+    export_io.check_output_paths([str(tmp_path / "a.stl"), str(tmp_path / "a.STL")])
