@@ -13,31 +13,48 @@ from typing import IO
 
 
 @contextlib.contextmanager
-def atomic_output(path: str | os.PathLike, mode: str = "wb", *, suffix: str = ".tmp",
-                  check: Callable[[str], None] | None = None) -> Iterator[IO]:
-    """Open a temporary file in `path`'s folder; on success fsync and rename it to `path`.
-
-    The file keeps an existing target's permission bits (0o644 for a new one). ``check``, if
-    given, is called with the temporary file's path once it is complete on disk and before
-    it is renamed (e.g. to read it back); whatever it raises leaves `path` as it was.
-    """
+def staged_output(path: str | os.PathLike, mode: str = "wb", *, suffix: str = ".tmp"
+                  ) -> Iterator[tuple[IO, str]]:
+    """Open a temporary file in `path`'s folder, yielding it and its path; on success it is
+    complete on disk (fsynced) with an existing target's permission bits (0o644 for a new
+    one), and left for the caller to rename over `path` (or remove); on failure it is
+    removed. `path` itself is never touched."""
     path = os.fspath(path)
     directory, name = os.path.split(path)
     fd, tmp = tempfile.mkstemp(prefix=f".{name}.", suffix=suffix, dir=directory or ".")
     try:
         text = "b" not in mode
         with os.fdopen(fd, mode, **({"encoding": "utf-8", "newline": "\n"} if text else {})) as f:
-            yield f
+            yield f, tmp
             f.flush()
             os.fsync(f.fileno())
-        if check is not None:
-            check(tmp)
         try:
             perm = os.stat(path).st_mode & 0o777
         except FileNotFoundError:
             perm = 0o644
         os.chmod(tmp, perm)
-        os.replace(tmp, path)
+    except BaseException:
+        with contextlib.suppress(FileNotFoundError):
+            os.unlink(tmp)
+        raise
+
+
+@contextlib.contextmanager
+def atomic_output(path: str | os.PathLike, mode: str = "wb", *, suffix: str = ".tmp",
+                  check: Callable[[str], None] | None = None) -> Iterator[IO]:
+    """Open a temporary file in `path`'s folder; on success fsync and rename it to `path`
+    (`staged_output`, then the rename).
+
+    The file keeps an existing target's permission bits (0o644 for a new one). ``check``, if
+    given, is called with the temporary file's path once it is complete on disk and before
+    it is renamed (e.g. to read it back); whatever it raises leaves `path` as it was.
+    """
+    with staged_output(path, mode, suffix=suffix) as (f, tmp):
+        yield f
+    try:
+        if check is not None:
+            check(tmp)
+        os.replace(tmp, os.fspath(path))
     except BaseException:
         with contextlib.suppress(FileNotFoundError):
             os.unlink(tmp)

@@ -17,7 +17,6 @@ from __future__ import annotations
 import contextlib
 import os
 import signal
-import tempfile
 import threading
 from collections.abc import Callable, Iterable, Iterator, Sequence
 from dataclasses import dataclass
@@ -25,6 +24,7 @@ from dataclasses import dataclass
 import numpy as np
 import trimesh
 
+from jampacked.core.atomic import staged_output
 from jampacked.core.errors import InputError, MeshError
 from jampacked.core.mesh_files import extension
 from jampacked.core.threemf import encode_3mf, encode_3mf_components
@@ -187,27 +187,13 @@ def stage_mesh_file(
         raise InputError(f"{len(names)} names for {count} bodies writing '{path_str}': "
                          "give one name per body.")
     data = encode_mesh(ext, bodies, names)
-    folder, name = os.path.split(os.path.abspath(path_str))
-    tmp = None
     try:
-        fd, tmp = tempfile.mkstemp(prefix=f".{name}.", suffix=f".tmp.{ext}", dir=folder)
-        with os.fdopen(fd, "wb") as handle:
+        with staged_output(os.path.abspath(path_str), "wb", suffix=f".tmp.{ext}") as (
+                handle, tmp):
             handle.write(data)
-            handle.flush()
-            os.fsync(handle.fileno())
-        try:
-            perm = os.stat(path_str).st_mode & 0o777
-        except FileNotFoundError:
-            perm = 0o644
-        os.chmod(tmp, perm)
-    except BaseException as exc:
-        if tmp is not None:
-            with contextlib.suppress(FileNotFoundError):
-                os.unlink(tmp)
-        if isinstance(exc, OSError):
-            raise MeshError(f"cannot write '{path_str}' ({exc.strerror or exc}): check the "
-                            "folder's permissions and free space.") from exc
-        raise
+    except OSError as exc:
+        raise MeshError(f"cannot write '{path_str}' ({exc.strerror or exc}): check the "
+                        "folder's permissions and free space.") from exc
     return tmp
 
 
