@@ -32,7 +32,7 @@ from jampacked.core.solids import solid_arrays
 
 from .connect import connect_scene, default_diameter
 from .cost import check_export_cost, estimate_export
-from .io import FLOAT32_FORMATS, MeshOutput, check_output_paths, float32_failure, write_meshes
+from .io import FLOAT32_FORMATS, MeshOutput, check_output_paths, float32_breaks, write_meshes
 from .mesh_write import Instances, write_format
 from .openings import drain_cover, solid_boxes
 from .options import ExportOptions, check_scale, rotate_axis, up_rotation
@@ -40,7 +40,6 @@ from .parts import require_gap, separate_parts
 from .report import ExportReport
 from .scene import PlacedScene, load_sources, packing_clearance, place, smallest_object
 from .union import clean_bodies, union_arrays
-from .validate import validate_arrays
 
 __all__ = ["ExportReport", "export_packing"]
 
@@ -289,11 +288,9 @@ def _check_float32(v: np.ndarray, f: np.ndarray, float32: list[str], count: int)
     once its positions are rounded to 32-bit floats as an STL or PLY stores them (far from
     the origin, where the rounding step nears the size of the booleans' slivers). A result
     that fails at full precision too is left to the validation of the files written."""
-    rounded = validate_arrays(v.astype(np.float32).astype(np.float64), f,
-                              check_manifold3d=False)
-    if rounded.passed or not validate_arrays(v, f, check_manifold3d=False).passed:
-        return
-    raise MeshError(float32_failure(float32[0], v, rounded.failures(), count))
+    failure = float32_breaks(float32[0], v, f, count)
+    if failure:
+        raise MeshError(failure)
 
 
 def _struts(packing: Packing, scene: PlacedScene, shell: m3.Manifold | None,

@@ -28,10 +28,11 @@ from .mesh_write import (
     remove_temporaries,
     replace_files,
     stage_mesh_file,
+    write_format,
 )
 from .validate import ValidationReport, validate_arrays, validate_file
 
-__all__ = ["FLOAT32_FORMATS", "WRITE_FORMATS", "MeshOutput", "float32_failure",
+__all__ = ["FLOAT32_FORMATS", "WRITE_FORMATS", "MeshOutput", "float32_breaks", "float32_failure",
            "read_mesh_arrays", "write_mesh", "write_meshes"]
 
 #: formats that store positions as 32-bit floats (3MF and OBJ keep full precision)
@@ -172,21 +173,30 @@ def _validated(tmp: str, path: str, out: MeshOutput, require_valid: bool,
                         "another format (.stl, .3mf, .obj, .ply).") from exc
     if not require_valid or report.passed:
         return report
-    ext = os.path.splitext(path)[1].lower().lstrip(".")
-    if ext in FLOAT32_FORMATS:
-        # the cause is the format's precision when the mesh rounded to float32 in memory
-        # fails too, and passes as given
+    if write_format(path) in FLOAT32_FORMATS:
         v, f = as_arrays(out.vertices, out.faces)
-        rounded = validate_arrays(v.astype(np.float32).astype(np.float64), f,
-                                  check_manifold3d=False)
-        if not rounded.passed and validate_arrays(v, f, check_manifold3d=False).passed:
-            raise MeshError(float32_failure(path, v, rounded.failures(), count))
+        failure = float32_breaks(path, v, f, count)
+        if failure:
+            raise MeshError(failure)
     raise MeshError(f"the mesh written to '{path}' is not watertight, so {nothing}: "
                     f"{report.summary()}. Check the input meshes with `jampacked validate`; "
                     "parts (--mode parts) of a packing without a clearance can touch along "
                     "non-manifold edges: re-pack with --clearance, or export with --mode "
                     "union or connect. A union or connect export that fails here is a "
                     "defect: report it with the packing file.")
+
+
+def float32_breaks(path: str, vertices: np.ndarray, faces: np.ndarray, count: int = 1
+                   ) -> str:
+    """The message (:func:`float32_failure`) when the mesh is watertight as given but not
+    once its positions are rounded to 32-bit floats, as ``path``'s format (STL or PLY)
+    stores them; "" otherwise (a mesh that fails at full precision too fails for another
+    reason)."""
+    rounded = validate_arrays(vertices.astype(np.float32).astype(np.float64), faces,
+                              check_manifold3d=False)
+    if rounded.passed or not validate_arrays(vertices, faces, check_manifold3d=False).passed:
+        return ""
+    return float32_failure(path, vertices, rounded.failures(), count)
 
 
 def float32_failure(path: str, vertices: np.ndarray, failures: Sequence[str],
