@@ -85,7 +85,8 @@ def cmd_batch(args: argparse.Namespace) -> int:
     check_output(scenes, args.output)  # before a cluster starts or a scene is packed
     with contextlib.ExitStack() as stack:
         # no cluster to start when every scene is already done and verified
-        todo = any(check_done(s, scene_file(args.output, s))[0] is None for s in scenes)
+        checked = {s.id: check_done(s, scene_file(args.output, s)) for s in scenes}
+        todo = any(done is None for done, _ in checked.values())
         client = cluster_client(args, stack, needed=todo)
         cancel = stack.enter_context(CancelOnInterrupt())
         progress = None
@@ -99,7 +100,7 @@ def cmd_batch(args: argparse.Namespace) -> int:
                 stopping = " [yellow](stopping: Ctrl-C)[/]" if cancel.requested else ""
                 bar.update(task, completed=done, description=escape(message) + stopping)
 
-        results = run_batch(scenes, args.output, client, progress, cancel)
+        results = run_batch(scenes, args.output, client, progress, cancel, checked)
     if not args.quiet:
         print_results(results, out)
         out.print(f"wrote {args.output}/{SUMMARY}", highlight=False)

@@ -106,11 +106,14 @@ def scene_file(out_dir: str | os.PathLike, spec: SceneSpec) -> Path:
 
 def run_batch(scenes: list[SceneSpec], out_dir: str | os.PathLike, client=None,
               progress: Callable[[int, int, str], None] | None = None,
-              should_cancel: Callable[[], bool] | None = None) -> list[SceneResult]:
+              should_cancel: Callable[[], bool] | None = None,
+              checked: dict[str, tuple[Packing | None, str]] | None = None
+              ) -> list[SceneResult]:
     """Pack every scene not already done and verified in `out_dir`; returns one result per
     scene, in the batch's order, and writes `out_dir`/summary.csv. client: a
     distributed.Client (its workers run the scenes) or None (here, one after another).
-    progress(done, total, message) after each scene; should_cancel() is polled."""
+    progress(done, total, message) after each scene; should_cancel() is polled. checked:
+    `check_done` of scenes by id, where the caller has already run it."""
     out = Path(out_dir)
     check_output(scenes, out)
     if not out.is_dir():
@@ -127,7 +130,7 @@ def run_batch(scenes: list[SceneSpec], out_dir: str | os.PathLike, client=None,
     why_not: dict[str, str] = {}
     for spec in scenes:
         path = scene_file(out, spec)
-        done, why = check_done(spec, path)
+        done, why = (checked or {}).get(spec.id) or check_done(spec, path)
         if path.exists():
             why_not[spec.id] = why
         if done is not None:
