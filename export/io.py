@@ -129,8 +129,7 @@ def write_meshes(
     reports: list[ValidationReport] = []
     try:
         for out, path in zip(outputs, paths, strict=True):
-            tmp = stage_mesh_file(path, out.vertices, out.faces, names=out.names,
-                                  protect=protect)
+            tmp = stage_mesh_file(path, out.vertices, out.faces, names=out.names)
             staged.append((tmp, path))
             if validate:
                 reports.append(_validated(tmp, path, out, require_valid, len(paths)))

@@ -168,16 +168,16 @@ def stage_mesh_file(
     faces: object = None,
     *,
     names: Sequence[str] | None = None,
-    protect: Iterable[str | os.PathLike] = (),
 ) -> str:
     """Write the mesh for ``path`` to a temporary file beside it and return the
     temporary's path; ``path`` itself is not touched (:func:`replace_files` puts it in
     place). The temporary is hidden (``.NAME.XXXX.tmp.EXT``), ends in the real extension so
     it reads back, is flushed to disk and has the permissions ``path`` has (0o644 for a new
-    file). Arguments and errors as :func:`write_mesh_file`; on an error no temporary is left.
+    file). The path must have been checked (:func:`check_output_path`); other arguments and
+    errors as :func:`write_mesh_file`; on an error no temporary is left.
     """
     path_str = os.fspath(path)
-    ext = check_output_path(path_str, protect)
+    ext = write_format(path_str)
     # a 3MF of instances is written without moving every mesh
     bodies: Sequence[Body] | Instances = (
         vertices if isinstance(vertices, Instances) and ext == "3mf"
@@ -311,7 +311,8 @@ def write_mesh_file(
         MeshError: the file cannot be written (missing folder, permissions, disk full).
     """
     path_str = os.fspath(path)
-    tmp = stage_mesh_file(path_str, vertices, faces, names=names, protect=protect)
+    check_output_path(path_str, protect)
+    tmp = stage_mesh_file(path_str, vertices, faces, names=names)
     staged = [(tmp, path_str)]
     try:
         if check is not None:
