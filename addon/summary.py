@@ -105,6 +105,7 @@ _BLENDER_WORDS = (
     ("--container-size / container_size", "the container object's scale"),
     ("--type-scale", "the type objects' scale"),
     ("--container-size", "the container object's scale"),
+    ("--time-budget / time_budget", "Time Budget"),
     ("--time-budget", "Time Budget"),
     ("--mix-tolerance", "Mix Tolerance"),
     ("--clearance", "Clearance"),

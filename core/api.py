@@ -399,7 +399,8 @@ def _check_types_fit(objtypes: list[ObjectType], cont: Container, clearance: flo
             f"object type{'s' if len(no_room) > 1 else ''} {', '.join(no_room)} cannot fit: "
             f"the container's deepest interior point is {depth:.4g} units from its wall, less "
             f"than the type's largest inscribed sphere{' plus the clearance' if clearance else ''}"
-            ". Scale the container up (--container-size) or the objects down (--type-scale)"
+            ". Scale the container up (--container-size / container_size) or the objects down "
+            "(--type-scale / type_scale)"
             f"{', lower the clearance' if clearance else ''}, or remove the type.")
 
 
@@ -489,7 +490,7 @@ def _assemble(container: MeshSource, scene: _Scene, approx: _Approximation, run:
             f"no object could be placed: the container's deepest interior point is "
             f"{depth:.4g} units from its wall, the smallest type's equivalent radius is "
             f"{approx.f_min:.4g}{gap}, and no object fitted anywhere. Scale the container up "
-            "(--container-size) or the objects down (--type-scale)"
+            "(--container-size / container_size) or the objects down (--type-scale / type_scale)"
             f"{' or lower the clearance' if clearance else ''}.")
     typ = state.typ[idx].copy()
     pos = state.pos[idx].copy()

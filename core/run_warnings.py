@@ -35,8 +35,8 @@ def run_warnings(names: Sequence[str], shares: np.ndarray, counts: np.ndarray, t
             out.append(
                 f"type {names[i]} (share {shares[i]:.0%}) was not placed at all: it may not "
                 "fit the container in any orientation, or only where the other types already "
-                "are. Scale the objects down (--type-scale), the container up "
-                "(--container-size), or remove the type.")
+                "are. Scale the objects down (--type-scale / type_scale), the container up "
+                "(--container-size / container_size), or remove the type.")
     allowed = max(max_tvd, best_tvd(shares, int(counts.sum()))) + MIX_WARN_SLACK
     if not missing and counts.sum() > 0 and tvd > allowed:
         placed = ", ".join(f"{n} {c / counts.sum():.0%} (asked {s:.0%})"
@@ -47,17 +47,18 @@ def run_warnings(names: Sequence[str], shares: np.ndarray, counts: np.ndarray, t
         out.append(
             f"the time budget ({time_budget:g} s) ended while the first objects were still "
             f"growing: {phase1.grown} of {phase1.inserted} grew, and the cavity passes did not "
-            "run, so the container is far from full. Give a larger --time-budget, or none.")
+            "run, so the container is far from full. Give a larger --time-budget / "
+            "time_budget, or none.")
     elif stopped == "deadline" and not extra_passes_ran:
         out.append(
             f"the time budget ({time_budget:g} s) ended before the cavity passes ran: the "
             f"first objects grew ({phase1.grown} of {phase1.inserted}), but the holes between "
             "them were left unfilled, so the container is far from full. Give a larger "
-            "--time-budget, or none.")
+            "--time-budget / time_budget, or none.")
     if stopped == "deadline" and attempts_asked is not None \
             and attempts_run < attempts_asked:
         out.append(
             f"{attempts_run} of the {attempts_asked} attempts asked for ran before the time "
             "budget ended; the same attempts give the same packing only when all of them "
-            "run. Give a larger --time-budget, or none.")
+            "run. Give a larger --time-budget / time_budget, or none.")
     return out

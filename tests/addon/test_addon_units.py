@@ -141,13 +141,15 @@ def test_collection_properties_and_panel_lines():
 def test_engine_messages_in_blender_words():
     # the engine's advice names command-line options; Blender users change objects and fields
     text = ("type rod (share 50%) was not placed at all: ... Scale the objects down "
-            "(--type-scale), the container up (--container-size), or remove the type.")
+            "(--type-scale / type_scale), the container up (--container-size / "
+            "container_size), or remove the type.")
     assert summary.in_blender_words(text) == (
         "Type rod (share 50%) was not placed at all: ... Scale the objects down (the type "
         "objects' scale), the container up (the container object's scale), or remove the "
         "type.")
-    assert summary.in_blender_words("give a larger --time-budget, or none.") == \
-        "Give a larger Time Budget, or none."
+    for budget in ("--time-budget", "--time-budget / time_budget"):
+        assert summary.in_blender_words(f"give a larger {budget}, or none.") == \
+            "Give a larger Time Budget, or none."
     # messages written for the command line and for mesh files
     from jampacked.core.errors import InputError
     from jampacked.export.parts import require_gap

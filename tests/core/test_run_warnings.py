@@ -30,7 +30,8 @@ def test_a_full_run_with_the_mix_kept_warns_about_nothing():
 def test_a_type_never_placed_is_named():
     (w,) = _warn([0, 40], tvd=0.5)
     assert w.startswith("type apple (share 50%) was not placed at all")
-    assert "--type-scale" in w
+    # in both the command line's and a batch file's (or pack()'s) words
+    assert "(--type-scale / type_scale)" in w and "(--container-size / container_size)" in w
 
 
 def test_a_mix_far_from_the_shares_is_reported():
@@ -42,7 +43,7 @@ def test_a_budget_ending_in_phase_1_and_attempts_cut_short():
     cut = PhaseStats(inserted=1724, grown=217, stopped="deadline")
     w = _warn([100, 101], phase1=cut, budget=30.0, stopped="deadline", asked=3, ran=1)
     assert len(w) == 2
-    assert "217 of 1724 grew" in w[0] and "--time-budget" in w[0]
+    assert "217 of 1724 grew" in w[0] and "--time-budget / time_budget" in w[0]
     assert w[1].startswith("1 of the 3 attempts")
     # cancelled, not the budget: the command line says it was interrupted instead
     assert _warn([100, 101], stopped="cancelled", asked=3, ran=1) == []
@@ -54,7 +55,7 @@ def test_a_budget_ending_before_the_cavity_passes():
     grown = PhaseStats(inserted=310, grown=130)
     (w,) = _warn([66, 67], phase1=grown, budget=20.0, stopped="deadline", extra=False)
     assert "ended before the cavity passes ran" in w and "130 of 310" in w
-    assert "--time-budget" in w
+    assert "--time-budget / time_budget" in w
     # once the passes started, the budget ending them is how a budget works: no warning
     assert _warn([66, 67], phase1=grown, budget=20.0, stopped="deadline", extra=True) == []
     # phase 1 cut short says so once, not twice
