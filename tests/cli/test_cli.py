@@ -84,6 +84,25 @@ def test_pack_prints_summary(packed):
     assert str(out) in so and str(png) in so
 
 
+def test_summary_gives_millimetres_for_a_3mf_container(packed):
+    # a 3MF's coordinates are read in millimetres (its declared unit converted); other
+    # formats carry no unit and the summary says "units"
+    from dataclasses import replace
+
+    from rich.console import Console
+
+    from jampacked.cli.reports import print_summary
+
+    p = load_packing(packed[1])
+    for path, unit in (("/x/jar.3MF", "mm³"), ("/x/jar.stl", "units³"),
+                       ("box:30x30x30", "units³")):
+        console = Console(record=True, width=200)
+        print_summary(replace(p, container_path=path), console)
+        text = console.export_text()
+        line = next(ln for ln in text.splitlines() if "volume" in ln and "container" in ln)
+        assert line.strip(" │").endswith(unit), (path, line)
+
+
 def test_preview_is_a_png_with_content(packed):
     png = packed[2]
     import matplotlib.image as mpimg

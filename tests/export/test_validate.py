@@ -709,6 +709,11 @@ def test_cli_pass_and_fail(files, capsys):
     assert main(["validate", str(files["good"])]) == 0
     out = capsys.readouterr().out
     assert "PASS good.stl: 1 body" in out and "genus" in out
+    assert "units³" in out and "mm³" not in out  # an STL carries no unit
+    good3mf = files["good"].with_suffix(".3mf")
+    write_mesh(good3mf, *box())
+    assert main(["validate", str(good3mf)]) == 0
+    assert "mm³" in capsys.readouterr().out  # a 3MF's coordinates are read in millimetres
     assert main(["validate", str(files["good"]), str(files["bad"])]) == 1
     out = capsys.readouterr().out
     assert "PASS good.stl" in out and "FAIL bad.obj: 3 open edges around 1 hole" in out
