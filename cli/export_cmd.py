@@ -17,7 +17,7 @@ from jampacked.cli.exits import EXIT_ERROR, EXIT_INTERRUPTED, print_error
 from jampacked.cli.interrupt import CancelOnInterrupt
 from jampacked.cli.reports import consoles, print_export, print_validation, progress_bar
 from jampacked.cli.scene import check_output
-from jampacked.core.errors import Cancelled, InputError
+from jampacked.core.errors import Cancelled, InputError, OutputError
 from jampacked.export.options import AXES, MODES, ExportOptions, Opening
 
 EXPORT_EPILOG = """\
@@ -167,6 +167,8 @@ def cmd_export(args: argparse.Namespace) -> int:
             try:
                 report = export_packing(args.packing, args.output, options,
                                         progress=progress_cb, should_cancel=cancel)
+            except OutputError as exc:  # an output the arguments ask for cannot be written
+                raise UsageError(str(exc)) from None
             except Cancelled as exc:
                 print_error(exc)
                 return EXIT_INTERRUPTED

@@ -18,6 +18,11 @@ class InputError(JampackedError):
     """Bad arguments: shares, sizes, clearance, unknown file formats, bad packing files."""
 
 
+class OutputError(InputError):
+    """An output file that cannot be asked for: an unknown format, an input file, a name
+    given twice. Found before any work; the command line reports it as a usage error."""
+
+
 class PackingError(JampackedError):
     """The packing itself cannot be done (e.g. no object fits the container)."""
 

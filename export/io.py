@@ -18,7 +18,7 @@ from dataclasses import dataclass, replace
 
 import numpy as np
 
-from jampacked.core.errors import InputError, MeshError
+from jampacked.core.errors import InputError, MeshError, OutputError
 from jampacked.core.mesh_files import read_mesh_arrays
 
 from .mesh_write import (
@@ -145,7 +145,7 @@ def check_output_paths(paths: Sequence[str], protect: Iterable[str | os.PathLike
                        ) -> None:
     """Check every output path before anything is built or written: a format the writer
     knows, not an input (``protect``), its folder there, not a folder, and no file named
-    twice. Raises InputError or MeshError (see
+    twice. Raises OutputError or MeshError (see
     :func:`jampacked.export.mesh_write.check_output_path`)."""
     protect = [os.fspath(p) for p in protect]
     seen: dict[str, str] = {}
@@ -155,7 +155,7 @@ def check_output_paths(paths: Sequence[str], protect: Iterable[str | os.PathLike
         if sys.platform == "darwin":  # macOS volumes ignore case too, as a rule
             key = key.lower()
         if key in seen:
-            raise InputError(f"'{p}' is named twice among the output files (also as "
+            raise OutputError(f"'{p}' is named twice among the output files (also as "
                              f"'{seen[key]}'); give each output once.")
         seen[key] = p
 

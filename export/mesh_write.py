@@ -25,7 +25,7 @@ import numpy as np
 import trimesh
 
 from jampacked.core.atomic import staged_output
-from jampacked.core.errors import InputError, MeshError
+from jampacked.core.errors import InputError, MeshError, OutputError
 from jampacked.core.mesh_files import extension
 from jampacked.core.threemf import encode_3mf, encode_3mf_components
 
@@ -130,11 +130,11 @@ def _same_file(a: str, b: str) -> bool:
 
 
 def write_format(path: str) -> str:
-    """The format a file name asks for (its extension, lower case), or InputError."""
+    """The format a file name asks for (its extension, lower case), or OutputError."""
     ext = extension(path)
     if ext not in WRITE_FORMATS:
         what = f"unknown mesh format '.{ext}'" if ext else "no extension to name its format"
-        raise InputError(f"cannot write '{path}': {what}; use one of "
+        raise OutputError(f"cannot write '{path}': {what}; use one of "
                          f"{', '.join('.' + e for e in WRITE_FORMATS)}.")
     return ext
 
@@ -144,14 +144,14 @@ def check_output_path(path: str | os.PathLike,
     """Check that a mesh file can be written at ``path`` before anything is built for it;
     returns its format (the extension, lower case).
 
-    Raises InputError (unknown format, or ``path`` is one of ``protect``: the inputs, compared
+    Raises OutputError (unknown format, or ``path`` is one of ``protect``: the inputs, compared
     as resolved paths) or MeshError (its folder does not exist, or it is a folder).
     """
     path_str = os.fspath(path)
     ext = write_format(path_str)
     for p in protect:
         if _same_file(path_str, os.fspath(p)):
-            raise InputError(f"refusing to write '{path_str}': it is an input file "
+            raise OutputError(f"refusing to write '{path_str}': it is an input file "
                              f"('{os.fspath(p)}'); choose another output name.")
     folder = os.path.dirname(os.path.abspath(path_str))
     if not os.path.isdir(folder):

@@ -573,6 +573,19 @@ def test_outputs_that_are_inputs_are_refused_and_left_alone(packed, tmp_path):
     assert rc == 2 and "is the input mesh" in se and mesh.read_bytes() == before_mesh
     rc, _, se = run(["export", str(out), "-o", str(out)])
     assert rc == 2 and "is the packing file" in se and out.read_bytes() == before_packing
+    # export -o onto a type mesh the packing names, a file named twice, an unknown format:
+    # usage errors too (exit 2), as pack's are; they exited 1
+    moved = json.loads(out.read_text())
+    moved["types"][0]["path"] = str(mesh)
+    relinked = tmp_path / "relinked.json"
+    relinked.write_text(json.dumps(moved))
+    rc, _, se = run(["export", str(relinked), "-o", str(mesh)])
+    assert rc == 2 and "it is an input file" in se and mesh.read_bytes() == before_mesh
+    a_stl = tmp_path / "a.stl"
+    rc, _, se = run(["export", str(out), "-o", str(a_stl), "-o", f"{tmp_path}/./a.stl"])
+    assert rc == 2 and "named twice" in se and not a_stl.exists()
+    rc, _, se = run(["export", str(out), "-o", str(tmp_path / "a.xyz")])
+    assert rc == 2 and "unknown mesh format '.xyz'" in se
 
 
 def test_info_on_a_mesh_file_says_it_is_a_mesh(capsys):
