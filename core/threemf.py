@@ -1,10 +1,17 @@
 """3MF codec: the triangle meshes of a 3MF package as arrays, and arrays as a 3MF package.
 
-Reading (:func:`read_3mf`) parses the root model part with lxml (libxml2) and takes every
+Reading (:func:`read_3mf`) finds the root model part as the package says (the target of the
+one 3D model relationship in ``_rels/.rels``), parses it with lxml (libxml2) and takes every
 object of every build item, component transforms applied, concatenated in build order; the
 vertex and triangle attributes are converted by numpy exactly as Python's ``float()`` and
 ``int()`` convert them, and scaled from the model's declared unit to millimetres, as slicers
 read them (:func:`read_3mf_model` also gives the unit). Nothing is merged or repaired.
+A package that breaks the core specification where lib3mf (what slicers and printers use)
+refuses it or reads it otherwise is refused, never guessed at: no ``[Content_Types].xml`` or
+``_rels/.rels``, no or several 3D model relationships, a model outside the core namespace, two
+objects with one id, an object with both a mesh and components, a component or build item
+that refers to an object not defined before it, a build item of an object of type "other".
+A reference into another model part (the production extension's ``p:path``) is not followed.
 Writing (:func:`encode_3mf`) gives one object per body,
 named, one build item each, in millimetres, with repr-exact float64 coordinates (a written
 file reads back bit for bit); :func:`encode_3mf_components` stores each of a few meshes once
@@ -14,9 +21,11 @@ and each body as a component: a mesh and its transform.
 from __future__ import annotations
 
 import io
+import posixpath
 import zipfile
 import zlib
 from collections.abc import Sequence
+from urllib.parse import unquote
 from xml.sax.saxutils import quoteattr
 
 import numpy as np
@@ -27,6 +36,9 @@ __all__ = ["UNIT_MM", "ThreeMFError", "encode_3mf", "encode_3mf_components", "re
 
 CORE_NAMESPACE = "http://schemas.microsoft.com/3dmanufacturing/core/2015/02"
 _REL_TYPE = "http://schemas.microsoft.com/3dmanufacturing/2013/01/3dmodel"
+_PRODUCTION_NAMESPACE = "http://schemas.microsoft.com/3dmanufacturing/production/2015/06"
+_CONTENT_TYPES_PART = "[Content_Types].xml"
+_RELS_PART = "_rels/.rels"
 CONTENT_TYPES = (
     '<?xml version="1.0" encoding="UTF-8"?>\n'
     '<Types xmlns="http://schemas.openxmlformats.org/package/2006/content-types">'
@@ -52,7 +64,7 @@ UNIT_ALIASES = {"um": "micron", "µm": "micron", "micrometer": "micron", "microm
                 "centimeters": "centimeter", "centimetres": "centimeter", "in": "inch",
                 "inches": "inch", "ft": "foot", "feet": "foot", "m": "meter", "metre": "meter",
                 "meters": "meter", "metres": "meter"}
-#: components nested deeper than this are refused (a cycle of components never ends)
+#: components nested deeper than this are refused (a writer's runaway, or a hostile file)
 MAX_COMPONENT_DEPTH = 32
 
 Body = tuple[np.ndarray, np.ndarray]
@@ -66,17 +78,46 @@ class ThreeMFError(ValueError):
 # reading
 
 
-def _model_xml(data: bytes) -> bytes:
-    """The root model part of a 3MF package (``3D/3dmodel.model``, else the first .model)."""
+def _parse_xml(xml: bytes, part: str) -> etree._Element:
+    """The root element of an XML part; no entity expansion and no network (a part is data,
+    never a fetch)."""
+    parser = etree.XMLParser(resolve_entities=False, no_network=True, remove_blank_text=True)
+    try:
+        return etree.fromstring(xml, parser)
+    except etree.XMLSyntaxError as exc:
+        raise ThreeMFError(f"the XML of {part} is malformed: {exc}") from exc
+
+
+def _start_part(archive: zipfile.ZipFile, names: dict[str, str]) -> str:
+    """The zip name of the 3D model part: the target of the package's one 3D model
+    relationship in ``_rels/.rels`` (``names``: lower-cased name -> name, part names being
+    case-insensitive)."""
+    for required in (_CONTENT_TYPES_PART, _RELS_PART):
+        if required.lower() not in names:
+            raise ThreeMFError(f"the package has no {required}, which every 3MF package "
+                               "needs (lib3mf refuses it)")
+    rels = _parse_xml(archive.read(names[_RELS_PART.lower()]), _RELS_PART)
+    targets = [r.get("Target", "") for r in rels.iter("{*}Relationship")
+               if r.get("Type", "").strip().lower() == _REL_TYPE.lower()]
+    if len(targets) != 1:
+        raise ThreeMFError(f"{_RELS_PART} has {len(targets)} 3D model relationships (type "
+                           f"{_REL_TYPE}) where a 3MF package has exactly one")
+    # a target relative to the package root, or absolute; percent-encoded as a URI
+    name = posixpath.normpath("/" + unquote(targets[0].strip())).lstrip("/")
+    if name.lower() not in names:
+        raise ThreeMFError(f"{_RELS_PART} names /{name} as the 3D model part, which the "
+                           "package lacks")
+    return names[name.lower()]
+
+
+def _model_xml(data: bytes) -> tuple[bytes, str]:
+    """The root model part of a 3MF package (the start part :func:`_start_part` names) and
+    its name."""
     try:
         with zipfile.ZipFile(io.BytesIO(data)) as archive:
-            names = archive.namelist()
-            model = next((n for n in names if n.lower() == "3d/3dmodel.model"), None)
-            if model is None:
-                model = next((n for n in names if n.lower().endswith(".model")), None)
-            if model is None:
-                raise ThreeMFError("the package has no 3D model part (3D/3dmodel.model)")
-            return archive.read(model)
+            names = {n.lower(): n for n in archive.namelist()}
+            part = _start_part(archive, names)
+            return archive.read(part), part
     except ThreeMFError:  # a ValueError itself: keep its own message
         raise
     # ValueError: a damaged name that claims to be UTF-8 (UnicodeDecodeError), bad offsets
@@ -127,6 +168,97 @@ def _numbers(element: etree._Element, path: str, names: tuple[str, str, str],
     return np.ascontiguousarray(values.T.reshape(-1, 3))
 
 
+def _tag(name: str) -> str:
+    return f"{{{CORE_NAMESPACE}}}{name}"
+
+
+_NS = {"m": CORE_NAMESPACE}
+
+
+def _unit(root: etree._Element) -> str:
+    """The model's unit, one of :data:`UNIT_MM` (a writer's spelling read as the spec's)."""
+    declared = root.get("unit", "millimeter")
+    unit = UNIT_ALIASES.get(declared.strip().lower(), declared.strip().lower())
+    if unit not in UNIT_MM:
+        raise ThreeMFError(f"the model's unit {declared!r} is not one of 3MF's units "
+                           f"({', '.join(UNIT_MM)})")
+    return unit
+
+
+def _reference(element: etree._Element, where: str, part: str, defined: dict[str, str],
+               ids: set[str]) -> str | None:
+    """The object id a component or build item refers to, which must be an object of
+    ``part`` defined before it (``defined``: id -> type so far; ``ids``: every object id of
+    the part); None for a reference into another model part (not followed)."""
+    path = element.get(f"{{{_PRODUCTION_NAMESPACE}}}path")
+    if path and path.strip().lstrip("/").lower() != part.lower():
+        return None
+    oid = element.get("objectid")
+    if oid is None:
+        raise ThreeMFError(f"{where} has no objectid")
+    if oid not in defined:
+        where_is = ("is defined after it, and 3MF requires every object to be defined before "
+                    "it is referred to" if oid in ids else "does not exist")
+        raise ThreeMFError(f"{where} refers to object {oid}, which {where_is}")
+    return oid
+
+
+_Resources = tuple[dict[str, Body], dict[str, list[tuple[str, np.ndarray]]], dict[str, str]]
+
+
+def _resources(root: etree._Element, part: str) -> _Resources:
+    """The objects of the model part, checked: ``(meshes, components, types)``, each keyed by
+    object id (``components``: the (object id, 4x4 transform) of each component that
+    refers to an object of this part)."""
+    meshes: dict[str, Body] = {}
+    components: dict[str, list[tuple[str, np.ndarray]]] = {}
+    types: dict[str, str] = {}
+    objects = list(root.iterfind(f"{_tag('resources')}/{_tag('object')}"))
+    ids = {obj.get("id") for obj in objects} - {None}
+    for k, obj in enumerate(objects, 1):
+        oid = obj.get("id")
+        if oid is None:
+            raise ThreeMFError(f"object {k} of the resources has no id")
+        if oid in types:
+            raise ThreeMFError(f"two objects have the id {oid} (resource ids are unique in a "
+                               "3MF model, and lib3mf refuses it)")
+        mesh, parts = obj.find(_tag("mesh")), obj.find(_tag("components"))
+        if mesh is not None and parts is not None:
+            raise ThreeMFError(f"object {oid} has both a mesh and components (3MF allows one "
+                               "or the other: which is meant is ambiguous); give the mesh "
+                               "and the components an object each")
+        if mesh is not None:
+            meshes[oid] = (
+                _numbers(mesh, "m:vertices/m:vertex", ("x", "y", "z"), _NS, False),
+                _numbers(mesh, "m:triangles/m:triangle", ("v1", "v2", "v3"), _NS, True),
+            )
+        elif parts is not None:
+            refs = [(_reference(c, f"component {j} of object {oid}", part, types, ids),
+                     _transform(c.get("transform")))
+                    for j, c in enumerate(parts.iterfind(_tag("component")), 1)]
+            components[oid] = [(child, m) for child, m in refs if child is not None]
+        types[oid] = obj.get("type", "model").strip()
+    return meshes, components, types
+
+
+def _build(root: etree._Element, part: str, types: dict[str, str]
+           ) -> list[tuple[str, np.ndarray]]:
+    """The (object id, 4x4 transform) of each build item that refers to an object of this
+    part, checked: an existing object, not of type "other"."""
+    items = []
+    for k, item in enumerate(root.iterfind(f"{_tag('build')}/{_tag('item')}"), 1):
+        oid = _reference(item, f"build item {k}", part, types, set(types))
+        if oid is None:
+            continue
+        if types[oid] == "other":
+            raise ThreeMFError(f"build item {k} is object {oid} of type \"other\", which 3MF "
+                               "does not allow in the build (such an object is not to be "
+                               "printed); set the object's type to \"model\" if it is to be "
+                               "printed, or remove the build item")
+        items.append((oid, _transform(item.get("transform"))))
+    return items
+
+
 def read_3mf(data: bytes) -> Body:
     """All build items of a 3MF package in millimetres: :func:`read_3mf_model` without the
     unit."""
@@ -147,54 +279,30 @@ def read_3mf_model(data: bytes) -> tuple[Body, str]:
         the unit, one of :data:`UNIT_MM`.
 
     Raises:
-        ThreeMFError: a damaged zip, no model part, malformed XML, an unknown unit, a
-            missing or unreadable attribute, a bad transform, or components that nest too
-            deep.
+        ThreeMFError: a damaged zip; no [Content_Types].xml, no _rels/.rels, or not exactly
+            one 3D model relationship to a part the package holds; malformed XML; a model
+            outside 3MF's core namespace; an unknown unit; a missing or unreadable
+            attribute; a bad transform; a duplicate object id, an object with both a mesh
+            and components, a reference to an object not defined before it, a build item
+            of type "other"; or components that nest too deep.
     """
-    xml = _model_xml(data)
-    # no entity expansion and no network: a model part is data, never a fetch
-    parser = etree.XMLParser(resolve_entities=False, no_network=True, remove_blank_text=True)
-    try:
-        root = etree.fromstring(xml, parser)
-    except etree.XMLSyntaxError as exc:
-        raise ThreeMFError(f"the model XML is malformed: {exc}") from exc
-    declared = root.get("unit", "millimeter")
-    unit = UNIT_ALIASES.get(declared.strip().lower(), declared.strip().lower())
-    if unit not in UNIT_MM:
-        raise ThreeMFError(f"the model's unit {declared!r} is not one of 3MF's units "
-                           f"({', '.join(UNIT_MM)})")
-    namespace = etree.QName(root).namespace
-    ns = {"m": namespace} if namespace else {}
-    prefix = "m:" if namespace else ""
-
-    def tag(name: str) -> str:
-        return f"{{{namespace}}}{name}" if namespace else name
-
-    meshes: dict[str | None, Body] = {}
-    components: dict[str | None, list[tuple[str | None, np.ndarray]]] = {}
-    for obj in root.iterfind(f"{tag('resources')}/{tag('object')}"):
-        oid = obj.get("id")
-        mesh = obj.find(tag("mesh"))
-        if mesh is not None:
-            meshes[oid] = (
-                _numbers(mesh, f"{prefix}vertices/{prefix}vertex", ("x", "y", "z"), ns, False),
-                _numbers(mesh, f"{prefix}triangles/{prefix}triangle", ("v1", "v2", "v3"), ns,
-                         True),
-            )
-        parts = obj.find(tag("components"))
-        if parts is not None:
-            components[oid] = [(c.get("objectid"), _transform(c.get("transform")))
-                               for c in parts.iterfind(tag("component"))]
+    xml, part = _model_xml(data)
+    root = _parse_xml(xml, part)
+    if root.tag != _tag("model"):
+        raise ThreeMFError(f"the root element of {part} is {root.tag!r}, not a <model> in "
+                           f"3MF's core namespace {CORE_NAMESPACE} (lib3mf finds no objects "
+                           f"in it)")
+    unit = _unit(root)
+    meshes, components, types = _resources(root, part)
 
     out_v: list[np.ndarray] = []
     out_f: list[np.ndarray] = []
     offset = 0
 
-    def emit(oid: str | None, transform: np.ndarray, depth: int) -> None:
+    def emit(oid: str, transform: np.ndarray, depth: int) -> None:
         nonlocal offset
         if depth > MAX_COMPONENT_DEPTH:
-            raise ThreeMFError(f"components nest more than {MAX_COMPONENT_DEPTH} deep "
-                               "(a cycle?)")
+            raise ThreeMFError(f"components nest more than {MAX_COMPONENT_DEPTH} deep")
         if oid in meshes:
             v, f = meshes[oid]
             if np.array_equal(transform, np.eye(4)) and np.all(np.isfinite(v)):
@@ -207,8 +315,8 @@ def read_3mf_model(data: bytes) -> tuple[Body, str]:
         for child, m in components.get(oid, []):
             emit(child, transform @ m, depth + 1)
 
-    for item in root.iterfind(f"{tag('build')}/{tag('item')}"):
-        emit(item.get("objectid"), _transform(item.get("transform")), 0)
+    for oid, transform in _build(root, part, types):
+        emit(oid, transform, 0)
     if not out_f:
         return (np.zeros((0, 3)), np.zeros((0, 3), np.int64)), unit
     # one body: already new arrays
