@@ -30,7 +30,11 @@ inside a solid, fails. manifold3d's status of the whole mesh is recorded as an i
 check (``check_manifold3d=False`` skips it: the report then says "skipped").
 
 Reading: vertices at exactly identical positions are merged (STL is a triangle soup; that is
-how a slicer reads it). Nothing else is merged, removed or repaired. Offending elements are
+how a slicer reads it). Nothing else is merged, removed or repaired. A 3MF package is read
+as lib3mf reads it (:mod:`jampacked.core.threemf`): the model part its relationship names,
+and one that breaks the core specification where lib3mf refuses it (no content types or
+relationships, a duplicate object id, a build item of a missing object, ...) is not
+validated but refused as unreadable, like a damaged one. Offending elements are
 reported like Blender's 3D-Print Toolbox, as indices into the arrays given (or the arrays
 read from the file): faces by index, edges as pairs of vertex indices, vertices by index
 (the first vertex at that position).
@@ -418,8 +422,9 @@ def validate_file(path: str | os.PathLike, *, check_intersections: bool = True,
     merging or repair) and validate it with :func:`validate_arrays` (the flags are its).
 
     Raises:
-        MeshError: the file is missing, unreadable, or of an unknown type (the message names
-            the file).
+        MeshError: the file is missing, unreadable, or of an unknown type, or a 3MF package
+            that breaks the 3MF core specification (the message names the file and what is
+            wrong).
     """
     t = time.perf_counter()
     vertices, faces = read_mesh_arrays(path)
