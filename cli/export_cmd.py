@@ -131,7 +131,7 @@ def add_export_parser(sub: argparse._SubParsersAction) -> None:
                         "object's equivalent diameter)")
     p.add_argument("--resolution", type=positive_float("--resolution"), metavar="MM",
                    help="simplify meshes to the printer's resolution (surfaces move by at "
-                        "most this much)")
+                        "most this much, measured; objects that only touch can come apart)")
     p.add_argument("--split", action="store_true",
                    help="--mode parts: write one file per part (NAME_<type>_<i>.EXT, i: "
                         "the object's index among the packing's placements)")

@@ -230,7 +230,8 @@ def print_export(report: ExportReport, console: Console) -> None:
     t.add_row("bodies", str(report.bodies))
     t.add_row("triangles", f"{report.triangles:,}")
     if report.triangles_saved:
-        t.add_row("saved by --resolution", f"{report.triangles_saved:,} triangles")
+        t.add_row("saved by --resolution", f"{report.triangles_saved:,} triangles (surfaces "
+                  f"moved at most {report.resolution_deviation:.3g})")
     if report.mode == "connect":
         t.add_row("connectors", f"{report.connectors} ({report.connector_length:.1f} long "
                                 f"in all)")

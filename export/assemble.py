@@ -123,6 +123,7 @@ def export_packing(packing: Packing | str | os.PathLike,
                  f"{cost.memory / 2**30:.2g} GiB)")
     scene.place_solids(packing, source)
     out.triangles_saved = scene.triangles_saved
+    out.resolution_deviation = scene.resolution_deviation
     out.timings["load"] = time.perf_counter() - t0
     check_cancel()
 
@@ -253,15 +254,12 @@ def _one_body(packing: Packing, scene: PlacedScene, shell: m3.Manifold | None,
     """Union (with struts in connect mode) of the objects and the shell, cleaned.
     ``float32``: the outputs that store 32-bit floats (STL, PLY), of ``count`` outputs."""
     for attempt in range(3 if options.mode == "connect" else 1):
-        out.triangles_saved = scene.triangles_saved
         struts: list[m3.Manifold] = []
         if options.mode == "connect":
             struts = _struts(packing, scene, shell, options, out, report, cancel, attempt)
             check_cancel()
         report(0.6, "union")
-        v, f, left, saved = union_arrays(scene.solids + struts, shell, options.resolution,
-                                         float32=bool(float32))
-        out.triangles_saved += saved
+        v, f, left = union_arrays(scene.solids + struts, shell, float32=bool(float32))
         if left == 0:
             break
         # slivers the local repairs cannot remove: struts turned another way meet the

@@ -19,7 +19,8 @@ class ExportReport:
 
     paths: files written. bodies: bodies in the result (1 for a connected export).
     triangles: triangles of the result (per file for parts split into files: the sum).
-    triangles_saved: triangles --resolution removed. connectors / connector_length: struts
+    triangles_saved: triangles --resolution removed; resolution_deviation: how far that
+    moved a surface at most (measured, container units). connectors / connector_length: struts
     added (connect mode) and their total visible length (container units). fused: tree edges
     whose solids already overlapped. min_gap: smallest gap between parts (parts mode; None
     when no two parts are near), clearance: the packing's clearance. voids_filled /
@@ -33,6 +34,7 @@ class ExportReport:
     objects: int
     triangles: int
     triangles_saved: int = 0
+    resolution_deviation: float = 0.0
     connectors: int = 0
     connector_length: float = 0.0
     fused: int = 0
@@ -66,7 +68,8 @@ class ExportReport:
             parts.append(f"smallest gap between parts {self.min_gap:.3g} (clearance "
                          f"{self.clearance:g})")
         if self.triangles_saved:
-            parts.append(f"--resolution saved {self.triangles_saved:,} triangles")
+            parts.append(f"--resolution saved {self.triangles_saved:,} triangles (surfaces "
+                         f"moved at most {self.resolution_deviation:.3g})")
         if self.voids_filled:
             parts.append(f"{self.voids_filled} sealed void{'s' if self.voids_filled > 1 else ''}"
                          f" filled ({self.voids_filled_volume:.3g} in volume)")
@@ -78,7 +81,8 @@ class ExportReport:
         return {
             "mode": self.mode, "paths": self.paths, "bodies": self.bodies,
             "objects": self.objects, "triangles": self.triangles,
-            "triangles_saved": self.triangles_saved, "connectors": self.connectors,
+            "triangles_saved": self.triangles_saved,
+            "resolution_deviation": self.resolution_deviation, "connectors": self.connectors,
             "connector_length": self.connector_length, "fused": self.fused,
             "min_gap": self.min_gap, "clearance": self.clearance, "volume": self.volume,
             "voids_filled": self.voids_filled, "voids_filled_volume": self.voids_filled_volume,

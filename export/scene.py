@@ -21,6 +21,7 @@ from jampacked.core.packing import Packing, container_mesh, verify_sources
 from jampacked.core.phases import equivalent_radius
 from jampacked.core.solids import to_solid
 
+from .simplify import simplify_within
 from .union import SPECK_REL
 
 __all__ = [
@@ -159,7 +160,8 @@ class PlacedScene:
     faces; matrices: (N, 4, 4) local -> container frame. After :meth:`make_solids`:
     type_solids, each type once as a solid in its local frame (simplified by the resolution
     asked); solids, each object's solid moved into place; triangles_saved, the triangles the
-    resolution removed over every object.
+    resolution removed over every object; resolution_deviation, how far the simplification
+    moved a type's surface at most (measured, container units).
     """
 
     container_vertices: np.ndarray
@@ -171,6 +173,7 @@ class PlacedScene:
     type_solids: list[m3.Manifold] = field(default_factory=list)
     solids: list[m3.Manifold] = field(default_factory=list)
     triangles_saved: int = 0
+    resolution_deviation: float = 0.0
 
     @property
     def lo(self) -> np.ndarray:
@@ -206,11 +209,13 @@ class PlacedScene:
         """
         type_solids = []
         saved_per_type = []
+        deviation = 0.0
         for v, f, rec in zip(self.local, self.type_faces, packing.types, strict=True):
             s = to_solid(v, f)
             before = s.num_tri()
             if resolution is not None:
-                s = s.simplify(resolution)
+                s, moved = simplify_within(s, resolution)
+                deviation = max(deviation, moved)
             if not s.volume() > 0:
                 why = (f"simplified by --resolution {resolution:g}; give a finer one"
                        if to_solid(v, f).volume() > 0 and resolution is not None else
@@ -223,6 +228,7 @@ class PlacedScene:
         counts = np.bincount(self.type_index, minlength=len(type_solids))
         self.type_solids = type_solids
         self.triangles_saved = int(np.dot(counts, saved_per_type))
+        self.resolution_deviation = deviation
 
     def place_solids(self, packing: Packing, source: str | None = None) -> None:
         """Every object's solid (``solids``): its type's solid moved by its placement matrix.
