@@ -17,6 +17,7 @@ from importlib import resources
 from pathlib import Path
 
 from jampacked.cli.args import UsageError
+from jampacked.core.atomic import refusal_advice, write_refusal
 from jampacked.core.errors import InputError
 from jampacked.core.mesh_files import MESH_EXTENSIONS
 from jampacked.core.meshes import parse_box_spec
@@ -129,14 +130,19 @@ def check_mesh_file(path: str, role: str) -> None:
 
 def check_output(path: str, option: str, inputs: Sequence[str],
                  what: str = "input mesh") -> None:
-    """Raise UsageError unless ``path`` can be written by ``option``: its folder exists, it
-    is no folder and none of ``inputs`` (named ``what`` in the message)."""
+    """Raise UsageError unless ``path`` can be written by ``option``: its folder exists and
+    takes new files, it is no folder and none of ``inputs`` (named ``what`` in the
+    message)."""
     out = os.path.abspath(path)
     folder = os.path.dirname(out)
     if not os.path.isdir(folder):
         raise UsageError(f"{option} {path}: folder {folder} does not exist; create it first")
     if os.path.isdir(out):
         raise UsageError(f"{option} {path} is a folder; give a file name")
+    refused = write_refusal(folder)
+    if refused:
+        raise UsageError(f"{option} {path}: cannot write in folder {folder} ({refused}). "
+                         f"{refusal_advice(folder)}, or give another output file")
     for src in inputs:
         with contextlib.suppress(OSError):
             if os.path.exists(out) and os.path.samefile(out, src):

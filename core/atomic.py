@@ -12,6 +12,26 @@ from collections.abc import Callable, Iterator
 from typing import IO
 
 
+def write_refusal(folder: str | os.PathLike) -> str | None:
+    """Why no new file can be made in ``folder`` (permissions, an immutable attribute, a
+    read-only disk), or None when one can: a hidden probe file is created and removed, since
+    `os.access` misses some of these."""
+    try:
+        fd, probe = tempfile.mkstemp(prefix=".jampacked-write-test.", dir=os.fspath(folder))
+    except OSError as exc:
+        return exc.strerror or str(exc)
+    os.close(fd)
+    with contextlib.suppress(OSError):
+        os.unlink(probe)
+    return None
+
+
+def refusal_advice(folder: str | os.PathLike) -> str:
+    """How to make ``folder`` writable again (for messages that name a refusal)."""
+    return (f"Make it writable (e.g. chmod u+w {folder}; 'lsattr -d {folder}' shows an "
+            f"immutable 'i' flag, which 'chattr -i {folder}' removes)")
+
+
 @contextlib.contextmanager
 def staged_output(path: str | os.PathLike, mode: str = "wb", *, suffix: str = ".tmp"
                   ) -> Iterator[tuple[IO, str]]:

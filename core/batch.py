@@ -18,7 +18,6 @@ from __future__ import annotations
 import csv
 import io
 import os
-import tempfile
 import time
 import uuid
 from collections.abc import Callable
@@ -26,7 +25,7 @@ from dataclasses import dataclass, field
 from pathlib import Path
 
 from .api import pack
-from .atomic import atomic_output
+from .atomic import atomic_output, refusal_advice, write_refusal
 from .batch_exports import export_scene, exports_record
 from .batch_file import SceneSpec
 from .batch_verify import DIGEST, check_done, placements_digest
@@ -209,15 +208,10 @@ def check_output(scenes: list[SceneSpec], out_dir: str | os.PathLike) -> None:
             raise InputError(f"cannot create output folder {out}: {parent} is not writable. "
                              "Make it writable or give another folder with -o.")
         return
-    try:
-        fd, probe = tempfile.mkstemp(prefix=".jampacked-write-test.", dir=out)
-    except OSError as exc:
-        raise InputError(
-            f"cannot write in output folder {out}: {exc.strerror or exc}. Make it writable "
-            f"(e.g. chmod u+w {out}; 'lsattr -d {out}' shows an immutable 'i' flag, which "
-            f"'chattr -i {out}' removes) or give another folder with -o.") from None
-    os.close(fd)
-    os.unlink(probe)
+    refused = write_refusal(out)
+    if refused:
+        raise InputError(f"cannot write in output folder {out}: {refused}. "
+                         f"{refusal_advice(out)} or give another folder with -o.")
     for spec in scenes:
         for path in [*output_paths(spec, out), out / SUMMARY]:
             if path.is_dir():

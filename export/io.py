@@ -156,7 +156,7 @@ def check_output_paths(paths: Sequence[str], protect: Iterable[str | os.PathLike
             key = key.lower()
         if key in seen:
             raise OutputError(f"'{p}' is named twice among the output files (also as "
-                             f"'{seen[key]}'); give each output once.")
+                              f"'{seen[key]}'); give each output once.")
         seen[key] = p
 
 

@@ -24,7 +24,7 @@ from dataclasses import dataclass
 import numpy as np
 import trimesh
 
-from jampacked.core.atomic import staged_output
+from jampacked.core.atomic import refusal_advice, staged_output, write_refusal
 from jampacked.core.errors import InputError, MeshError, OutputError
 from jampacked.core.mesh_files import extension
 from jampacked.core.threemf import encode_3mf, encode_3mf_components
@@ -145,20 +145,25 @@ def check_output_path(path: str | os.PathLike,
     returns its format (the extension, lower case).
 
     Raises OutputError (unknown format, or ``path`` is one of ``protect``: the inputs, compared
-    as resolved paths) or MeshError (its folder does not exist, or it is a folder).
+    as resolved paths) or MeshError (its folder does not exist or takes no new file, or it
+    is a folder).
     """
     path_str = os.fspath(path)
     ext = write_format(path_str)
     for p in protect:
         if _same_file(path_str, os.fspath(p)):
             raise OutputError(f"refusing to write '{path_str}': it is an input file "
-                             f"('{os.fspath(p)}'); choose another output name.")
+                              f"('{os.fspath(p)}'); choose another output name.")
     folder = os.path.dirname(os.path.abspath(path_str))
     if not os.path.isdir(folder):
         raise MeshError(f"cannot write '{path_str}': the folder '{folder}' does not exist; "
                         "create it first.")
     if os.path.isdir(path_str):
         raise MeshError(f"cannot write '{path_str}': it is a folder; give a file name.")
+    refused = write_refusal(folder)
+    if refused:
+        raise MeshError(f"cannot write '{path_str}': the folder '{folder}' takes no new file "
+                        f"({refused}). {refusal_advice(folder)}, or give another output file.")
     return ext
 
 

@@ -562,6 +562,46 @@ def test_render_cuts_the_shell_open_so_the_packed_objects_show(tmp_path, fused):
     assert left == 0 and right > 500, (left, right)
 
 
+@pytest.fixture
+def read_only(tmp_path, monkeypatch):
+    """A folder that takes no new file, as on a read-only disk (tests run as root, whom
+    permission bits do not stop): every temporary made in it fails."""
+    import errno
+    import tempfile
+
+    folder = tmp_path / "ro"
+    folder.mkdir()
+    real = tempfile.mkstemp
+
+    def mkstemp(*args, dir=None, **kwargs):  # noqa: A002 (tempfile's own name)
+        if dir is not None and Path(dir).resolve() == folder.resolve():
+            raise OSError(errno.EROFS, "Read-only file system")
+        return real(*args, dir=dir, **kwargs)
+
+    monkeypatch.setattr(tempfile, "mkstemp", mkstemp)
+    return folder
+
+
+def test_outputs_in_a_folder_that_takes_no_file_are_refused_before_packing(
+        packed, read_only, monkeypatch):
+    # pack -o into a read-only folder packed for 22 s and then ended in a traceback,
+    # losing the packing; --preview likewise, and export found it after building
+    from jampacked.core import api
+
+    def no_packing(*_a, **_k):
+        raise AssertionError("packed although the output cannot be written")
+
+    monkeypatch.setattr(api, "pack", no_packing)
+    for argv in (["-o", str(read_only / "p.json")],
+                 ["-o", str(packed[1].parent / "elsewhere.json"),
+                  "--preview", str(read_only / "p.png")]):
+        rc, _, se = run(["pack", "box:30x30x30", "--type", str(P1), *SMALL, *argv])
+        assert rc == 2 and "Read-only file system" in se and "chmod" in se, se
+    rc, _, se = run(["export", str(packed[1]), "-o", str(read_only / "x.3mf")])
+    assert rc == 2 and "Read-only file system" in se, se
+    assert not list(read_only.iterdir())
+
+
 def test_outputs_that_are_inputs_are_refused_and_left_alone(packed, tmp_path):
     # pack -o onto a type mesh and export -o onto its packing: exit 2 naming the input,
     # which is left as it was
