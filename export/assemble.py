@@ -15,8 +15,10 @@ file, and only then put them all in place, report.
 
 from __future__ import annotations
 
+import contextlib
 import dataclasses
 import os
+import re
 import time
 from collections.abc import Callable, Sequence
 from pathlib import Path
@@ -159,6 +161,8 @@ def export_packing(packing: Packing | str | os.PathLike,
     out.paths = _write(bodies, names, paths, options.split_files, protect, out, check_cancel,
                        instances)
     out.timings["write_validate"] = time.perf_counter() - t
+    if options.split_files:
+        out.warnings += _stale_parts_warning(paths, out.paths)
     out.timings["total"] = time.perf_counter() - t0
     report(1.0, "done")
     return out
@@ -189,6 +193,30 @@ def _part_path(path: str, name: str) -> str:
     stem = Path(path)
     safe = name.replace("/", "_").replace("\\", "_")
     return str(stem.with_name(f"{stem.stem}_{safe}{stem.suffix}"))
+
+
+def _stale_parts_warning(paths: list[str], written: list[str]) -> list[str]:
+    """A warning naming files beside the outputs that are named like this export's parts
+    (NAME_<type>_<i>.EXT) but were not written by it: an earlier export's, which a slicer
+    loading NAME_* would print with this one's."""
+    done = {os.path.normcase(os.path.abspath(w)) for w in written}
+    stale: set[str] = set()
+    for p in paths:
+        folder, stem = os.path.dirname(os.path.abspath(p)), Path(p).stem
+        like = re.compile(rf"{re.escape(stem)}_.+_\d+{re.escape(Path(p).suffix)}",
+                          re.IGNORECASE)
+        with contextlib.suppress(OSError):
+            stale |= {os.path.join(folder, n) for n in os.listdir(folder)
+                      if like.fullmatch(n)
+                      and os.path.normcase(os.path.join(folder, n)) not in done}
+    if not stale:
+        return []
+    names = sorted(os.path.basename(s) for s in stale)
+    shown = ", ".join(names[:3]) + (f" and {len(names) - 3} more" if len(names) > 3 else "")
+    return [f"{len(names)} file{'s' if len(names) > 1 else ''} beside the parts written "
+            f"{'are' if len(names) > 1 else 'is'} named like them but not from this export "
+            f"({shown}): an earlier export's, left as they were. Remove them before loading "
+            "the parts into a slicer, or export into an empty folder."]
 
 
 def _shell(scene: PlacedScene, options: ExportOptions, report: Progress):

@@ -246,6 +246,26 @@ def test_parts_split_writes_one_valid_file_per_part(apart, tmp_path):
         assert Path(p).name.startswith("part_polytope") and validate_file(p).passed
 
 
+def test_split_names_an_earlier_exports_parts_left_beside_it(apart, tmp_path):
+    # a 40-part job then a 28-part one into the same name left 12 of the first job's
+    # files among the second's, with no word
+    stale = [tmp_path / "part_polytope1_040.stl", tmp_path / "part_lemon_900.STL"]
+    for s in stale:
+        s.write_bytes(b"old job")
+    other = tmp_path / "partner_polytope1_001.stl"  # another name: not this job's
+    other.write_bytes(b"keep")
+    rep = export_packing(apart, tmp_path / "part.stl",
+                         ExportOptions(mode="parts", split_files=True))
+    (w,) = [w for w in rep.warnings if "not from this export" in w]
+    assert w.startswith("2 files") and "part_lemon_900.STL" in w
+    assert "part_polytope1_040.stl" in w and "partner" not in w
+    assert all(s.read_bytes() == b"old job" for s in stale)  # left as they were
+    (tmp_path / "fresh").mkdir()
+    again = export_packing(apart, tmp_path / "fresh" / "part.stl",
+                           ExportOptions(mode="parts", split_files=True))
+    assert not [w for w in again.warnings if "not from this export" in w]
+
+
 def test_parts_closer_than_clearance_are_refused(tmp_path):
     src = _packing(tmp_path, _grid(26.0), [0] * 8, clearance=25.0)
     out = tmp_path / "parts.3mf"
