@@ -37,7 +37,7 @@ from .cost import check_export_cost, estimate_export
 from .io import FLOAT32_FORMATS, MeshOutput, check_output_paths, float32_breaks, write_meshes
 from .mesh_write import Instances, write_format
 from .openings import drain_cover, solid_boxes
-from .options import ExportOptions, check_scale, rotate_axis, up_rotation
+from .options import ExportOptions, check_scale, print_size_warning, rotate_axis, up_rotation
 from .parts import require_gap, separate_parts
 from .report import ExportReport
 from .scene import PlacedScene, load_sources, packing_clearance, place, smallest_object
@@ -115,6 +115,7 @@ def export_packing(packing: Packing | str | os.PathLike,
                        triangles=0, clearance=clearance)
     scene = place(packing, container, types, source)
     check_scale(options, scene.hi - scene.lo, smallest_object(packing))
+    out.warnings += print_size_warning(scene.hi - scene.lo)
     scene.make_type_solids(packing, options.resolution)
     # refused here, before the objects are made solid, when the machine cannot hold it
     cost = estimate_export(options.mode, [s.num_tri() for s in scene.type_solids],

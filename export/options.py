@@ -119,6 +119,25 @@ class ExportOptions:
 RESOLUTION_PER_SIZE = 0.25
 
 
+#: prints smaller or larger than this (largest extent, mm) are named in a warning: most likely
+#: a scene modelled in metres or micrometres, written to the file as millimetres
+PRINT_MM = (1.0, 5000.0)
+
+
+def print_size_warning(extents: np.ndarray) -> list[str]:
+    """A warning when the print, its lengths read as millimetres as 3MF and slicers read
+    them, would be under a millimetre or over five metres across; else none. extents: (3,)
+    the container's bounding-box extents (container units)."""
+    size = " x ".join(f"{e:.3g}" for e in extents)
+    largest = float(np.max(extents))
+    if PRINT_MM[0] <= largest <= PRINT_MM[1]:
+        return []
+    unit, factor = ("metres", 1000) if largest < PRINT_MM[0] else ("micrometres", 0.001)
+    return [f"the print is {size} mm: the packing's lengths are written as millimetres. If "
+            f"the scene is in {unit}, pack again with --container-size in millimetres "
+            f"(e.g. {largest * factor:.3g}) or scale the meshes by {factor:g} first."]
+
+
 def check_scale(options: ExportOptions, extents: np.ndarray,
                 smallest_object: float | None) -> None:
     """Refuse lengths that cannot work at the scene's scale, naming the option and the fix.
@@ -139,6 +158,15 @@ def check_scale(options: ExportOptions, extents: np.ndarray,
             raise InputError(
                 f"{name} {value:g} is wider than the container (its smallest extent is "
                 f"{small:.4g}). Give a diameter well below that (e.g. {0.05 * small:.2g}).")
+    opening = options.opening
+    if opening is not None and opening.kind == "window":
+        across = [float(e) for i, e in enumerate(extents) if i != AXES.index(opening.axis) // 2]
+        if opening.size >= min(across):
+            raise InputError(
+                f"--window {opening.axis}@{opening.size:g} is wider than the container's "
+                f"{opening.axis} side ({across[0]:.4g} x {across[1]:.4g}): it would cut the "
+                f"side away. Give a diameter below {min(across):.4g} (e.g. "
+                f"{0.5 * min(across):.2g}), or --open-plane to open a whole side.")
     if options.resolution is None:
         return
     size, what = small, "the container's smallest extent"

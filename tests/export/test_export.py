@@ -28,7 +28,7 @@ from jampacked.core.report import PackInputs
 from jampacked.core.solids import to_solid
 from jampacked.export.assemble import export_packing
 from jampacked.export.closest import Surface, closest_on_triangles
-from jampacked.export.options import ExportOptions, Opening
+from jampacked.export.options import ExportOptions, Opening, print_size_warning
 from jampacked.export.validate import validate_file
 from jampacked.export.wall import surface_distance
 
@@ -869,12 +869,25 @@ def test_parts_of_a_packing_without_clearance_are_refused_before_any_work(tmp_pa
     (ExportOptions(mode="union", shell=40.0), "--shell"),
     (ExportOptions(mode="connect", connector=1e9), "--connector"),
     (ExportOptions(mode="union", shell=2.0, drain=1e9), "--drain"),
+    # a window wider than the 80 mm box's side cut the side away, with no word
+    (ExportOptions(mode="union", shell=2.0, opening=Opening(kind="window", axis="+y",
+                                                            size=300.0)), r"--window \+y@300"),
 ])
 def test_lengths_out_of_scale_name_the_option(apart, tmp_path, options, name):
     out = tmp_path / "o.stl"
     with pytest.raises(InputError, match=name):
         export_packing(apart, out, options)
     assert not out.exists()
+
+
+def test_a_print_under_a_millimetre_or_over_metres_is_named():
+    # a scene in metres (a 0.15 box) exported as a 0.15 mm print with no word
+    (w,) = print_size_warning(np.array([0.15, 0.15, 0.12]))
+    assert "0.15 x 0.15 x 0.12 mm" in w and "metres" in w and "150" in w
+    (w,) = print_size_warning(np.array([2e5, 1e5, 1e5]))
+    assert "micrometres" in w and "200" in w
+    assert print_size_warning(np.array([80.0, 80.0, 80.0])) == []
+    assert print_size_warning(np.array([1.0, 0.5, 0.5])) == []  # a bead is a print
 
 
 def test_objects_scaled_to_nothing_are_refused_by_name(tmp_path):
