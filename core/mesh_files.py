@@ -238,6 +238,23 @@ def _meshio_arrays(path: str) -> Arrays:
     return points.reshape(-1, 3), faces
 
 
+def _binary_stl_damage(data: bytes) -> str | None:
+    """What is wrong with a binary STL whose size does not match the triangle count in its
+    header (a download or copy cut short), or None (it matches, or the file is ASCII)."""
+    if len(data) < 84:
+        return None if data.lstrip()[:5].lower() == b"solid" else (
+            f"it has {len(data)} bytes, fewer than a binary STL's 84-byte header")
+    count = int.from_bytes(data[80:84], "little")
+    expected = 84 + 50 * count
+    if len(data) == expected:
+        return None
+    if data.lstrip()[:5].lower() == b"solid" and b"facet" in data[:4096].lower():
+        return None  # ASCII
+    held = (len(data) - 84) / 50
+    return (f"its header says {count:,} triangles ({expected:,} bytes), but it has "
+            f"{len(data):,} bytes ({held:,.1f} triangles): it was cut short or damaged")
+
+
 def _stl_arrays(data: bytes) -> Arrays | None:
     """trimesh's STL reader without the Scene/Trimesh wrapping (several times faster), or
     None where it fails (the general readers then try)."""
@@ -275,6 +292,11 @@ def read_arrays(path: str, data: bytes, label: str, notes: list[str] | None = No
         MeshError: unknown type, or no reader can read it (damaged, or not really that type).
     """
     ext = extension(path)
+    if ext == "stl":
+        damage = _binary_stl_damage(data)
+        if damage:
+            raise MeshError(f"{label} is not a whole STL file: {damage}. Copy or export it "
+                            "again.")
     if ext == "3mf":
         try:
             arrays, unit = read_3mf_model(data)

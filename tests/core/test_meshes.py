@@ -13,6 +13,7 @@ import trimesh
 from testdata import mesh_path, mesh_paths
 
 from jampacked.core.errors import InputError, MeshError
+from jampacked.core.mesh_files import read_mesh_arrays
 from jampacked.core.meshes import (
     MeshData,
     box_mesh,
@@ -526,3 +527,29 @@ def test_3mf_unit_written_as_writers_write_it(tmp_path):
     inch = load_mesh(write_3mf(tmp_path / "b.3mf", v, f, "Inches"))
     assert inch.volume == pytest.approx(24.0 * 25.4 ** 3)
     assert "unit as inch" in inch.warnings[0]
+
+
+def test_a_binary_stl_cut_short_is_named_as_such(tmp_path):
+    # a truncated STL was reported as "no triangles (empty, points or lines only)"; pack
+    # and validate now say it was cut short, with both counts
+    box = trimesh.creation.box((10, 20, 30))
+    whole = trimesh.exchange.stl.export_stl(box)
+    (tmp_path / "whole.stl").write_bytes(whole)
+    assert len(load_mesh(tmp_path / "whole.stl").faces) == 12
+    cut = tmp_path / "cut.stl"
+    cut.write_bytes(whole[:-10])
+    with pytest.raises(MeshError, match=r"cut\.stl' is not a whole STL file: its header "
+                                        r"says 12 triangles \(684 bytes\), but it has 674"):
+        load_mesh(cut)
+    miscounted = tmp_path / "miscounted.stl"  # the header's count one too many
+    miscounted.write_bytes(whole[:80] + (13).to_bytes(4, "little") + whole[84:])
+    with pytest.raises(MeshError, match="header says 13 triangles"):
+        read_mesh_arrays(miscounted)
+    # a binary STL whose header starts with "solid" (as some CAD tools write) and an ASCII
+    # STL still read
+    solid = tmp_path / "solid-header.stl"
+    solid.write_bytes(b"solid part".ljust(80, b" ") + whole[80:])
+    assert len(read_mesh_arrays(solid)[1]) == 12
+    ascii_stl = tmp_path / "ascii.stl"
+    ascii_stl.write_text(trimesh.exchange.stl.export_stl_ascii(box))
+    assert len(read_mesh_arrays(ascii_stl)[1]) == 12
