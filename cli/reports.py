@@ -20,6 +20,7 @@ from rich.progress import BarColumn, Progress, TaskProgressColumn, TextColumn, T
 from rich.table import Table
 
 from jampacked.cli.interrupt import CancelOnInterrupt
+from jampacked.core.mesh_files import length_unit
 from jampacked.core.packing import Packing, is_spec
 from jampacked.core.summary import summarize
 
@@ -84,12 +85,6 @@ def _volume(value) -> str:
     return f"{v:,.0f}" if 1e3 <= abs(v) < 1e15 else f"{v:.4g}"
 
 
-def _unit(path: str | None) -> str:
-    """The length unit of a mesh file's coordinates as read: a 3MF's are converted to
-    millimetres (its declared unit); other formats carry none."""
-    return "mm" if path and path.lower().endswith(".3mf") else "units"
-
-
 def _container_label(packing: Packing) -> str:
     if is_spec(packing.container_path):
         return packing.container_path
@@ -118,7 +113,7 @@ def print_summary(packing: Packing, console: Console, title: str | None = None) 
     summary.add_column("what", style="bold")
     summary.add_column("value")
     cs = escape(_container_label(packing))
-    unit = _unit(packing.container_path)
+    unit = length_unit(packing.container_path)
     summary.add_row("container", f"{cs}, volume {_volume(packing.container_volume)} {unit}³")
     summary.add_row("density", _pct(s.density) + "  (object volume / container volume)")
     summary.add_row("TVD", _num(s.tvd, "{:.3f}") + "  (type-share error: 0 = exact mix)")
@@ -211,7 +206,7 @@ def print_validation(report: ValidationReport, console: Console) -> None:
     console.print(table)
     lo, hi = report.bbox_min, report.bbox_max
     size = " x ".join(_num(b - a, "{:.4g}") for a, b in zip(lo, hi, strict=True))
-    unit = _unit(report.path)
+    unit = length_unit(report.path)
     console.print(f"  volume {_volume(report.volume)} {unit}³, bounding box {size} {unit}, "
                   f"{report.n_faces} faces; self-intersections: {report.intersecting_pairs} "
                   f"face pairs; manifold3d: {report.manifold_status}", highlight=False)

@@ -238,6 +238,12 @@ def _meshio_arrays(path: str) -> Arrays:
     return points.reshape(-1, 3), faces
 
 
+def length_unit(path: str | None) -> str:
+    """The unit of a mesh file's coordinates as read, for messages: "mm" for a 3MF (its
+    declared unit is converted to millimetres), "units" for formats that carry none."""
+    return "mm" if path and extension(path) == "3mf" else "units"
+
+
 def _binary_stl_damage(data: bytes) -> str | None:
     """What is wrong with a binary STL whose size does not match the triangle count in its
     header (a download or copy cut short), or None (it matches, or the file is ASCII)."""

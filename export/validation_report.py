@@ -14,6 +14,7 @@ from typing import Any
 import numpy as np
 
 from jampacked.core.errors import plural
+from jampacked.core.mesh_files import length_unit
 
 from .intersect import TOL_REL
 
@@ -179,7 +180,7 @@ class ValidationReport:
             parts = [f"{n} bod{'y' if n == 1 else 'ies'}"]
             if cavities:
                 parts.append(f"{cavities} cavit{'y' if cavities == 1 else 'ies'}")
-            parts.append(f"volume {self.volume:.6g} units³")
+            parts.append(f"volume {self.volume:.6g} {length_unit(self.path)}³")
             parts.append("genus " + "/".join(str(g) for g in genus))
             parts.append(f"{self.n_faces} faces")
             return f"PASS {self.name}: " + ", ".join(parts) + "; watertight"

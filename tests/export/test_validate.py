@@ -713,7 +713,8 @@ def test_cli_pass_and_fail(files, capsys):
     good3mf = files["good"].with_suffix(".3mf")
     write_mesh(good3mf, *box())
     assert main(["validate", str(good3mf)]) == 0
-    assert "mm³" in capsys.readouterr().out  # a 3MF's coordinates are read in millimetres
+    out = capsys.readouterr().out  # a 3MF's coordinates are read in millimetres
+    assert "PASS good.3mf: 1 body, volume 24 mm³" in out and "units" not in out
     assert main(["validate", str(files["good"]), str(files["bad"])]) == 1
     out = capsys.readouterr().out
     assert "PASS good.stl" in out and "FAIL bad.obj: 3 open edges around 1 hole" in out
