@@ -555,6 +555,7 @@ def test_3mf_components_transforms_and_general_parser(tmp_path):
 </model>"""
     path = tmp_path / "parts.3mf"
     with zipfile.ZipFile(path, "w") as archive:
+        _package_parts(archive)
         archive.writestr("3D/3dmodel.model", model)
     v, f = read_mesh_arrays(path)
     assert v[:4].tolist() == [[10, 0, 1], [12, 0, 1], [10, 2, 1], [10, 0, 3]]
@@ -611,23 +612,37 @@ def _damaged_3mf_files(tmp_path: Path) -> dict[str, Path]:
         archive.writestr("[Content_Types].xml", "<Types/>")
     out["bad_xml"] = tmp_path / "bad_xml.3mf"
     with zipfile.ZipFile(out["bad_xml"], "w") as archive:
+        _package_parts(archive)
         archive.writestr("3D/3dmodel.model", "<model><resources><object id='1'>")
     out["no_coordinate"] = tmp_path / "no_coordinate.3mf"
     with zipfile.ZipFile(out["no_coordinate"], "w") as archive:
-        archive.writestr("3D/3dmodel.model", "<model><resources><object id='1'><mesh>"
+        _package_parts(archive)
+        archive.writestr("3D/3dmodel.model", "<model xmlns='http://schemas.microsoft.com/"
+                         "3dmanufacturing/core/2015/02'><resources><object id='1'><mesh>"
                          "<vertices><vertex x='0' y='0'/></vertices><triangles/></mesh>"
                          "</object></resources><build><item objectid='1'/></build></model>")
     return out
+
+
+def _package_parts(archive: zipfile.ZipFile) -> None:
+    """The package parts every 3MF has beside its model (content types, relationships)."""
+    from jampacked.core import threemf
+
+    archive.writestr("[Content_Types].xml", threemf.CONTENT_TYPES)
+    archive.writestr("_rels/.rels", threemf.RELATIONSHIPS)
 
 
 def test_damaged_3mf_is_a_clear_error_naming_the_file(tmp_path):
     """Issue 20: a corrupt 3MF raised StopIteration, zlib.error or TypeError."""
     from jampacked.core.meshes import load_mesh
 
+    # each for its own damage, not for parts of the package it lacks
+    own = {"bad_xml": "XML of 3D/3dmodel.model is malformed", "no_coordinate": "attribute 'z'"}
     for kind, path in _damaged_3mf_files(tmp_path).items():
         with pytest.raises(MeshError, match=f"{path.name}.*cannot be read as a 3MF") as info:
             read_mesh_arrays(path)
         assert "export it again" in str(info.value), kind
+        assert own.get(kind, "") in str(info.value), (kind, str(info.value))
         with pytest.raises(MeshError, match=f"{path.name}.*cannot be read as a 3MF"):
             load_mesh(path)
 
