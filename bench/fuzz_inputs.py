@@ -26,7 +26,9 @@ failed; not a project finding).
 Provenance: the company's input-fuzzing harness, copied from ../shared/fuzz/fuzz_inputs.py
 (its README there has the first results) into the project by issue 20, so that the suite
 (tests/fuzz/test_fuzz.py, a small seeded run) and `make fuzz SEED=S` (N=1000) run it.
-Changes since the copy: `--fail-on` (exit status 1 when a case of those classes occurs).
+Changes since the copy: `--fail-on` (exit status 1 when a case of those classes occurs);
+3MF packages name their model part in `_rels/.rels` (the copy's empty relationships made
+every 3MF, the good ones too, a package that lib3mf and now jampacked refuse).
 """
 
 from __future__ import annotations
@@ -350,7 +352,12 @@ class Worker:
         with zipfile.ZipFile(buf, "w", zipfile.ZIP_DEFLATED) as z:
             z.writestr("[Content_Types].xml", '<?xml version="1.0"?><Types xmlns="http://'
                        'schemas.openxmlformats.org/package/2006/content-types"/>')
-            z.writestr("_rels/.rels", "<Relationships/>")
+            # the package's one relationship to its model part (3MF core spec; the reader
+            # refuses a package without it, as lib3mf does)
+            z.writestr("_rels/.rels", '<?xml version="1.0"?><Relationships xmlns="http://'
+                       'schemas.openxmlformats.org/package/2006/relationships"><Relationship '
+                       'Target="/3D/3dmodel.model" Id="rel0" Type="http://schemas.microsoft.'
+                       'com/3dmanufacturing/2013/01/3dmodel"/></Relationships>')
             if name:
                 z.writestr(name, model_xml)
         return buf.getvalue()
