@@ -17,6 +17,7 @@ from __future__ import annotations
 import contextlib
 import os
 import signal
+import tempfile
 import threading
 from collections.abc import Callable, Iterable, Iterator, Sequence
 from dataclasses import dataclass
@@ -235,29 +236,83 @@ def _interrupts_deferred() -> Iterator[None]:
 
 
 def replace_files(staged: Sequence[tuple[str, str]]) -> None:
-    """Rename each ``(temporary, target)`` temporary over its target, all of them or (where
-    the file system refuses one) as many as it allows, with Ctrl-C held back meanwhile.
+    """Rename each ``(temporary, target)`` temporary over its target, all of them or none,
+    with Ctrl-C held back meanwhile.
 
-    Raises MeshError when a rename fails; the temporaries not renamed are removed, and the
-    message names every target already replaced and every one that kept its previous
-    contents (or was not created), so the user knows exactly what is on disk. A Ctrl-C
-    held back meanwhile surfaces afterwards as a KeyboardInterrupt whose ``replaced``
-    attribute lists the targets replaced (all of them), for a true message.
+    Each target that exists is first hard-linked to a hidden backup beside it; when a rename
+    fails (no space, an immutable file), the targets already replaced are put back from
+    their backups (a new one is removed), so every output is as it was. Raises MeshError
+    then, naming what failed and, where a file system without hard links or a failed
+    restore left part of the export on disk, exactly which files. A Ctrl-C held back
+    meanwhile surfaces afterwards as a KeyboardInterrupt whose ``replaced`` attribute lists
+    the targets replaced (all of them), for a true message.
     """
     done: list[str] = []
+    backups: dict[str, str | None] = {}
     try:
         with _interrupts_deferred():
             for k, (tmp, path) in enumerate(staged):
+                backups[path] = _backup(path)
                 try:
                     os.replace(tmp, path)
                 except OSError as exc:
                     remove_temporaries(staged[k:])
-                    raise MeshError(_rename_failure(path, exc, done,
+                    _discard(backups.pop(path, None))
+                    undone = _restore(done, backups)
+                    raise MeshError(_rename_failure(path, exc, [p for p in done if p not in
+                                                                undone],
                                                     [p for _, p in staged[k:]])) from exc
                 done.append(path)
+            for backup in backups.values():
+                _discard(backup)
     except KeyboardInterrupt as exc:
         exc.replaced = list(done)  # type: ignore[attr-defined]
         raise
+
+
+#: the backup of a target that exists but could not be linked (no hard links there): it
+#: cannot be put back
+_NO_BACKUP = ""
+
+
+def _backup(path: str) -> str | None:
+    """A hidden hard link to ``path`` beside it; None where ``path`` does not exist (a new
+    file), :data:`_NO_BACKUP` where the file system refuses the link."""
+    if not os.path.lexists(path):
+        return None
+    folder, name = os.path.split(os.path.abspath(path))
+    try:
+        fd, backup = tempfile.mkstemp(prefix=f".{name}.", suffix=".old", dir=folder)
+        os.close(fd)
+        os.unlink(backup)
+        os.link(path, backup)
+    except OSError:
+        return _NO_BACKUP
+    return backup
+
+
+def _discard(backup: str | None) -> None:
+    if backup:
+        with contextlib.suppress(FileNotFoundError):
+            os.unlink(backup)
+
+
+def _restore(done: list[str], backups: dict[str, str | None]) -> list[str]:
+    """Put each replaced target of ``done`` back as it was (a new one removed); the targets
+    restored."""
+    undone = []
+    for path in done:
+        backup = backups.pop(path, None)
+        if backup == _NO_BACKUP:
+            continue
+        with contextlib.suppress(OSError):
+            if backup is None:
+                os.unlink(path)
+            else:
+                os.replace(backup, path)
+            undone.append(path)
+        _discard(backup)
+    return undone
 
 
 def _rename_failure(path: str, exc: OSError, done: list[str], left: list[str]) -> str:

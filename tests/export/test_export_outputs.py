@@ -61,7 +61,8 @@ def _old_outputs(tmp: Path, *names: str) -> list[Path]:
 
 
 def _temporaries(tmp: Path) -> list[str]:
-    return [f for f in os.listdir(tmp) if ".tmp." in f]
+    """Hidden files left in ``tmp``: temporaries (.NAME.XXXX.tmp.EXT) and backups (.old)."""
+    return [f for f in os.listdir(tmp) if f.startswith(".")]
 
 
 UNION = ExportOptions(mode="union")
@@ -205,24 +206,33 @@ def test_the_packing_file_itself_is_never_an_output(tmp_path, monkeypatch):
     assert renamed.read_bytes() == before and not (tmp_path / "ok.3mf").exists()
 
 
-def test_a_rename_that_fails_midway_names_the_files_replaced(tmp_path, monkeypatch):
+def test_a_rename_that_fails_midway_puts_the_files_replaced_back(tmp_path, monkeypatch):
+    # an immutable second target (or a full disk) left the first one replaced: "a failure
+    # changes nothing" held only for the files not yet renamed
     src = _cubes(tmp_path)
     a3, astl = _old_outputs(tmp_path, "a.3mf", "a.stl")
+    fresh = tmp_path / "fresh.obj"  # a new file among them is removed again
     real = os.replace
-    done = []
 
-    def second_fails(a, b):
-        if done:
-            raise OSError(28, "No space left on device")
-        done.append(b)
+    def stl_fails(a, b):
+        if os.fspath(b) == os.fspath(astl):
+            raise OSError(1, "Operation not permitted")
         real(a, b)
 
-    monkeypatch.setattr(os, "replace", second_fails)
+    monkeypatch.setattr(os, "replace", stl_fails)
+    with pytest.raises(MeshError) as info:
+        export_packing(src, [a3, fresh, astl], UNION)
+    text = str(info.value)
+    assert "a.stl" in text and "Operation not permitted" in text
+    assert "No file was written; every output file is as it was" in text
+    assert a3.read_bytes() == OLD and astl.read_bytes() == OLD and not fresh.exists()
+    assert _temporaries(tmp_path) == []
+    # where the file system has no hard links, what was replaced is named instead
+    monkeypatch.setattr(os, "link", lambda *a: (_ for _ in ()).throw(OSError(1, "no links")))
     with pytest.raises(MeshError) as info:
         export_packing(src, [a3, astl], UNION)
     text = str(info.value)
-    assert "a.3mf" in text and "replaced" in text and "No space left" in text
-    assert "a.stl" in text and "previous" in text
+    assert "'" + str(a3) + "' was replaced" in text and "kept its previous" in text
     assert a3.read_bytes() != OLD and astl.read_bytes() == OLD
     assert _temporaries(tmp_path) == []
 
