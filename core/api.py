@@ -28,6 +28,7 @@ from .cost import TypeSize, check_cost, check_sizes, estimate_cost
 from .errors import InputError, PackingError
 from .fidelity import PRESETS, Fidelity, choose_fidelity, preset
 from .margins import Margins, contact_margins
+from .mesh_geometry import inner_room
 from .meshes import MeshData, box_mesh, load_mesh, parse_box_spec
 from .metrics import compute_metrics, equivalent_radius
 from .numba_cache import COMPILE_MESSAGE, cache_is_cold
@@ -268,7 +269,8 @@ def _type_sizes(scene: _Scene, type_scale: float, names: Sequence[str] | None
         return [TypeSize(name=named[i],
                          path=m.path, extents=m.extents * type_scale,
                          volume=float(m.volume) * type_scale ** 3 if type_scale < 1e100
-                         else math.inf)
+                         else math.inf,
+                         room=inner_room(m.vertices, m.faces) * type_scale)
                 for i, m in enumerate(scene.types)]
 
 
@@ -331,9 +333,11 @@ def _approximate(scene: _Scene, q: np.ndarray, inputs: PackInputs,
     cont = build_container(scene.vertices, cmesh.faces, scene.volume,
                            f_min / fid.container_cells)
     depth = float(cont.grid.values.max())
-    if depth <= f_min * 0.5 + clearance:
-        depth = _measured_depth(scene, cont)
-        if depth <= f_min * 0.5 + clearance:
+    # the grid's depth is within a cell of the true depth
+    need = min(t.room for t, share in zip(sizes, q, strict=True) if share > 0) + clearance
+    if depth < need:  # measured again, finer, before refusing
+        depth, spacing = _measured_depth(scene, cont)
+        if depth + spacing < need:
             _refuse_no_room(scene, sizes, depth, clearance)
     if inputs.fidelity == "auto":
         local = [(m.vertices - m.vertices.mean(axis=0)) * type_scale for m in scene.types]
@@ -346,21 +350,25 @@ def _approximate(scene: _Scene, q: np.ndarray, inputs: PackInputs,
     return _Approximation(cont, fid, f_min, volumes, [])
 
 
-#: a container grid with fewer cells than this across the container's largest extent
+#: a container grid with fewer cells than this across the container's thinnest extent
 #: measures its depth again on a grid this fine before refusing every type
 DEPTH_CELLS = 64
+#: ... and at most this many across its largest (a 60 x 60 x 2 tray: 256 x 256 x 9 nodes)
+MAX_DEPTH_CELLS = 256
 
 
-def _measured_depth(scene: _Scene, cont: Container) -> float:
-    """The container's deepest interior distance, measured on a grid of at least DEPTH_CELLS
-    cells across (the approximation's grid follows the objects' size and is coarser than
-    the container when they are far larger: its nodes may all lie outside)."""
-    extent = float(np.ptp(scene.vertices, axis=0).max())
-    if cont.grid.spacing * DEPTH_CELLS <= extent:
-        return float(cont.grid.values.max())
-    fine = build_container(scene.vertices, scene.container.faces, scene.volume,
-                           extent / DEPTH_CELLS)
-    return max(float(fine.grid.values.max()), 0.0)
+def _measured_depth(scene: _Scene, cont: Container) -> tuple[float, float]:
+    """The container's deepest interior distance and the spacing of the grid it was measured
+    on: at least DEPTH_CELLS cells across the container's thinnest extent, within
+    MAX_DEPTH_CELLS across its largest (the approximation's grid follows the objects' size
+    and is coarser than the container when they are far larger: its nodes may all lie
+    outside, or a thin tray's few)."""
+    extents = np.ptp(scene.vertices, axis=0)
+    spacing = max(float(extents.min()) / DEPTH_CELLS, float(extents.max()) / MAX_DEPTH_CELLS)
+    if cont.grid.spacing <= spacing:
+        return float(cont.grid.values.max()), cont.grid.spacing
+    fine = build_container(scene.vertices, scene.container.faces, scene.volume, spacing)
+    return max(float(fine.grid.values.max()), 0.0), fine.grid.spacing
 
 
 def _refuse_no_room(scene: _Scene, sizes: list[TypeSize], depth: float,
@@ -369,20 +377,22 @@ def _refuse_no_room(scene: _Scene, sizes: list[TypeSize], depth: float,
     point, naming the types (and files) that do not fit."""
     c_ext = np.ptp(scene.vertices, axis=0)
     dims = " x ".join(f"{x:.4g}" for x in c_ext)
-    need = [(t, 0.5 * t.equivalent_radius + clearance) for t in sizes]
+    need = [(t, t.room + clearance) for t in sizes]
     big = sorted([(t, n) for t, n in need if n >= depth], key=lambda x: x[1])
     listed = "; ".join(
-        f"{t.label}: equivalent radius {t.equivalent_radius:.4g}, "
-        f"{' x '.join(f'{x:.4g}' for x in t.extents)} units across" for t, _ in big[:5])
+        f"{t.label}: {t.room:.4g} units from its centre to its surface (equivalent radius "
+        f"{t.equivalent_radius:.4g}), {' x '.join(f'{x:.4g}' for x in t.extents)} units "
+        "across" for t, _ in big[:5])
     more = f"; and {len(big) - 5} more" if len(big) > 5 else ""
     room = depth - clearance
-    factor = (f"by a factor of at least {0.5 * big[0][0].equivalent_radius / room:.3g}"
+    factor = (f"by a factor of at least {big[0][0].room / room:.3g}"
               if room > 0 else "after lowering the clearance")
+    plus = f" plus the clearance {clearance:g}" if clearance else ""
     raise PackingError(
         f"no object fits: the container {scene.label} ({dims} units) is {depth:.4g} units "
-        f"deep at its deepest interior point, and an object needs more than half its "
-        f"equivalent radius{' plus the clearance ' + format(clearance, 'g') if clearance else ''}"
-        f" there. Too large: {listed}{more}. Scale the objects down (--type-scale / "
+        f"deep at its deepest interior point, and an object needs at least the depth from "
+        f"its centre to its surface{plus} there. Too large: {listed}{more}. Scale the "
+        f"objects down (--type-scale / "
         f"type_scale, {factor}) or the container up (--container-size / container_size)"
         f"{', or lower the clearance' if clearance else ''}.")
 
@@ -485,7 +495,7 @@ def _assemble(container: MeshSource, scene: _Scene, approx: _Approximation, run:
     clearance = inputs.clearance
     if len(idx) == 0 and not stop.reason:
         gap = f", the clearance {clearance:g}" if clearance else ""
-        depth = _measured_depth(scene, approx.container)  # the grid's nodes can miss it
+        depth, _ = _measured_depth(scene, approx.container)  # the grid's nodes can miss it
         raise PackingError(
             f"no object could be placed: the container's deepest interior point is "
             f"{depth:.4g} units from its wall, the smallest type's equivalent radius is "

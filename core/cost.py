@@ -79,6 +79,8 @@ class TypeSize:
     path: str | None
     extents: np.ndarray  # (3,)
     volume: float
+    #: a lower bound of its inscribed radius (`mesh_geometry.inner_room`): the depth it needs
+    room: float = 0.0
 
     @property
     def label(self) -> str:

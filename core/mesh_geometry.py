@@ -73,3 +73,22 @@ def sample_surface(vertices: np.ndarray, faces: np.ndarray, n: int,
     t = tri[pick]
     return (t[:, 0] * (1 - r1)[:, None] + t[:, 1] * (r1 * (1 - r2))[:, None]
             + t[:, 2] * (r1 * r2)[:, None])
+
+
+def inner_room(vertices: np.ndarray, faces: np.ndarray) -> float:
+    """A lower bound of a closed mesh's inscribed radius (the depth a container needs to
+    hold it in any orientation), in the mesh's units: the distance from its volume centroid
+    to its surface where the centroid is inside, else its volume over its area (a lower
+    bound for convex shapes: their inner parallel surfaces shrink)."""
+    from .distance import distances_to_given_triangles, inside_mask
+
+    v = np.ascontiguousarray(vertices, np.float64)
+    f = np.ascontiguousarray(faces, np.int64)
+    volume, centroid = mesh_volume_centroid(v, f)
+    area = 0.5 * float(face_areas2(v, f).sum())
+    room = volume / area if area > 0 else 0.0
+    if inside_mask(v, f, centroid, 1.0, (1, 1, 1))[0, 0, 0]:
+        near = distances_to_given_triangles(np.repeat(centroid[None], len(f), axis=0),
+                                            np.arange(len(f)), v, f)
+        room = max(room, float(near.min()))
+    return room

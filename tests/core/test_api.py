@@ -144,7 +144,8 @@ def test_progress_reports_monotone_fractions():
 
 
 def test_objects_larger_than_container_give_clear_error():
-    with pytest.raises(PackingError, match="no object fits"):
+    # a 1.5-deep box: up front (no object fits) or by each type's inner spheres (cannot fit)
+    with pytest.raises(PackingError, match="no object fits|polytope1 .* cannot fit"):
         pack("box:3x3x3", POLY, seed=1, fidelity="low")
 
 
@@ -405,7 +406,25 @@ def test_a_type_far_larger_than_the_container_is_named_with_its_file():
     text = str(err.value)
     assert "is 30 units deep" in text, text
     assert "polytope1.obj" in text and "equivalent radius 573.6" in text
-    assert "--type-scale" in text and "factor of at least 9.56" in text
+    # its centre is 233.7 from its surface: scaled down 7.79 times it would just reach 30
+    assert "233.7 units from its centre to its surface" in text
+    assert "--type-scale" in text and "factor of at least 7.79" in text
+
+
+def test_flat_objects_in_a_thin_tray_are_not_refused_up_front():
+    # 10 mm coins 1 mm thick in a 2 mm tray were refused: "no object fits ... 0.6729 units
+    # deep", as if an object needed half its equivalent radius (1.33) of depth; a coin
+    # needs 0.5, and the grid measured the tray's 1.0 as 0.67
+    import trimesh
+
+    from jampacked.core.meshes import mesh_from_arrays
+
+    coin = trimesh.creation.cylinder(radius=5.0, height=1.0, sections=48)
+    mesh = mesh_from_arrays(coin.vertices, coin.faces, name="coin")
+    p = pack("box:30x30x2", [mesh], seed=1, fidelity="low")
+    assert p.n >= 4 and p.certificate["certified"]
+    with pytest.raises(PackingError, match="no object fits.*: 0.5 units from its centre"):
+        pack("box:30x30x0.5", [mesh], seed=1, fidelity="low")
 
 
 def test_shares_whose_sum_overflows_are_normalised():
