@@ -101,6 +101,8 @@ _BLENDER_WORDS = (
     ("--clearance (e.g. --clearance 0.2 for 0.2 mm)", "a Clearance (e.g. 0.2 mm)"),
     ("export with --mode union or --mode connect", "export in Union or Connect mode"),
     ("; then export again.", "; then pack again."),
+    ("(--container-size and --type-scale) and pack again.",
+     "(the scene's Unit Scale, Scene Properties > Units) and pack again."),
     ("--type-scale / type_scale", "the type objects' scale"),
     ("--container-size / container_size", "the container object's scale"),
     ("--type-scale", "the type objects' scale"),

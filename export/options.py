@@ -120,7 +120,8 @@ RESOLUTION_PER_SIZE = 0.25
 
 
 #: prints smaller or larger than this (largest extent, mm) are named in a warning: most likely
-#: a scene modelled in metres or micrometres, written to the file as millimetres
+#: a scene modelled in metres or micrometres (or millimetres that Blender took for metres),
+#: written to the file as millimetres
 PRINT_MM = (1.0, 5000.0)
 
 
@@ -132,10 +133,11 @@ def print_size_warning(extents: np.ndarray) -> list[str]:
     largest = float(np.max(extents))
     if PRINT_MM[0] <= largest <= PRINT_MM[1]:
         return []
-    unit, factor = ("metres", 1000) if largest < PRINT_MM[0] else ("micrometres", 0.001)
-    return [f"the print is {size} mm: the packing's lengths are written as millimetres. If "
-            f"the scene is in {unit}, pack again with --container-size in millimetres "
-            f"(e.g. {largest * factor:.3g}) or scale the meshes by {factor:g} first."]
+    factor = 1000 if largest < PRINT_MM[0] else 0.001
+    return [f"the print is {size} mm: the packing's lengths are written as millimetres, "
+            f"and this looks like a scene in another unit (x{factor:g} would make it "
+            f"{largest * factor:.3g} mm across). If so, scale the container and the objects "
+            "to millimetres (--container-size and --type-scale) and pack again."]
 
 
 def check_scale(options: ExportOptions, extents: np.ndarray,

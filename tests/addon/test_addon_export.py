@@ -47,7 +47,12 @@ def test_export_through_the_modal_steps(bpy, addon, packed, tmp_path):
     run = runner(addon, "export")
     assert run.begin(bpy.context)
     assert drive(run, bpy.context) == {'FINISHED'}, run.reports
-    assert run.reports[-1][0] == 'INFO', run.reports
+    # the test scene's box is 30 units of Blender's default metres: a 30 m print, which is
+    # named, with the fix in Blender's words
+    level, text = run.reports[-1]
+    assert level == 'WARNING' and "Exported" in text, run.reports
+    assert "x0.001 would make it 30.1 mm across" in text
+    assert text.endswith("(the scene's Unit Scale, Scene Properties > Units) and pack again.")
     report = validate_file(tmp_path / "connected.stl")
     assert report.passed
 

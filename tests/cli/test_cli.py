@@ -670,7 +670,9 @@ def test_ctrl_c_once_the_export_is_written_keeps_status_0(packed, tmp_path, monk
         return real(*args, **kwargs)
 
     monkeypatch.setattr(export_cmd, "print_export", ctrl_c_then_print)
-    stl = tmp_path / "u.stl"
-    assert main(["export", str(out), "--mode", "union", "-o", str(stl)]) == 0
+    # a 3MF: the packing (a budgeted run) changes with the machine's load, and an STL of a
+    # union of touching objects can be refused for float32 rounding, which is not this test
+    u = tmp_path / "u.3mf"
+    assert main(["export", str(out), "--mode", "union", "-o", str(u)]) == 0
     assert "export was completed" in " ".join(capsys.readouterr().err.split())
-    assert stl.is_file()
+    assert u.is_file()

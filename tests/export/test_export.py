@@ -883,9 +883,10 @@ def test_lengths_out_of_scale_name_the_option(apart, tmp_path, options, name):
 def test_a_print_under_a_millimetre_or_over_metres_is_named():
     # a scene in metres (a 0.15 box) exported as a 0.15 mm print with no word
     (w,) = print_size_warning(np.array([0.15, 0.15, 0.12]))
-    assert "0.15 x 0.15 x 0.12 mm" in w and "metres" in w and "150" in w
+    assert "0.15 x 0.15 x 0.12 mm" in w and "x1000 would make it 150 mm across" in w
     (w,) = print_size_warning(np.array([2e5, 1e5, 1e5]))
-    assert "micrometres" in w and "200" in w
+    assert "x0.001 would make it 200 mm across" in w and "--container-size" in w
+
     assert print_size_warning(np.array([80.0, 80.0, 80.0])) == []
     assert print_size_warning(np.array([1.0, 0.5, 0.5])) == []  # a bead is a print
 
