@@ -303,8 +303,10 @@ def _one_body(packing: Packing, scene: PlacedScene, shell: m3.Manifold | None,
     if options.mode == "connect" and out.bodies != 1:
         raise MeshError(f"connect made {out.bodies} bodies instead of one; nothing was "
                         "written. The struts could not tie every object in (struts that "
-                        "would leave the container are refused). Try a larger --connector "
-                        "diameter, or export with --mode union or --mode parts.")
+                        "would leave the container are refused). Try thicker struts than "
+                        f"these ({out.connector_diameter:.3g} across), e.g. --connector "
+                        f"{2 * out.connector_diameter:.2g}, or export with --mode union or "
+                        "--mode parts.")
     if float32 and left > 0:
         _check_float32(cleaned.vertices, cleaned.faces, float32, count)
     return [(cleaned.vertices, cleaned.faces)], ["jampacked"]
@@ -330,6 +332,7 @@ def _struts(packing: Packing, scene: PlacedScene, shell: m3.Manifold | None,
     plan = connect_scene(scene, diameter, shell, options.shell or 0.0, should_cancel=cancel,
                          progress=lambda f, m: report(0.3 + 0.3 * f, m), variant=variant)
     out.connectors = len(plan.struts)
+    out.connector_diameter = diameter
     out.connector_length = plan.total_length
     out.fused = plan.fused
     return plan.struts

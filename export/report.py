@@ -20,8 +20,9 @@ class ExportReport:
     paths: files written. bodies: bodies in the result (1 for a connected export).
     triangles: triangles of the result (per file for parts split into files: the sum).
     triangles_saved: triangles --resolution removed; resolution_deviation: how far that
-    moved a surface at most (measured, container units). connectors / connector_length: struts
-    added (connect mode) and their total visible length (container units). fused: tree edges
+    moved a surface at most (measured, container units). connectors / connector_length /
+    connector_diameter: struts added (connect mode), their total visible length and their
+    diameter (container units). fused: tree edges
     whose solids already overlapped. min_gap: smallest gap between parts (parts mode; None
     when no two parts are near), clearance: the packing's clearance. voids_filled /
     voids_filled_volume: sealed voids made solid (see ExportOptions.fill_voids) and their
@@ -37,6 +38,7 @@ class ExportReport:
     resolution_deviation: float = 0.0
     connectors: int = 0
     connector_length: float = 0.0
+    connector_diameter: float = 0.0
     fused: int = 0
     min_gap: float | None = None
     clearance: float = 0.0
@@ -83,7 +85,8 @@ class ExportReport:
             "objects": self.objects, "triangles": self.triangles,
             "triangles_saved": self.triangles_saved,
             "resolution_deviation": self.resolution_deviation, "connectors": self.connectors,
-            "connector_length": self.connector_length, "fused": self.fused,
+            "connector_length": self.connector_length,
+            "connector_diameter": self.connector_diameter, "fused": self.fused,
             "min_gap": self.min_gap, "clearance": self.clearance, "volume": self.volume,
             "voids_filled": self.voids_filled, "voids_filled_volume": self.voids_filled_volume,
             "shell": self.shell.as_dict() if self.shell else None,

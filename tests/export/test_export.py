@@ -266,6 +266,21 @@ def test_split_names_an_earlier_exports_parts_left_beside_it(apart, tmp_path):
     assert not [w for w in again.warnings if "not from this export" in w]
 
 
+def test_connect_that_leaves_bodies_apart_names_a_strut_size_to_try(apart, tmp_path,
+                                                                    monkeypatch):
+    # "Try a larger --connector diameter" gave no size: 1.5 still failed where 2.5 worked
+    from types import SimpleNamespace
+
+    from jampacked.export import assemble
+
+    monkeypatch.setattr(assemble, "connect_scene", lambda *a, **k: SimpleNamespace(
+        struts=[], total_length=0.0, fused=0))  # struts that tie nothing in
+    with pytest.raises(MeshError, match=r"8 bodies instead of one.*these \(0\.8 across\), "
+                                        r"e\.g\. --connector 1\.6"):
+        export_packing(apart, tmp_path / "c.3mf", ExportOptions(mode="connect", connector=0.8))
+    assert not (tmp_path / "c.3mf").exists()
+
+
 def test_parts_closer_than_clearance_are_refused(tmp_path):
     src = _packing(tmp_path, _grid(26.0), [0] * 8, clearance=25.0)
     out = tmp_path / "parts.3mf"
