@@ -17,7 +17,7 @@ from jampacked.cli.exits import EXIT_ERROR, EXIT_INTERRUPTED, print_error
 from jampacked.cli.interrupt import CancelOnInterrupt
 from jampacked.cli.reports import consoles, print_export, print_validation, progress_bar
 from jampacked.cli.scene import check_output
-from jampacked.core.errors import Cancelled, InputError, OutputError
+from jampacked.core.errors import Cancelled, InputError, JampackedError, OutputError
 from jampacked.export.options import AXES, MODES, ExportOptions, Opening
 
 EXPORT_EPILOG = """\
@@ -143,6 +143,14 @@ def add_export_parser(sub: argparse._SubParsersAction) -> None:
     p.set_defaults(run=cmd_export)
 
 
+def _json_failure(args: argparse.Namespace, exc: Exception) -> None:
+    """With --json, a failed export still prints a JSON document (stdout), with the error;
+    the error line goes to stderr as for every command."""
+    if args.json:
+        print(json.dumps({"mode": args.mode, "paths": [], "passed": False,
+                          "error": " ".join(str(exc).split())}, indent=1))
+
+
 def cmd_export(args: argparse.Namespace) -> int:
     """Run ``jampacked export``; returns the exit status."""
     from jampacked.export.assemble import export_packing
@@ -168,10 +176,14 @@ def cmd_export(args: argparse.Namespace) -> int:
                 report = export_packing(args.packing, args.output, options,
                                         progress=progress_cb, should_cancel=cancel)
             except OutputError as exc:  # an output the arguments ask for cannot be written
+                _json_failure(args, exc)
                 raise UsageError(str(exc)) from None
             except Cancelled as exc:
                 print_error(exc)
                 return EXIT_INTERRUPTED
+            except JampackedError as exc:
+                _json_failure(args, exc)
+                raise
             except KeyboardInterrupt as exc:
                 # a second Ctrl-C held back while the files were put in place: they all were
                 replaced = getattr(exc, "replaced", None)

@@ -628,6 +628,18 @@ def test_outputs_that_are_inputs_are_refused_and_left_alone(packed, tmp_path):
     assert rc == 2 and "unknown mesh format '.xyz'" in se
 
 
+def test_export_json_prints_a_document_when_it_fails(packed, tmp_path):
+    # a failed `export --json` printed nothing on stdout, only the error line on stderr
+    _, out, *_ = packed
+    rc, so, se = run(["export", str(out), "--mode", "parts", "--json", "-o",
+                      str(tmp_path / "p.3mf")])  # parts need a clearance: this packing has none
+    doc = json.loads(so)
+    assert rc == 1 and doc["passed"] is False and "needs a gap" in doc["error"]
+    assert se.startswith("error: ") and not (tmp_path / "p.3mf").exists()
+    rc, so, _ = run(["export", str(out), "--json", "-o", str(tmp_path / "p.xyz")])
+    assert rc == 2 and "unknown mesh format" in json.loads(so)["error"]
+
+
 def test_info_on_a_mesh_file_says_it_is_a_mesh(capsys):
     """`info spot.obj` asked whether the file was truncated or edited."""
     assert main(["info", str(P1)]) == 1
