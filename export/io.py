@@ -179,10 +179,7 @@ def _validated(tmp: str, path: str, out: MeshOutput, require_valid: bool,
             raise MeshError(failure)
     raise MeshError(f"the mesh written to '{path}' is not watertight, so {nothing}: "
                     f"{report.summary()}. Check the input meshes with `jampacked validate`; "
-                    "parts (--mode parts) of a packing without a clearance can touch along "
-                    "non-manifold edges: re-pack with --clearance, or export with --mode "
-                    "union or connect. A union or connect export that fails here is a "
-                    "defect: report it with the packing file.")
+                    "if they pass, this is a defect: report it with the packing file.")
 
 
 def float32_breaks(path: str, vertices: np.ndarray, faces: np.ndarray, count: int = 1

@@ -720,6 +720,16 @@ def files(tmp_path) -> dict[str, Path]:
     return {"good": good, "bad": bad, "missing": tmp_path / "missing.stl"}
 
 
+def test_a_mesh_that_fails_validation_is_not_written_and_the_advice_fits(tmp_path):
+    # the advice was written for parts without a clearance (which export now refuses up
+    # front) and was given for every mode
+    v, f = box()
+    with pytest.raises(MeshError, match=r"not watertight.*validate`; if they pass, this is "
+                                        r"a defect") as err:
+        write_mesh(tmp_path / "open.obj", v, f[1:])
+    assert "--clearance" not in str(err.value) and not (tmp_path / "open.obj").exists()
+
+
 def test_cli_pass_and_fail(files, capsys):
     assert main(["validate", str(files["good"])]) == 0
     out = capsys.readouterr().out
