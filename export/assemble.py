@@ -220,8 +220,10 @@ def _stale_parts_warning(paths: list[str], written: list[str]) -> list[str]:
             "the parts into a slicer, or export into an empty folder."]
 
 
-def _shell(scene: PlacedScene, options: ExportOptions, report: Progress):
-    """The container's shell in the container frame, and its ShellReport."""
+def _shell(scene: PlacedScene, options: ExportOptions, report: Progress,
+           simplify: bool = True):
+    """The container's shell in the container frame, and its ShellReport (``simplify``: see
+    :func:`make_shell`)."""
     from .shell import make_shell, opening_label  # only needed here
 
     report(0.1, "building the shell")
@@ -247,7 +249,8 @@ def _shell(scene: PlacedScene, options: ExportOptions, report: Progress):
                                      options.shell, opening=opening, drain=options.drain,
                                      resolution=options.resolution,
                                      progress=lambda f, m: report(0.1 + 0.2 * f, m),
-                                     drain_covered=covered, drain_reach=reach)
+                                     drain_covered=covered, drain_reach=reach,
+                                     simplify=simplify)
     shell = shell.transform(np.column_stack([rot.T, np.zeros(3)]))
     shell_report.opening = opening_label(options.opening)  # named in the caller's axes
     if shell_report.drain_at is not None:
@@ -293,6 +296,14 @@ def _one_body(packing: Packing, scene: PlacedScene, shell: m3.Manifold | None,
             break
         # slivers the local repairs cannot remove: struts turned another way meet the
         # surfaces elsewhere (union mode has nothing to turn; validation names the faces)
+    if left > 0 and shell is not None and out.shell is not None and out.shell.tolerance > 0:
+        # the booleans split the simplified inner surface's long thin faces where objects
+        # meet it and can fold them: the shell again with every triangle of its grid
+        shell, out.shell = _shell(scene, options, report, simplify=False)
+        out.shell.notes.append("the inner surface keeps every triangle of its grid: the "
+                               "simplified one folded where the objects meet it.")
+        report(0.6, "union, with the shell unsimplified")
+        v, f, left = union_arrays(scene.solids + struts, shell, float32=bool(float32))
     closed_shell = shell is not None and options.opening is None and options.drain is None
     cleaned = clean_bodies(v, f, fill_voids=options.fill_voids, closed_shell=closed_shell)
     out.voids_filled = cleaned.voids_filled

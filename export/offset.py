@@ -147,7 +147,7 @@ def _simplified(raw: m3.Manifold, thickness: float, tolerance: float,
     tolerance used, 0.0 for none).
     """
     exact = raw.get_tolerance()
-    for factor in SIMPLIFY_LADDER:
+    for factor in SIMPLIFY_LADDER if tolerance > 0 else ():
         # simplify; remove the slivers it leaves (far below print precision); restore the
         # tolerance so that later booleans keep the container's own mesh exact
         candidate = (raw.simplify(factor * tolerance).set_tolerance(SLIVER_REL * diagonal)

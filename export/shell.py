@@ -79,7 +79,8 @@ def make_shell(vertices: np.ndarray, faces: np.ndarray, thickness: float, *,
                progress: Callable[[float, str], None] | None = None,
                samples: int = 2000,
                drain_covered: Callable[[np.ndarray], bool] | None = None,
-               drain_reach: float = 0.0) -> tuple[m3.Manifold, ShellReport]:
+               drain_reach: float = 0.0,
+               simplify: bool = True) -> tuple[m3.Manifold, ShellReport]:
     """Shell of the container with wall thickness ``thickness``: container minus its offset.
 
     Args:
@@ -100,6 +101,8 @@ def make_shell(vertices: np.ndarray, faces: np.ndarray, thickness: float, *,
         drain_covered, drain_reach: whether objects sit on a drain at a point (this
             function's frame), and how far from the cavity's lowest point the drain may
             move to open beside them (`openings.drill_drain`).
+        simplify: False keeps every triangle of the inner surface's grid (heavier, but with
+            no long thin faces for a later union to fold).
 
     Returns:
         (shell, report): the shell solid (its outer surface is the container mesh itself, its
@@ -115,14 +118,16 @@ def make_shell(vertices: np.ndarray, faces: np.ndarray, thickness: float, *,
     v, f = _checked_input(vertices, faces, thickness, drain, resolution)
     lo, hi = v.min(axis=0), v.max(axis=0)
     spacing = grid_spacing(lo, hi, thickness, resolution)
-    if resolution is not None:
+    if not simplify:
+        tolerance = 0.0
+    elif resolution is not None:
         tolerance = min(0.5 * resolution, 0.1 * thickness)
     else:
         tolerance = min(0.1 * spacing, 0.05 * thickness)
     report_progress(0.0, f"shell: distance grid at {spacing:.3g} spacing")
     inner, cavities, used = inner_solid(v, f, thickness, spacing, tolerance)
     notes: list[str] = []
-    if used == 0.0:
+    if used == 0.0 and simplify:
         notes.append(f"the inner surface could not be simplified watertight, so it keeps all "
                      f"{inner.num_tri()} triangles of the grid.")
     report_progress(0.6, "shell: subtracting the inner surface")

@@ -73,12 +73,13 @@ def clean_arrays(result: m3.Manifold, float32: bool = False
                  ) -> tuple[np.ndarray, np.ndarray, int]:
     """The result's arrays without zero-area faces (see export/cleanup.py), with the
     vertices of surfaces that only touch moved apart (`separate_pinches`), and how many
-    faces are left bad. With `float32` (an STL or PLY will be written) a face that
-    intersects another once the positions are rounded to float32 is bad too: slivers
-    from the booleans, a thousandth of a millimetre wide, can fold over there: the
-    needles among the faces that fold have their short edges collapsed. Where the local
-    repairs cannot remove them all, manifold3d first simplifies by a tolerance far below
-    any printer's resolution (1e-7 to 1e-5 of the size)."""
+    faces are left bad. A face that crosses another at the positions as the file stores
+    them (rounded to float32 with `float32`, for an STL or PLY) is bad too: slivers from the
+    booleans, a thousandth of a millimetre wide, can fold over, and manifold3d's unions
+    can fold long thin faces: the needles among the faces that cross have their short
+    edges collapsed. Where the local repairs cannot remove them all, manifold3d first
+    simplifies by a tolerance far below any printer's resolution (1e-7 to 1e-5 of the
+    size)."""
 
     def cleaned(m: m3.Manifold) -> tuple[np.ndarray, np.ndarray, int]:
         v, f, left = remove_degenerate_faces(*solid_arrays(m))
@@ -87,22 +88,16 @@ def clean_arrays(result: m3.Manifold, float32: bool = False
         # positions as the file stores them; those that coincide are one vertex there, as
         # the validator merges them when it reads the file back
         stored = v.astype(np.float32).astype(np.float64) if float32 else v
-        first, remap = merge_identical(stored)
+        _, remap = merge_identical(stored)
         step = PINCH_STEP_REL * float(np.linalg.norm(np.ptp(v, axis=0)))
-        v, moved = separate_pinches(v, f, remap, step)
-        if float32:
-            p32 = stored
-            if moved:
-                p32 = v.astype(np.float32).astype(np.float64)
-                first, remap = merge_identical(p32)
-            for rnd in range(NEEDLE_ROUNDS + 1):  # the last round only tests
-                pairs, crossing, _ = intersecting_pairs(p32[first], remap[f])
-                left = int(crossing)
-                if left == 0 or rnd == NEEDLE_ROUNDS:
-                    break
-                f, collapsed = collapse_needles(v, f, pairs.ravel())
-                if collapsed == 0:
-                    break
+        v, _ = separate_pinches(v, f, remap, step)
+        for rnd in range(NEEDLE_ROUNDS + 1):  # the last round only tests
+            pairs, left = _crossing(v, f, float32)
+            if left == 0 or rnd == NEEDLE_ROUNDS:
+                break
+            f, collapsed = collapse_needles(v, f, pairs)
+            if collapsed == 0:
+                break
         return v, f, left
 
     v, f, left = cleaned(result)
@@ -114,6 +109,20 @@ def clean_arrays(result: m3.Manifold, float32: bool = False
         if left_here == 0:
             return cv, cf, 0
     return v, f, left
+
+
+def _crossing(v: np.ndarray, f: np.ndarray, float32: bool) -> tuple[np.ndarray, int]:
+    """Faces that cross or touch another at full precision (a 3MF, an OBJ) and, with
+    ``float32``, once rounded as an STL or PLY stores them: (their indices, the number of
+    pairs)."""
+    faces, count = [], 0
+    for rounded in (False, True) if float32 else (False,):
+        stored = v.astype(np.float32).astype(np.float64) if rounded else v
+        first, remap = merge_identical(stored)
+        pairs, crossing, _ = intersecting_pairs(stored[first], remap[f])
+        faces.append(pairs.ravel())
+        count += int(crossing)
+    return np.concatenate(faces), count
 
 
 def drop_specks(v: np.ndarray, f: np.ndarray, speck: float, fill_voids: bool = False

@@ -724,6 +724,23 @@ def test_stl_export_survives_slivers_that_fold_over_in_float32(tmp_path):
 
 
 NEEDLES = DATA / "spot-float32-needles.json"
+ROTATED_BOX = DATA / "rotated-box-shell" / "packing.json"
+
+
+@pytest.mark.parametrize("mode, options", [
+    ("union", {"shell": 0.8}),  # the union folded the shell's simplified inner surface
+    ("connect", {"shell": 1.0, "opening": Opening(kind="plane", axis="+z", at=0.7)}),
+])
+def test_a_shell_of_a_rotated_box_unions_without_folds(tmp_path, mode, options):
+    """L-shapes and stars (clearance 0.2) in a 40 x 30 x 25 box turned by an odd angle (an
+    independent check's scene): with a 0.8 mm shell the union crossed itself in 14 face
+    pairs on the shell's inner surface (long thin faces of its simplification, split where
+    objects meet it), and with both 3MF and STL asked for, the connect body was checked at
+    STL's float32 positions only and failed as 3MF; both exports were refused."""
+    outs = [tmp_path / "a.3mf"] + ([tmp_path / "a.stl"] if mode == "connect" else [])
+    rep = export_packing(ROTATED_BOX, outs, ExportOptions(mode=mode, **options))
+    assert rep.passed and all(validate_file(p).passed for p in outs)
+    assert (mode == "union" or rep.bodies == 1) and rep.objects == 182
 
 
 def test_stl_export_collapses_needles_that_fold_over_in_float32(tmp_path):
