@@ -6,6 +6,11 @@ outside a package), so test modules in any sub-folder can ``from testdata import
 
 from __future__ import annotations
 
+import errno
+import tempfile
+from pathlib import Path
+
+import pytest
 from testdata import MESHES, REPO
 
 
@@ -29,3 +34,20 @@ def pytest_collection_modifyitems(config, items) -> None:
     first = [item for item in items if item.get_closest_marker(FIRST_RUN)]
     rest = [item for item in items if not item.get_closest_marker(FIRST_RUN)]
     items[:] = first + rest
+
+
+@pytest.fixture
+def read_only_folder(tmp_path, monkeypatch) -> Path:
+    """A folder that takes no new file, as on a read-only disk (tests run as root, whom
+    permission bits do not stop): every temporary made in it fails with EROFS."""
+    folder = tmp_path / "ro"
+    folder.mkdir()
+    real = tempfile.mkstemp
+
+    def mkstemp(*args, dir=None, **kwargs):  # noqa: A002 (tempfile's own name)
+        if dir is not None and Path(dir).resolve() == folder.resolve():
+            raise OSError(errno.EROFS, "Read-only file system")
+        return real(*args, dir=dir, **kwargs)
+
+    monkeypatch.setattr(tempfile, "mkstemp", mkstemp)
+    return folder

@@ -562,28 +562,8 @@ def test_render_cuts_the_shell_open_so_the_packed_objects_show(tmp_path, fused):
     assert left == 0 and right > 500, (left, right)
 
 
-@pytest.fixture
-def read_only(tmp_path, monkeypatch):
-    """A folder that takes no new file, as on a read-only disk (tests run as root, whom
-    permission bits do not stop): every temporary made in it fails."""
-    import errno
-    import tempfile
-
-    folder = tmp_path / "ro"
-    folder.mkdir()
-    real = tempfile.mkstemp
-
-    def mkstemp(*args, dir=None, **kwargs):  # noqa: A002 (tempfile's own name)
-        if dir is not None and Path(dir).resolve() == folder.resolve():
-            raise OSError(errno.EROFS, "Read-only file system")
-        return real(*args, dir=dir, **kwargs)
-
-    monkeypatch.setattr(tempfile, "mkstemp", mkstemp)
-    return folder
-
-
 def test_outputs_in_a_folder_that_takes_no_file_are_refused_before_packing(
-        packed, read_only, monkeypatch):
+        packed, read_only_folder, monkeypatch):
     # pack -o into a read-only folder packed for 22 s and then ended in a traceback,
     # losing the packing; --preview likewise, and export found it after building
     from jampacked.core import api
@@ -592,6 +572,7 @@ def test_outputs_in_a_folder_that_takes_no_file_are_refused_before_packing(
         raise AssertionError("packed although the output cannot be written")
 
     monkeypatch.setattr(api, "pack", no_packing)
+    read_only = read_only_folder
     for argv in (["-o", str(read_only / "p.json")],
                  ["-o", str(packed[1].parent / "elsewhere.json"),
                   "--preview", str(read_only / "p.png")]):

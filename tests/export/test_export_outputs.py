@@ -171,23 +171,12 @@ def test_outputs_are_all_checked_before_any_work(tmp_path, monkeypatch):
     assert not ok.exists()
 
 
-def test_a_folder_that_takes_no_file_is_refused_before_any_work(tmp_path, monkeypatch):
+def test_a_folder_that_takes_no_file_is_refused_before_any_work(tmp_path, monkeypatch,
+                                                                read_only_folder):
     # a read-only disk or an immutable folder was found only when the first file was
-    # written, after the build (tests run as root: the refusal is simulated at mkstemp)
-    import errno
-    import tempfile
-
+    # written, after the build
     src = _cubes(tmp_path)
-    ro = tmp_path / "ro"
-    ro.mkdir()
-    real = tempfile.mkstemp
-
-    def mkstemp(*args, dir=None, **kwargs):  # noqa: A002 (tempfile's own name)
-        if dir is not None and Path(dir).resolve() == ro.resolve():
-            raise OSError(errno.EROFS, "Read-only file system")
-        return real(*args, dir=dir, **kwargs)
-
-    monkeypatch.setattr(tempfile, "mkstemp", mkstemp)
+    ro = read_only_folder
     _no_build(monkeypatch)
     ok = tmp_path / "ok.3mf"
     with pytest.raises(MeshError, match=r"ro.*takes no new file \(Read-only file system\)"):
