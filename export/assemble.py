@@ -302,6 +302,7 @@ def _one_body(packing: Packing, scene: PlacedScene, shell: m3.Manifold | None,
         shell, out.shell = _shell(scene, options, report, simplify=False)
         out.shell.notes.append("the inner surface keeps every triangle of its grid: the "
                                "simplified one folded where the objects meet it.")
+        check_cancel()
         report(0.6, "union, with the shell unsimplified")
         v, f, left = union_arrays(scene.solids + struts, shell, float32=bool(float32))
     closed_shell = shell is not None and options.opening is None and options.drain is None
