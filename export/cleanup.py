@@ -82,12 +82,14 @@ def _edges(p: np.ndarray, tri: list[int]) -> tuple[list[tuple[int, int]], list[f
     return edges, [float(np.linalg.norm(p[a] - p[b])) for a, b in edges]
 
 
-def _needle_edge(p: np.ndarray, tri: list[int]) -> tuple[int, int] | None:
-    """A needle's short edge: the face's shortest edge when it is at most NEEDLE_REL of its
-    longest, at positions p; None for a face that is no needle."""
+def _needle_edge(p: np.ndarray, tri: list[int], rel: float = NEEDLE_REL,
+                 max_length: float = np.inf) -> tuple[int, int] | None:
+    """A needle's short edge: the face's shortest edge when it is at most ``rel`` of its
+    longest and at most ``max_length`` long, at positions p; None for a face that is no
+    needle."""
     edges, lengths = _edges(p, tri)
     k = int(np.argmin(lengths))
-    return edges[k] if lengths[k] <= NEEDLE_REL * max(lengths) else None
+    return edges[k] if lengths[k] <= min(rel * max(lengths), max_length) else None
 
 
 def _flip(f: np.ndarray, face: int, a: int, b: int, c: int) -> np.ndarray | None:
@@ -136,15 +138,16 @@ def remove_degenerate_faces(v: np.ndarray, f: np.ndarray, max_steps: int = 1000
     return v, f, len(degenerate_faces(v, f))
 
 
-def collapse_needles(v: np.ndarray, f: np.ndarray, faces: np.ndarray
+def collapse_needles(v: np.ndarray, f: np.ndarray, faces: np.ndarray, *,
+                     rel: float = NEEDLE_REL, max_length: float = np.inf
                      ) -> tuple[np.ndarray, int]:
     """Collapse the short edge of each needle among `faces` (indices into f): a face whose
-    shortest edge, with positions rounded to float32, is at most NEEDLE_REL of its longest,
-    where the 2-manifold allows it (`_collapse`). Returns (faces, edges collapsed);
-    vertices are unchanged and faces keep their winding."""
+    shortest edge, with positions rounded to float32, is at most ``rel`` of its longest (and
+    at most ``max_length`` long), where the 2-manifold allows it (`_collapse`). Returns
+    (faces, edges collapsed); vertices are unchanged and faces keep their winding."""
     f = np.array(f, dtype=np.int64, copy=True)
     p32 = v.astype(np.float32).astype(np.float64)
-    edges = [_needle_edge(p32, [int(x) for x in f[i]])
+    edges = [_needle_edge(p32, [int(x) for x in f[i]], rel, max_length)
              for i in np.unique(np.asarray(faces, np.int64))]
     done = 0
     for edge in edges:

@@ -16,7 +16,7 @@ from scipy.sparse.csgraph import connected_components
 from jampacked.core.errors import MeshError
 from jampacked.core.solids import solid_arrays
 
-from .cleanup import collapse_needles, remove_degenerate_faces, separate_pinches
+from .cleanup import NEEDLE_REL, collapse_needles, remove_degenerate_faces, separate_pinches
 from .intersect import intersecting_pairs
 from .validate import merge_identical
 
@@ -33,6 +33,11 @@ UNION_VOLUME_SLACK = 1e-4
 #: rounds of needle collapses on the faces that fold over once rounded to float32 (each
 #: round tests the whole mesh again)
 NEEDLE_ROUNDS = 3
+#: a face that crosses another, once the needles are gone, has its short edge collapsed when
+#: that edge is at most this fraction of its longest and of the mesh's diagonal (0.03 mm
+#: on 150 mm): slivers where struts or objects meet a surface, which float32 rounding folds
+CROSSING_SLIVER_REL = 0.12
+CROSSING_SLIVER_LEN_REL = 2e-4
 #: how far (of the mesh's diagonal) `separate_pinches` moves vertices that share a position:
 #: about 16-26 float32 steps at the largest coordinates, 0.2 micrometre at 200 mm
 PINCH_STEP_REL = 1e-6
@@ -91,13 +96,18 @@ def clean_arrays(result: m3.Manifold, float32: bool = False
         _, remap = merge_identical(stored)
         step = PINCH_STEP_REL * float(np.linalg.norm(np.ptp(v, axis=0)))
         v, _ = separate_pinches(v, f, remap, step)
-        for rnd in range(NEEDLE_ROUNDS + 1):  # the last round only tests
-            pairs, left = _crossing(v, f, float32)
-            if left == 0 or rnd == NEEDLE_ROUNDS:
-                break
-            f, collapsed = collapse_needles(v, f, pairs)
-            if collapsed == 0:
-                break
+        # needles first; then, among faces that still cross, slivers whose short edge is
+        # far below a printer's resolution
+        reach = CROSSING_SLIVER_LEN_REL * float(np.linalg.norm(np.ptp(v, axis=0)))
+        for rel, length in ((NEEDLE_REL, np.inf), (CROSSING_SLIVER_REL, reach)):
+            for _ in range(NEEDLE_ROUNDS):
+                pairs, left = _crossing(v, f, float32)
+                if left == 0:
+                    return v, f, 0
+                f, collapsed = collapse_needles(v, f, pairs, rel=rel, max_length=length)
+                if collapsed == 0:
+                    break
+        _, left = _crossing(v, f, float32)
         return v, f, left
 
     v, f, left = cleaned(result)
