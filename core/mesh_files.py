@@ -247,18 +247,20 @@ def length_unit(path: str | None) -> str:
 def _binary_stl_damage(data: bytes) -> str | None:
     """What is wrong with a binary STL whose size does not match the triangle count in its
     header (a download or copy cut short), or None (it matches, or the file is ASCII)."""
+    head = data[:4096].removeprefix(b"\xef\xbb\xbf").lstrip()
+    if head[:5].lower() == b"solid" and b"\0" not in head:
+        return None  # ASCII (a binary header may start with "solid" too; its numbers hold 0s)
     if len(data) < 84:
-        return None if data.lstrip()[:5].lower() == b"solid" else (
-            f"it has {len(data)} bytes, fewer than a binary STL's 84-byte header")
+        return f"it has {len(data)} bytes, fewer than a binary STL's 84-byte header"
     count = int.from_bytes(data[80:84], "little")
     expected = 84 + 50 * count
     if len(data) == expected:
         return None
-    if data.lstrip()[:5].lower() == b"solid" and b"facet" in data[:4096].lower():
-        return None  # ASCII
     held = (len(data) - 84) / 50
+    how = ("it was cut short or damaged" if len(data) < expected
+           else "it holds more than its header says, so it is damaged")
     return (f"its header says {count:,} triangles ({expected:,} bytes), but it has "
-            f"{len(data):,} bytes ({held:,.1f} triangles): it was cut short or damaged")
+            f"{len(data):,} bytes ({held:,.1f} triangles): {how}")
 
 
 def _stl_arrays(data: bytes) -> Arrays | None:
@@ -298,11 +300,6 @@ def read_arrays(path: str, data: bytes, label: str, notes: list[str] | None = No
         MeshError: unknown type, or no reader can read it (damaged, or not really that type).
     """
     ext = extension(path)
-    if ext == "stl":
-        damage = _binary_stl_damage(data)
-        if damage:
-            raise MeshError(f"{label} is not a whole STL file: {damage}. Copy or export it "
-                            "again.")
     if ext == "3mf":
         try:
             arrays, unit = read_3mf_model(data)
@@ -319,6 +316,10 @@ def read_arrays(path: str, data: bytes, label: str, notes: list[str] | None = No
         arrays = _stl_arrays(data)
         if arrays is not None:
             return arrays
+        damage = _binary_stl_damage(data)  # worded only for a file no reader took
+        if damage:
+            raise MeshError(f"{label} is not a whole STL file: {damage}. Copy or export it "
+                            "again.")
     trimesh_formats = set(trimesh.available_formats())
     import meshio
 

@@ -553,3 +553,16 @@ def test_a_binary_stl_cut_short_is_named_as_such(tmp_path):
     ascii_stl = tmp_path / "ascii.stl"
     ascii_stl.write_text(trimesh.exchange.stl.export_stl_ascii(box))
     assert len(read_mesh_arrays(ascii_stl)[1]) == 12
+    # ASCII with a UTF-8 byte-order mark (Windows tools) or a name line over 4 KB: read
+    # as before, never taken for a binary STL of the wrong size
+    text = trimesh.exchange.stl.export_stl_ascii(box)
+    bom = tmp_path / "bom.stl"
+    bom.write_bytes(b"\xef\xbb\xbf" + text.encode())
+    long_name = tmp_path / "long-name.stl"
+    long_name.write_text(text.replace("solid", "solid " + "x" * 5000, 1))
+    for path in (bom, long_name):
+        assert len(read_mesh_arrays(path)[1]) == 12, path
+    padded = tmp_path / "padded.stl"  # longer than its header says
+    padded.write_bytes(whole + b"\0" * 50)
+    with pytest.raises(MeshError, match="holds more than its header says"):
+        read_mesh_arrays(padded)
