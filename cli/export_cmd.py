@@ -156,17 +156,21 @@ def cmd_export(args: argparse.Namespace) -> int:
     from jampacked.export.assemble import export_packing
 
     out, err = consoles()
-    for path in args.output + ([args.render] if args.render else []):
-        check_output(path, "-o" if path != args.render else "--render", [args.packing],
-                     "packing file")
     try:
-        options = ExportOptions(mode=args.mode, shell=args.shell,
-                                opening=args.open_plane or args.window, drain=args.drain,
-                                connector=args.connector, resolution=args.resolution,
-                                split_files=args.split, up=args.up,
-                                fill_voids=not args.keep_voids)
-    except InputError as exc:
-        raise UsageError(str(exc)) from None
+        for path in args.output + ([args.render] if args.render else []):
+            check_output(path, "-o" if path != args.render else "--render", [args.packing],
+                         "packing file")
+        try:
+            options = ExportOptions(mode=args.mode, shell=args.shell,
+                                    opening=args.open_plane or args.window, drain=args.drain,
+                                    connector=args.connector, resolution=args.resolution,
+                                    split_files=args.split, up=args.up,
+                                    fill_voids=not args.keep_voids)
+        except InputError as exc:
+            raise UsageError(str(exc)) from None
+    except UsageError as exc:
+        _json_failure(args, exc)
+        raise
     # active to the end: a Ctrl-C once the files are in place cannot undo them, and the
     # command then says so and keeps its status
     with CancelOnInterrupt() as cancel:

@@ -259,9 +259,11 @@ def replace_files(staged: Sequence[tuple[str, str]]) -> None:
                     remove_temporaries(staged[k:])
                     _discard(backups.pop(path, None))
                     undone = _restore(done, backups)
+                    saved = {p: b for p, b in backups.items() if b and p in done}
                     raise MeshError(_rename_failure(path, exc, [p for p in done if p not in
                                                                 undone],
-                                                    [p for _, p in staged[k:]])) from exc
+                                                    [p for _, p in staged[k:]], undone,
+                                                    saved)) from exc
                 done.append(path)
             for backup in backups.values():
                 _discard(backup)
@@ -299,31 +301,36 @@ def _discard(backup: str | None) -> None:
 
 def _restore(done: list[str], backups: dict[str, str | None]) -> list[str]:
     """Put each replaced target of ``done`` back as it was (a new one removed); the targets
-    restored."""
+    restored. A backup that cannot be put back is kept (``backups`` still names it)."""
     undone = []
     for path in done:
-        backup = backups.pop(path, None)
+        backup = backups.get(path)
         if backup == _NO_BACKUP:
             continue
-        with contextlib.suppress(OSError):
+        try:
             if backup is None:
                 os.unlink(path)
             else:
                 os.replace(backup, path)
-            undone.append(path)
-        _discard(backup)
+        except OSError:
+            continue
+        backups.pop(path)
+        undone.append(path)
     return undone
 
 
-def _rename_failure(path: str, exc: OSError, done: list[str], left: list[str]) -> str:
-    """The message for a rename onto ``path`` that failed after ``done`` were renamed;
-    ``left`` (``path`` first) were not touched."""
+def _rename_failure(path: str, exc: OSError, done: list[str], left: list[str],
+                    restored: Sequence[str] = (), saved: dict[str, str] | None = None
+                    ) -> str:
+    """The message for a rename onto ``path`` that failed after ``done`` were renamed (and
+    not put back); ``left`` (``path`` first) were not touched; ``restored`` were put back as
+    they were; ``saved``: the backups of replaced targets that could not be put back."""
     first = (f"cannot put '{path}' in place ({exc.strerror or exc}): check the folder's "
              "permissions and free space.")
     if not done:
         return first + " No file was written; every output file is as it was."
 
-    def names(paths: list[str]) -> str:
+    def names(paths: Sequence[str]) -> str:
         return ", ".join(f"'{p}'" for p in paths)
 
     kept = [p for p in left if os.path.lexists(p)]
@@ -335,6 +342,10 @@ def _rename_failure(path: str, exc: OSError, done: list[str], left: list[str]) -
                      "contents")
     if absent:
         parts.append(f"{names(absent)} {'was' if len(absent) == 1 else 'were'} not written")
+    if restored:
+        parts.append(f"{names(restored)} {'was' if len(restored) == 1 else 'were'} put "
+                     "back as before")
+    parts += [f"the previous contents of '{p}' are in '{b}'" for p, b in (saved or {}).items()]
     return (f"{first} Only part of the export is on disk: {'; '.join(parts)}. Export again "
             "to make the files agree.")
 

@@ -619,6 +619,9 @@ def test_export_json_prints_a_document_when_it_fails(packed, tmp_path):
     assert se.startswith("error: ") and not (tmp_path / "p.3mf").exists()
     rc, so, _ = run(["export", str(out), "--json", "-o", str(tmp_path / "p.xyz")])
     assert rc == 2 and "unknown mesh format" in json.loads(so)["error"]
+    # refused by the command line's own checks before the export starts: JSON too
+    rc, so, _ = run(["export", str(out), "--json", "-o", str(tmp_path / "nope" / "x.stl")])
+    assert rc == 2 and "does not exist" in json.loads(so)["error"]
 
 
 def test_info_on_a_mesh_file_says_it_is_a_mesh(capsys):

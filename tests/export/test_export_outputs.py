@@ -216,6 +216,21 @@ def test_a_rename_that_fails_midway_puts_the_files_replaced_back(tmp_path, monke
     assert "No file was written; every output file is as it was" in text
     assert a3.read_bytes() == OLD and astl.read_bytes() == OLD and not fresh.exists()
     assert _temporaries(tmp_path) == []
+    # a backup that cannot be put back is kept, and named: the previous contents live on
+    def stl_and_restore_fail(a, b):
+        if os.fspath(b) == os.fspath(astl) or os.fspath(a).endswith(".old"):
+            raise OSError(1, "Operation not permitted")
+        real(a, b)
+
+    monkeypatch.setattr(os, "replace", stl_and_restore_fail)
+    with pytest.raises(MeshError) as info:
+        export_packing(src, [a3, astl], UNION)
+    (backup,) = _temporaries(tmp_path)
+    assert f"the previous contents of '{a3}' are in '{tmp_path / backup}'" in str(info.value)
+    assert (tmp_path / backup).read_bytes() == OLD and astl.read_bytes() == OLD
+    os.unlink(tmp_path / backup)
+    a3.write_bytes(OLD)
+    monkeypatch.setattr(os, "replace", stl_fails)
     # where the file system has no hard links, what was replaced is named instead
     monkeypatch.setattr(os, "link", lambda *a: (_ for _ in ()).throw(OSError(1, "no links")))
     with pytest.raises(MeshError) as info:
