@@ -269,8 +269,7 @@ def _type_sizes(scene: _Scene, type_scale: float, names: Sequence[str] | None
         return [TypeSize(name=named[i],
                          path=m.path, extents=m.extents * type_scale,
                          volume=float(m.volume) * type_scale ** 3 if type_scale < 1e100
-                         else math.inf,
-                         room=inner_room(m.vertices, m.faces) * type_scale)
+                         else math.inf)
                 for i, m in enumerate(scene.types)]
 
 
@@ -333,12 +332,18 @@ def _approximate(scene: _Scene, q: np.ndarray, inputs: PackInputs,
     cont = build_container(scene.vertices, cmesh.faces, scene.volume,
                            f_min / fid.container_cells)
     depth = float(cont.grid.values.max())
-    # the grid's depth is within a cell of the true depth
-    need = min(t.room for t, share in zip(sizes, q, strict=True) if share > 0) + clearance
-    if depth < need:  # measured again, finer, before refusing
-        depth, spacing = _measured_depth(scene, cont)
-        if depth + spacing < need:
-            _refuse_no_room(scene, sizes, depth, clearance)
+    live = [i for i, share in enumerate(q) if share > 0]
+    # an object's inscribed radius is at most half its thinnest extent: below that depth
+    # some type may not fit, and its inner room (a lower bound of that radius) decides
+    if depth < min(float(sizes[i].extents.min()) for i in live) / 2 + clearance:
+        live_sizes = [replace(sizes[i], room=inner_room(scene.types[i].vertices,
+                                                          scene.types[i].faces) * type_scale)
+                      for i in live]
+        if depth < min(t.room for t in live_sizes) + clearance:  # measured again, finer
+            depth, spacing = _measured_depth(scene, cont)
+            # the grid's depth is within a cell of the true depth
+            if depth + spacing < min(t.room for t in live_sizes) + clearance:
+                _refuse_no_room(scene, live_sizes, depth, spacing, clearance)
     if inputs.fidelity == "auto":
         local = [(m.vertices - m.vertices.mean(axis=0)) * type_scale for m in scene.types]
         r_max = max(float(np.sqrt((v ** 2).sum(axis=1)).max()) for v in local)
@@ -371,28 +376,30 @@ def _measured_depth(scene: _Scene, cont: Container) -> tuple[float, float]:
     return max(float(fine.grid.values.max()), 0.0), fine.grid.spacing
 
 
-def _refuse_no_room(scene: _Scene, sizes: list[TypeSize], depth: float,
+def _refuse_no_room(scene: _Scene, sizes: list[TypeSize], depth: float, spacing: float,
                     clearance: float) -> None:
-    """Refuse a scene where even the smallest type cannot sit at the container's deepest
-    point, naming the types (and files) that do not fit."""
+    """Refuse a scene where even the smallest of the types asked for (``sizes``, with their
+    inner room) cannot sit at the container's deepest point (``depth``, measured on a grid
+    of ``spacing``: within a cell of the truth), naming the types (and files) that do not
+    fit."""
     c_ext = np.ptp(scene.vertices, axis=0)
     dims = " x ".join(f"{x:.4g}" for x in c_ext)
-    need = [(t, t.room + clearance) for t in sizes]
-    big = sorted([(t, n) for t, n in need if n >= depth], key=lambda x: x[1])
+    most = depth + spacing  # the deepest the container can be
+    big = sorted([t for t in sizes if t.room + clearance >= most], key=lambda t: t.room)
     listed = "; ".join(
-        f"{t.label}: {t.room:.4g} units from its centre to its surface (equivalent radius "
+        f"{t.label}: needs at least {t.room:.4g} units of depth (equivalent radius "
         f"{t.equivalent_radius:.4g}), {' x '.join(f'{x:.4g}' for x in t.extents)} units "
-        "across" for t, _ in big[:5])
+        "across" for t in big[:5])
     more = f"; and {len(big) - 5} more" if len(big) > 5 else ""
-    room = depth - clearance
-    factor = (f"by a factor of at least {big[0][0].room / room:.3g}"
+    room = most - clearance
+    factor = (f"by a factor of at least {big[0].room / room:.3g}"
               if room > 0 else "after lowering the clearance")
     plus = f" plus the clearance {clearance:g}" if clearance else ""
     raise PackingError(
         f"no object fits: the container {scene.label} ({dims} units) is {depth:.4g} units "
-        f"deep at its deepest interior point, and an object needs at least the depth from "
-        f"its centre to its surface{plus} there. Too large: {listed}{more}. Scale the "
-        f"objects down (--type-scale / "
+        f"deep at its deepest interior point (within {spacing:.2g}), and each object needs "
+        f"a depth of at least its own inner room{plus} there. Too large: {listed}{more}. "
+        f"Scale the objects down (--type-scale / "
         f"type_scale, {factor}) or the container up (--container-size / container_size)"
         f"{', or lower the clearance' if clearance else ''}.")
 

@@ -79,7 +79,8 @@ class TypeSize:
     path: str | None
     extents: np.ndarray  # (3,)
     volume: float
-    #: a lower bound of its inscribed radius (`mesh_geometry.inner_room`): the depth it needs
+    #: a lower bound of its inscribed radius (`mesh_geometry.inner_room`), the depth it needs;
+    #: measured only where the container's depth check needs it (0 otherwise)
     room: float = 0.0
 
     @property

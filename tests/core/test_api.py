@@ -406,9 +406,9 @@ def test_a_type_far_larger_than_the_container_is_named_with_its_file():
     text = str(err.value)
     assert "is 30 units deep" in text, text
     assert "polytope1.obj" in text and "equivalent radius 573.6" in text
-    # its centre is 233.7 from its surface: scaled down 7.79 times it would just reach 30
-    assert "233.7 units from its centre to its surface" in text
-    assert "--type-scale" in text and "factor of at least 7.79" in text
+    # its centre is 233.7 from its surface; the box is at most 30 + 0.94 (a grid cell) deep
+    assert "needs at least 233.7 units of depth" in text
+    assert "--type-scale" in text and "factor of at least 7.55" in text
 
 
 def test_flat_objects_in_a_thin_tray_are_not_refused_up_front():
@@ -423,7 +423,7 @@ def test_flat_objects_in_a_thin_tray_are_not_refused_up_front():
     mesh = mesh_from_arrays(coin.vertices, coin.faces, name="coin")
     p = pack("box:30x30x2", [mesh], seed=1, fidelity="low")
     assert p.n >= 4 and p.certificate["certified"]
-    with pytest.raises(PackingError, match="no object fits.*: 0.5 units from its centre"):
+    with pytest.raises(PackingError, match="no object fits.*needs at least 0.5 units of depth"):
         pack("box:30x30x0.5", [mesh], seed=1, fidelity="low")
 
 
