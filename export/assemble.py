@@ -41,7 +41,7 @@ from .options import ExportOptions, check_scale, print_size_warning, rotate_axis
 from .parts import require_gap, separate_parts
 from .report import ExportReport
 from .scene import PlacedScene, load_sources, packing_clearance, place, smallest_object
-from .union import clean_bodies, union_arrays
+from .union import clean_bodies, crossing_pairs, union_arrays
 
 __all__ = ["ExportReport", "export_packing"]
 
@@ -296,9 +296,11 @@ def _one_body(packing: Packing, scene: PlacedScene, shell: m3.Manifold | None,
             break
         # slivers the local repairs cannot remove: struts turned another way meet the
         # surfaces elsewhere (union mode has nothing to turn; validation names the faces)
-    if left > 0 and shell is not None and out.shell is not None and out.shell.tolerance > 0:
+    if (left > 0 and shell is not None and out.shell is not None and out.shell.tolerance > 0
+            and crossing_pairs(v, f, float32=False)[1] > 0):
         # the booleans split the simplified inner surface's long thin faces where objects
-        # meet it and can fold them: the shell again with every triangle of its grid
+        # meet it and can fold them (at full precision: float32 folds are not its doing):
+        # the shell again with every triangle of its grid
         shell, out.shell = _shell(scene, options, report, simplify=False)
         out.shell.notes.append("the inner surface keeps every triangle of its grid: the "
                                "simplified one folded where the objects meet it.")

@@ -20,7 +20,7 @@ from .cleanup import NEEDLE_REL, collapse_needles, remove_degenerate_faces, sepa
 from .intersect import intersecting_pairs
 from .validate import merge_identical
 
-__all__ = ["SPECK_REL", "Cleaned", "clean_bodies", "clean_arrays", "drop_specks",
+__all__ = ["SPECK_REL", "Cleaned", "clean_bodies", "clean_arrays", "crossing_pairs", "drop_specks",
            "union_arrays"]
 
 #: components of a union with less volume than this fraction of its bounding box are specks
@@ -101,13 +101,13 @@ def clean_arrays(result: m3.Manifold, float32: bool = False
         reach = CROSSING_SLIVER_LEN_REL * float(np.linalg.norm(np.ptp(v, axis=0)))
         for rel, length in ((NEEDLE_REL, np.inf), (CROSSING_SLIVER_REL, reach)):
             for _ in range(NEEDLE_ROUNDS):
-                pairs, left = _crossing(v, f, float32)
+                pairs, left = crossing_pairs(v, f, float32)
                 if left == 0:
                     return v, f, 0
                 f, collapsed = collapse_needles(v, f, pairs, rel=rel, max_length=length)
                 if collapsed == 0:
                     break
-        _, left = _crossing(v, f, float32)
+        _, left = crossing_pairs(v, f, float32)
         return v, f, left
 
     v, f, left = cleaned(result)
@@ -121,7 +121,7 @@ def clean_arrays(result: m3.Manifold, float32: bool = False
     return v, f, left
 
 
-def _crossing(v: np.ndarray, f: np.ndarray, float32: bool) -> tuple[np.ndarray, int]:
+def crossing_pairs(v: np.ndarray, f: np.ndarray, float32: bool) -> tuple[np.ndarray, int]:
     """Faces that cross or touch another at full precision (a 3MF, an OBJ) and, with
     ``float32``, once rounded as an STL or PLY stores them: (their indices, the number of
     pairs)."""
