@@ -37,6 +37,7 @@ __all__ = ["UNIT_MM", "ThreeMFError", "encode_3mf", "encode_3mf_components", "re
 CORE_NAMESPACE = "http://schemas.microsoft.com/3dmanufacturing/core/2015/02"
 _REL_TYPE = "http://schemas.microsoft.com/3dmanufacturing/2013/01/3dmodel"
 _PRODUCTION_NAMESPACE = "http://schemas.microsoft.com/3dmanufacturing/production/2015/06"
+_PATH = f"{{{_PRODUCTION_NAMESPACE}}}path"  # a reference into another model part
 _CONTENT_TYPES_PART = "[Content_Types].xml"
 _RELS_PART = "_rels/.rels"
 CONTENT_TYPES = (
@@ -190,7 +191,7 @@ def _reference(element: etree._Element, where: str, part: str, defined: dict[str
     """The object id a component or build item refers to, which must be an object of
     ``part`` defined before it (``defined``: id -> type so far; ``ids``: every object id of
     the part); None for a reference into another model part (not followed)."""
-    path = element.get(f"{{{_PRODUCTION_NAMESPACE}}}path")
+    path = element.get(_PATH)
     if path and path.strip().lstrip("/").lower() != part.lower():
         return None
     oid = element.get("objectid")
@@ -318,6 +319,13 @@ def read_3mf_model(data: bytes) -> tuple[Body, str]:
     for oid, transform in _build(root, part, types):
         emit(oid, transform, 0)
     if not out_f:
+        elsewhere = [e.get(_PATH) for e in root.iter() if e.get(_PATH) and
+                     e.get(_PATH).strip().lstrip("/").lower() != part.lower()]
+        if elsewhere:
+            raise ThreeMFError(
+                f"its objects are in other model parts ({elsewhere[0]}: the 3MF production "
+                "extension, as Bambu Studio and OrcaSlicer write a project), and only the "
+                "root model part is read; export the plate as a plain 3MF or as STL")
         return (np.zeros((0, 3)), np.zeros((0, 3), np.int64)), unit
     # one body: already new arrays
     v, f = (out_v[0], out_f[0]) if len(out_f) == 1 else (np.concatenate(out_v),

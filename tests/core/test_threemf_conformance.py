@@ -200,3 +200,13 @@ def test_writers_packages_still_read(tmp_path):
                    "</components></object>", '<item objectid="2"/>')
     v, f = read_mesh_arrays(_standard(tmp_path / "bambu.3mf", bambu))
     assert v.shape == (4, 3) and f.shape == (4, 3)
+
+
+def test_a_project_whose_objects_are_all_in_other_parts_is_named(tmp_path):
+    # a Bambu Studio / OrcaSlicer project keeps its meshes in 3D/Objects/*.model: it was
+    # validated as "FAIL: no triangles (empty, points or lines only)"
+    project = _model('<object id="2" type="model"><components>'
+                     '<component p:path="/3D/Objects/object_1.model" objectid="9"/>'
+                     "</components></object>", '<item objectid="2"/>')
+    _refused(_standard(tmp_path / "project.3mf", project),
+             "/3D/Objects/object_1.model", "production extension", "plain 3MF or as STL")
