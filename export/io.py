@@ -149,8 +149,9 @@ def check_output_paths(paths: Sequence[str], protect: Iterable[str | os.PathLike
     :func:`jampacked.export.mesh_write.check_output_path`)."""
     protect = [os.fspath(p) for p in protect]
     seen: dict[str, str] = {}
+    probed: set[str] = set()
     for p in paths:
-        check_output_path(p, protect)
+        check_output_path(p, protect, probed)
         key = os.path.normcase(os.path.realpath(p))
         if sys.platform == "darwin":  # macOS volumes ignore case too, as a rule
             key = key.lower()

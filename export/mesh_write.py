@@ -141,13 +141,15 @@ def write_format(path: str) -> str:
 
 
 def check_output_path(path: str | os.PathLike,
-                      protect: Iterable[str | os.PathLike] = ()) -> str:
+                      protect: Iterable[str | os.PathLike] = (),
+                      probed: set[str] | None = None) -> str:
     """Check that a mesh file can be written at ``path`` before anything is built for it;
     returns its format (the extension, lower case).
 
     Raises OutputError (unknown format, or ``path`` is one of ``protect``: the inputs, compared
     as resolved paths) or MeshError (its folder does not exist or takes no new file, or it
-    is a folder).
+    is a folder). ``probed``: folders already found to take new files (this one is added),
+    so that many outputs in one folder probe it once.
     """
     path_str = os.fspath(path)
     ext = write_format(path_str)
@@ -161,10 +163,14 @@ def check_output_path(path: str | os.PathLike,
                         "create it first.")
     if os.path.isdir(path_str):
         raise MeshError(f"cannot write '{path_str}': it is a folder; give a file name.")
-    refused = write_refusal(folder)
-    if refused:
-        raise MeshError(f"cannot write '{path_str}': the folder '{folder}' takes no new file "
-                        f"({refused}). {refusal_advice(folder)}, or give another output file.")
+    if probed is None or folder not in probed:
+        refused = write_refusal(folder)
+        if refused:
+            raise MeshError(f"cannot write '{path_str}': the folder '{folder}' takes no new "
+                            f"file ({refused}). {refusal_advice(folder)}, or give another "
+                            "output file.")
+        if probed is not None:
+            probed.add(folder)
     return ext
 
 
