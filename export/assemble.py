@@ -301,7 +301,8 @@ def _one_body(packing: Packing, scene: PlacedScene, shell: m3.Manifold | None,
         # the booleans split the simplified inner surface's long thin faces where objects
         # meet it and can fold them (at full precision: float32 folds are not its doing):
         # the shell again with every triangle of its grid
-        shell, out.shell = _shell(scene, options, report, simplify=False)
+        shell, out.shell = _shell(scene, options, lambda f, m: report(0.6, m),
+                                  simplify=False)  # the bar stays where it is
         out.shell.notes.append("the inner surface keeps every triangle of its grid: the "
                                "simplified one folded where the objects meet it.")
         check_cancel()
