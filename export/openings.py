@@ -93,13 +93,53 @@ def _first_exit(hits: list[tuple[float, bool]]) -> tuple[float | None, float]:
     return None, math.inf
 
 
+def _wall_depths(shell: m3.Manifold, centre: np.ndarray, offsets: list[np.ndarray],
+                 unit: np.ndarray, reach: float) -> list[float]:
+    """Where rays along ``-unit`` through ``centre`` + each offset, cast from ``reach``
+    beyond it, first leave the shell: one depth per ray that meets a wall."""
+    depths = []
+    for off in offsets:
+        exit_at, _ = _first_exit(_ray_hits(shell, centre + off + reach * unit, -unit, reach))
+        if exit_at is not None:
+            depths.append(exit_at)
+    return depths
+
+
+#: candidate window centres per ring around the side's middle, and rings across the side
+RING_POINTS = 32
+RINGS = 64
+
+
+def _nearest_wall(shell: m3.Manifold, centre: np.ndarray, offsets: list[np.ndarray],
+                  unit: np.ndarray, e1: np.ndarray, e2: np.ndarray, reach: float,
+                  span: float) -> tuple[np.ndarray, list[float]] | None:
+    """The window centre nearest ``centre`` (in the plane across the axis, within ``span``)
+    whose whole disc lies over a wall, or else the one with the most of its disc over a
+    wall, nearest first; None when no ray meets a wall anywhere."""
+    best: tuple[int, np.ndarray, list[float]] | None = None
+    for ring in range(1, RINGS + 1):
+        distance = span * ring / RINGS
+        for k in range(RING_POINTS):
+            angle = 2 * math.pi * k / RING_POINTS + 0.0731  # off the axes, as the disc's rays
+            at = centre + distance * (math.cos(angle) * e1 + math.sin(angle) * e2)
+            depths = _wall_depths(shell, at, offsets, unit, reach)
+            if len(depths) == len(offsets):
+                return at, depths
+            if depths and (best is None or len(depths) > best[0]):
+                best = (len(depths), at, depths)
+    return None if best is None else (best[1], best[2])
+
+
 def cut_window(shell: m3.Manifold, opening: Opening, lo: np.ndarray, hi: np.ndarray,
                thickness: float, notes: list[str]) -> m3.Manifold:
     """Cut a round window through the first wall seen from outside along ``opening.axis``.
 
-    The cylinder runs from outside the bounds inward and stops a little past where rays
-    across its disc leave that wall (never past the bounding-box centre), so walls further
-    in (the far side, or the inner ring of a torus) stay intact.
+    The window is centred on the bounding-box centre where the wall is there; where the line
+    through it meets no wall (the hole of a torus), on the nearest place over a wall (a note
+    says how far it moved). The cylinder runs from outside the bounds inward and stops a
+    little past where rays across its disc leave that wall (never past the bounding-box
+    centre's plane), so walls further in (the far side, or the inner ring of a torus) stay
+    intact.
     """
     a, _, unit = _axis(opening.axis)
     radius = 0.5 * opening.size
@@ -108,17 +148,21 @@ def cut_window(shell: m3.Manifold, opening: Opening, lo: np.ndarray, hi: np.ndar
     e1[(a + 1) % 3] = 1.0
     e2 = np.cross(unit, e1)
     reach = 0.5 * (hi[a] - lo[a]) + thickness + radius + 1.0  # centre to beyond the bounds
-    depths = []
-    for off in _disc_offsets(radius, e1, e2):
-        exit_at, _ = _first_exit(_ray_hits(shell, centre + off + reach * unit, -unit, reach))
-        if exit_at is not None:
-            depths.append(exit_at)
+    offsets = _disc_offsets(radius, e1, e2)
+    depths = _wall_depths(shell, centre, offsets, unit, reach)
     if not depths:
-        raise InputError(
-            f"the window along {opening.axis} misses the shell: the line through the "
-            "container's bounding-box centre along that axis meets no wall within the window's "
-            "diameter. Fix: pick another axis, a larger window, or a plane opening."
-        )
+        span = 0.5 * max(float(hi[i] - lo[i]) for i in range(3) if i != a)
+        found = _nearest_wall(shell, centre, offsets, unit, e1, e2, reach, span)
+        if found is None:
+            raise InputError(
+                f"the window along {opening.axis} misses the shell: no line along that axis "
+                "within the container's bounds meets a wall. Fix: pick another axis or a "
+                "plane opening.")
+        moved, depths = found
+        notes.append(f"the line through the container's middle along {opening.axis} meets "
+                     f"no wall, so the window is centred {np.linalg.norm(moved - centre):.3g} "
+                     "mm from it, over the nearest wall.")
+        centre = moved
     inward = max(depths) + 0.5 * thickness  # a little into the cavity
     if inward >= reach:
         inward = reach

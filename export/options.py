@@ -42,7 +42,9 @@ class Opening:
         fraction ``at`` (0..1) of the container's extent along that axis, measured from the
         side ``axis`` points away from (``+z`` at 0.75: the top quarter of the shell goes).
     kind: "window" cuts a round hole of diameter ``size`` (container units) through the
-        shell's side that faces ``axis``, centred on the container's bounding-box centre.
+        shell's side that faces ``axis``, centred on the container's bounding-box centre, or
+        where the line through it meets no wall (the hole of a torus) on the nearest place
+        over a wall.
     """
 
     kind: str = "plane"

@@ -241,11 +241,30 @@ def test_window_on_a_torus_spares_the_inner_ring():
     assert sum(1 for x in hits if x < 0) == 4  # the -x tube is untouched
 
 
-def test_window_that_misses_raises():
+def test_window_over_a_torus_hole_moves_onto_the_ring():
+    # the line through the middle along +z runs down the hole: the window was refused, so a
+    # ring container could not be opened from the top
     torus = trimesh.creation.torus(10.0, 4.0, major_sections=32, minor_sections=16)
+    closed, _ = make_shell(torus.vertices, torus.faces, 1.0, resolution=0.5)
+    shell, report = make_shell(torus.vertices, torus.faces, 1.0, resolution=0.5,
+                               opening=Opening("window", "+z", size=4.0))
+    moved = [n for n in report.notes if "over the nearest wall" in n]
+    assert len(moved) == 1
+    distance = float(re.search(r"centred ([0-9.]+) mm", moved[0]).group(1))
+    assert 8.0 <= distance <= 12.0  # the whole disc over the tube (6..14 from the axis)
+    removed = closed.volume() - shell.volume()
+    assert removed == pytest.approx(math.pi * 2.0 ** 2 * 1.0, rel=0.3)
+    val = validated(shell)
+    assert len(val.bodies) == 1
+
+
+def test_window_with_no_wall_anywhere_raises(monkeypatch):
+    from jampacked.export import openings
+
+    box = trimesh.creation.box([30.0, 30.0, 30.0])
+    monkeypatch.setattr(openings, "_ray_hits", lambda *args: [])
     with pytest.raises(InputError, match="misses the shell"):
-        make_shell(torus.vertices, torus.faces, 1.0, resolution=0.5,
-                   opening=Opening("window", "+z", size=4.0))
+        make_shell(box.vertices, box.faces, 2.0, opening=Opening("window", "+z", size=4.0))
 
 
 def test_drain_opens_the_bottom(sphere, sphere_shell):
