@@ -17,6 +17,8 @@ from __future__ import annotations
 
 import contextlib
 import logging
+import signal
+import threading
 import time
 import uuid
 from collections.abc import Callable, Iterator
@@ -243,7 +245,28 @@ def client_for(target=None, *, workers: int | None = None) -> Iterator:
         raise InputError(f"the number of local workers must be >= 1, got {workers!r}.")
     # silence_logs: the nanny's warnings at shutdown (a worker still busy in numba is
     # killed after a few seconds) are not the user's concern
-    with LocalCluster(n_workers=workers, threads_per_worker=1, processes=True,
-                      dashboard_address=None, silence_logs=logging.ERROR) as cluster, \
-            Client(cluster) as client:
+    # workers ignore Ctrl-C (`worker_setup`, for one the nanny restarts later); those started
+    # here take it from this process's disposition before their preload runs
+    with _children_ignore_interrupt():
+        cluster = LocalCluster(n_workers=workers, threads_per_worker=1, processes=True,
+                               dashboard_address=None, silence_logs=logging.ERROR,
+                               preload=["jampacked.core.worker_setup"])
+    with cluster, Client(cluster) as client:
         yield client
+
+
+@contextlib.contextmanager
+def _children_ignore_interrupt() -> Iterator[None]:
+    """Ignore SIGINT while the local cluster starts, so that its worker processes inherit
+    it ignored. A Ctrl-C reaches the whole foreground process group: workers starting then
+    died ("Nanny failed to start", a traceback), running ones printed KeyboardInterrupt
+    tracebacks. This process ignores a Ctrl-C during those seconds too (distributed swallowed
+    it there before: the run went on to its end either way). Main thread only."""
+    if threading.current_thread() is not threading.main_thread():
+        yield
+        return
+    before = signal.signal(signal.SIGINT, signal.SIG_IGN)
+    try:
+        yield
+    finally:
+        signal.signal(signal.SIGINT, before)

@@ -164,3 +164,25 @@ def test_a_rerun_skips_verified_scenes_and_packs_the_rest_again(tmp_path):
     assert check_done(changed[1], scene_file(tmp_path, changed[1]))[1] == \
         "made with another clearance"
     assert [r.status for r in run_batch(changed, tmp_path)] == ["skipped", "packed"]
+
+
+def _sigint_ignored() -> bool:
+    import signal
+
+    return signal.getsignal(signal.SIGINT) == signal.SIG_IGN
+
+
+def test_local_workers_ignore_ctrl_c_and_this_process_keeps_its_handler():
+    # a Ctrl-C reaches the whole process group: each worker printed a KeyboardInterrupt
+    # traceback, and workers still starting died ("Nanny failed to start")
+    import signal
+
+    from jampacked.core.cluster import client_for
+
+    before = signal.getsignal(signal.SIGINT)
+    with client_for(workers=1) as cl:
+        assert signal.getsignal(signal.SIGINT) is before
+        assert cl.submit(_sigint_ignored, pure=False).result(timeout=60)
+        cl.restart()  # a worker the nanny starts again later, with this process's handler
+        assert cl.submit(_sigint_ignored, pure=False).result(timeout=60)
+    assert signal.getsignal(signal.SIGINT) is before
