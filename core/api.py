@@ -349,10 +349,39 @@ def _approximate(scene: _Scene, q: np.ndarray, inputs: PackInputs,
         r_max = max(float(np.sqrt((v ** 2).sum(axis=1)).max()) for v in local)
         fid = choose_fidelity(local, expected, clearance, depth / f_min, depth / r_max)
     fid = _with_overrides(fid, inputs.options.fidelity)
-    if cont.grid.spacing != f_min / fid.container_cells:
-        cont = build_container(scene.vertices, cmesh.faces, scene.volume,
-                               f_min / fid.container_cells)
+    spacing = f_min / fid.container_cells
+    if inputs.options.fidelity.container_cells is None:
+        spacing = _tight_fit_spacing(scene, sizes, live, cont, depth, spacing, clearance,
+                                     type_scale)
+    if cont.grid.spacing != spacing:
+        cont = build_container(scene.vertices, cmesh.faces, scene.volume, spacing)
     return _Approximation(cont, fid, f_min, volumes, [])
+
+
+def _tight_fit_spacing(scene: _Scene, sizes: list[TypeSize], live: list[int], cont: Container,
+                       depth: float, spacing: float, clearance: float,
+                       type_scale: float) -> float:
+    """The container grid's spacing, finer where a type only just fits: at most a third of the
+    room its deepest point leaves around the type's inner room (container units).
+
+    Between its nodes the grid's interpolant reads up to about half a cell less than the
+    true distance where the wall's distance peaks (the medial axis: the middle of a box),
+    so an object with less room to spare than a cell fitted nowhere for the solver: a
+    radius-2 ball in a 4.2 box, a 9 mm cube in a 9.5 mm or a 10 mm one, refused as "no
+    object could be placed" (docs/notes-robustness.md). ``depth``: the container's depth
+    on the first grid; ``spacing``: the fidelity's."""
+    near = [i for i in live if float(sizes[i].extents.min()) / 2 + clearance > depth - spacing]
+    if not near:
+        return spacing
+    deepest, _ = _measured_depth(scene, cont)
+    slack = []
+    for i in near:
+        room = sizes[i].room or inner_room(scene.types[i].vertices,
+                                           scene.types[i].faces) * type_scale
+        left = max(deepest, depth) - room - clearance
+        if 0.0 < left < spacing:
+            slack.append(left)
+    return min(spacing, min(slack) / 3.0) if slack else spacing
 
 
 #: a container grid with fewer cells than this across the container's thinnest extent

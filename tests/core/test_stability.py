@@ -304,3 +304,20 @@ def test_bench_records_a_crash_with_its_stderr(stability):
     assert rec["outcome"] == "crash" and rec["exit_code"] != 0
     assert "deliberate crash" in rec["stderr_tail"]
     json.dumps(rec)  # what the bench writes
+
+
+@pytest.mark.parametrize("container,shape,count", [
+    ("box:4.2x4.2x4.2", "ball", 1),  # 0.1 to spare around a radius-2 ball
+    ("box:9.5x9.5x9.5", "cube", 1),  # 0.25 around a 9 mm cube, which must sit square
+    ("box:9.5x9.5x40", "cube", 4),
+])
+def test_an_object_that_only_just_fits_is_placed(tmp_path, container, shape, count):
+    # the container grid read the middle of the box up to half a cell shallower than it is,
+    # so with less room to spare than that no object fitted ("no object could be placed")
+    mesh = (trimesh.creation.icosphere(subdivisions=3, radius=2.0) if shape == "ball"
+            else trimesh.creation.box([9.0, 9.0, 9.0]))
+    path = tmp_path / f"{shape}.stl"
+    mesh.export(path)
+    p = pack(container, [str(path)], seed=1)
+    assert p.n == count
+    assert p.certificate["certified"]
