@@ -532,12 +532,15 @@ def _assemble(container: MeshSource, scene: _Scene, approx: _Approximation, run:
     if len(idx) == 0 and not stop.reason:
         gap = f", the clearance {clearance:g}" if clearance else ""
         depth, _ = _measured_depth(scene, approx.container)  # the grid's nodes can miss it
+        room, name = min((inner_room(t.vertices, t.faces), t.name) for t in objtypes
+                         if t.share > 0)
         raise PackingError(
             f"no object could be placed: the container's deepest interior point is "
-            f"{depth:.4g} units from its wall, the smallest type's equivalent radius is "
-            f"{approx.f_min:.4g}{gap}, and no object fitted anywhere. Scale the container up "
-            "(--container-size / container_size) or the objects down (--type-scale / type_scale)"
-            f"{' or lower the clearance' if clearance else ''}.")
+            f"{depth:.4g} units from its wall; {name}, the type needing the least depth, "
+            f"needs at least {room:.4g} (its inner room){gap}, and no object fitted "
+            "anywhere. Try --fidelity high / fidelity='high' (finer grids), or scale the "
+            "container up (--container-size / container_size) or the objects down "
+            f"(--type-scale / type_scale){' or lower the clearance' if clearance else ''}.")
     typ = state.typ[idx].copy()
     pos = state.pos[idx].copy()
     quat = matrix_to_quat(quat_to_matrix(state.quat[idx]))  # canonical sign, unit length

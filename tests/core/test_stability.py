@@ -321,3 +321,16 @@ def test_an_object_that_only_just_fits_is_placed(tmp_path, container, shape, cou
     p = pack(container, [str(path)], seed=1)
     assert p.n == count
     assert p.certificate["certified"]
+
+
+def test_no_object_placed_names_the_depth_a_type_needs(tmp_path, monkeypatch):
+    # the message compared the depth with the equivalent radius (5.58 for a 9 mm cube,
+    # deeper than a 9.5 mm box) and only advised rescaling
+    import jampacked.core.phases as phases
+
+    path = tmp_path / "cube.stl"
+    trimesh.creation.box([9.0, 9.0, 9.0]).export(path)
+    monkeypatch.setattr(phases, "grow", lambda *args, **kwargs: False)
+    with pytest.raises(PackingError, match=r"cube, the type needing the least depth, needs "
+                       r"at least 4\.5 \(its inner room\).*--fidelity high"):
+        pack("box:9.5x9.5x40", [str(path)], seed=1)
