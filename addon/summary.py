@@ -111,6 +111,7 @@ _BLENDER_WORDS = (
     ("--time-budget", "Time Budget"),
     ("--mix-tolerance", "Mix Tolerance"),
     ("--clearance", "Clearance"),
+    ("--fidelity high / fidelity='high'", "Fidelity High"),
     ("--fidelity", "Fidelity"),
     # export: the add-on exports with +z up and names an opening by its panel's words
     (", or give another --up (the drain goes under the cavity's lowest point)", ""),

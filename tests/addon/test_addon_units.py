@@ -160,6 +160,9 @@ def test_engine_messages_in_blender_words():
         "Re-pack with a Clearance (e.g. 0.2 mm), or export in Union or Connect mode.")
     assert summary.in_blender_words("Fix: fill the holes; then export again.") == \
         "Fix: fill the holes; then pack again."
+    assert summary.in_blender_words(
+        "Try --fidelity high / fidelity='high' (finer grids)") == \
+        "Try Fidelity High (finer grids)"
     assert summary.in_blender_words("Scale the objects down (--type-scale / type_scale, "
                                     "0.5)") == "Scale the objects down (the type objects' " \
         "scale, 0.5)"
