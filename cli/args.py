@@ -51,13 +51,10 @@ def _number(text: str, cast: Callable[[str], float], ok: Callable[[float], bool]
     return value
 
 
-def positive_float(what: str) -> Callable[[str], float]:
-    """An argument type for a finite number > 0; ``what`` (the option) heads its messages."""
-    def parse(text: str) -> float:
-        return _number(text, float, lambda v: math.isfinite(v) and v > 0,
-                       f"{what} must be a number", f"{what} must be greater than 0")
-
-    return parse
+def positive_float(text: str) -> float:
+    """A finite number > 0 (argparse names the option before the message)."""
+    return _number(text, float, lambda v: math.isfinite(v) and v > 0, "must be a number",
+                   "must be greater than 0")
 
 
 def non_negative_float(text: str) -> float:

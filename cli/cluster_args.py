@@ -9,19 +9,15 @@ import contextlib
 from jampacked.cli.args import UsageError
 
 
-def positive_int(what: str):
-    """An argument type for a whole number >= 1; ``what`` (the option) heads its messages."""
-    def parse(text: str) -> int:
-        try:
-            value = int(text)
-        except ValueError:
-            raise argparse.ArgumentTypeError(f"{what} must be a whole number, got {text!r}"
-                                             ) from None
-        if value < 1:
-            raise argparse.ArgumentTypeError(f"{what} must be 1 or more, got {text!r}")
-        return value
-
-    return parse
+def positive_int(text: str) -> int:
+    """A whole number >= 1 (argparse names the option before the message)."""
+    try:
+        value = int(text)
+    except ValueError:
+        raise argparse.ArgumentTypeError(f"must be a whole number, got {text!r}") from None
+    if value < 1:
+        raise argparse.ArgumentTypeError(f"must be 1 or more, got {text!r}")
+    return value
 
 
 def add_cluster_arguments(p: argparse.ArgumentParser, what: str,
@@ -29,7 +25,7 @@ def add_cluster_arguments(p: argparse.ArgumentParser, what: str,
     """Add --workers and --scheduler to `p`; `what` says what runs on the workers, which
     open the mesh files themselves when `reads_files`."""
     p.add_argument(
-        "--workers", type=positive_int("--workers"), metavar="K",
+        "--workers", type=positive_int, metavar="K",
         help=f"run {what} on K local worker processes (a Dask LocalCluster started for this "
              "command)")
     p.add_argument(

@@ -35,11 +35,12 @@ shell and openings:
   --shell T makes a wall of thickness T from the container's surface inwards. Open it so
   the objects show with --open-plane +z@0.75 (removes the shell beyond 75% of the height
   along +z; any of +x -x +y -y +z -z) or --window +y@30 (a 30 mm round hole through the
-  side facing +y, in its middle or, over a torus's hole, on the nearest wall). --drain D adds a drainage/escape hole of diameter D through the lowest
-  point of the shell along --up (default +z) for resin and powder printers. Write
-  negative axes with '=': --up=-y, --open-plane=-z@0.3. Union and connect fill sealed
-  voids (pockets between objects, struts and shell that could not drain); --keep-voids
-  keeps them hollow. A closed shell (no opening, no drain) keeps its cavity.
+  side facing +y, in its middle or, over a torus's hole, on the nearest wall). --drain D
+  adds a drainage/escape hole of diameter D through the lowest point of the shell along
+  --up (default +z) for resin and powder printers. Write negative axes with '=':
+  --up=-y, --open-plane=-z@0.3. Union and connect fill sealed voids (pockets between
+  objects, struts and shell that could not drain); --keep-voids keeps them hollow. A
+  closed shell (no opening, no drain) keeps its cavity.
 
 examples:
   jampacked export out/packing.json --mode connect --shell 2 --up +y \\
@@ -110,14 +111,14 @@ def add_export_parser(sub: argparse._SubParsersAction) -> None:
                    help="output file (.3mf, .stl, .obj, .ply); repeat for several formats")
     p.add_argument("--mode", choices=MODES, default="connect",
                    help="union, connect (default: one printable body) or parts")
-    p.add_argument("--shell", type=positive_float("--shell"), metavar="MM",
+    p.add_argument("--shell", type=positive_float, metavar="MM",
                    help="add a shell of the container with this wall thickness")
     opening = p.add_mutually_exclusive_group()
     opening.add_argument("--open-plane", type=parse_open_plane, metavar="AXIS[@FRACTION]",
                          help="cut the shell open beyond a plane, e.g. +z@0.75")
     opening.add_argument("--window", type=parse_window, metavar="AXIS@DIAMETER",
                          help="cut a round window through the shell's side, e.g. +y@30")
-    p.add_argument("--drain", type=positive_float("--drain"), metavar="MM",
+    p.add_argument("--drain", type=positive_float, metavar="MM",
                    help="drainage hole of this diameter through the shell's lowest point")
     p.add_argument("--keep-voids", action="store_true",
                    help="union/connect: keep sealed voids between objects, struts and shell "
@@ -126,10 +127,10 @@ def add_export_parser(sub: argparse._SubParsersAction) -> None:
     p.add_argument("--up", default="+z", choices=AXES, metavar="AXIS",
                    help="the axis pointing up when printed (default +z; +y for Y-up models): "
                         "the drain goes through the lowest point along it")
-    p.add_argument("--connector", type=positive_float("--connector"), metavar="MM",
+    p.add_argument("--connector", type=positive_float, metavar="MM",
                    help="strut diameter for --mode connect (default: 0.2 x the smallest "
                         "object's equivalent diameter)")
-    p.add_argument("--resolution", type=positive_float("--resolution"), metavar="MM",
+    p.add_argument("--resolution", type=positive_float, metavar="MM",
                    help="simplify meshes to the printer's resolution (surfaces move by at "
                         "most this much, measured; objects that only touch can come apart)")
     p.add_argument("--split", action="store_true",

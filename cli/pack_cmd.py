@@ -91,11 +91,11 @@ def add_pack_parser(sub: argparse._SubParsersAction) -> None:
              "container's thinnest side where z is over twice as long (a torus lying in "
              "x-z is cut across y) (default: auto)")
     p.add_argument(
-        "--container-size", type=positive_float("--container-size"), metavar="MM",
+        "--container-size", type=positive_float, metavar="MM",
         help="scale the container so its largest bounding-box side is MM container units "
              f"(default: the file's own size; {DEFAULT_CONTAINER_SIZE:g} for 'default')")
     p.add_argument(
-        "--type-scale", type=positive_float("--type-scale"), metavar="S",
+        "--type-scale", type=positive_float, metavar="S",
         help="multiply every object file's coordinates by S, e.g. 1000 for files in metres "
              f"(default: 1; {DEFAULT_TYPE_SCALE:g} for 'default', whose fruit are in metres)")
     p.add_argument(
@@ -124,13 +124,13 @@ def add_pack_parser(sub: argparse._SubParsersAction) -> None:
              "or a tight container (default: auto; the summary says what it chose). "
              "Certification always uses the exact meshes")
     p.add_argument(
-        "--time-budget", type=positive_float("--time-budget"), metavar="S",
+        "--time-budget", type=positive_float, metavar="S",
         help="stop placing objects after S seconds at the latest and certify what is there: "
              "a ceiling, placement ends sooner once new attempts only repeat the best one. "
              "It starts after loading and, on the first run, compiling the engine (default: "
              "no limit; Ctrl-C also stops early)")
     p.add_argument(
-        "--attempts", type=positive_int("--attempts"), metavar="N",
+        "--attempts", type=positive_int, metavar="N",
         help="run N attempts (each its own random stream from the seed and its index) and "
              "keep the densest; the same N give the same packing on one machine or a "
              "cluster. With a --time-budget, those that start before it ends (a warning "

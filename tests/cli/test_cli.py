@@ -349,6 +349,16 @@ def test_bad_numbers_are_usage_errors(tmp_path, capsys):
     err = capsys.readouterr().err
     assert rc == 2 and "--mix-tolerance" in err and "from 0 to 1" in err
     assert not (tmp_path / "p.json").exists()
+    # argparse names the option; the message repeated it ("argument --container-size:
+    # --container-size must be greater than 0")
+    for option, value, words in (("--container-size", "0", "must be greater than 0"),
+                                 ("--attempts", "0", "must be 1 or more"),
+                                 ("--time-budget", "x", "must be a number")):
+        rc = main(["pack", "box:30x30x30", "--type", str(P1), option, value,
+                   "-o", str(tmp_path / "p.json")])
+        err = capsys.readouterr().err
+        assert rc == 2 and f"argument {option}: {words}, got '{value}'" in err, err
+        assert err.splitlines()[-1].count(option) == 1, err
 
 
 def test_mix_tolerance_reaches_the_late_passes(tmp_path):
