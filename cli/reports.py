@@ -22,6 +22,7 @@ from rich.table import Table
 from jampacked.cli.interrupt import CancelOnInterrupt
 from jampacked.core.mesh_files import length_unit
 from jampacked.core.packing import Packing, is_spec
+from jampacked.core.report import NOTE_PREFIX
 from jampacked.core.summary import summarize
 
 if TYPE_CHECKING:  # imported when needed: validation pulls in numba kernels
@@ -49,6 +50,10 @@ def progress_bar(stack: contextlib.ExitStack, err: Console,
     task = bar.add_task("starting", total=1.0)
 
     def update(fraction: float, message: str) -> None:
+        if message.startswith(NOTE_PREFIX):  # advice to keep in view, above the bar
+            err.print(f"[dim]note:[/] {escape(message[len(NOTE_PREFIX):])}", highlight=False,
+                      soft_wrap=True)
+            return
         if cancel is not None and cancel.requested:
             message = f"{message} [yellow](stopping: Ctrl-C)[/]"
         bar.update(task, completed=min(max(fraction, 0.0), 1.0), description=message)

@@ -38,7 +38,7 @@ from .packing_types import Packing, TypeRecord
 from .phases import Stop
 from .placement import Attempt, Snapshots, place
 from .repair import certify_and_repair
-from .report import AttemptSummary, PackInputs, RepairStats, RunReport
+from .report import NOTE_PREFIX, AttemptSummary, PackInputs, RepairStats, RunReport
 from .rotations import matrix_to_quat, quat_to_matrix
 from .run_warnings import run_warnings
 from .solver import PackState, Solver, SolverParams, TypeTable
@@ -106,11 +106,12 @@ def pack(container: MeshSource, types: Sequence[MeshSource],
     units). time_budget (s) bounds placement (phases 1 and 2, after loading, approximation
     and numba's compilation); time an attempt leaves goes to new attempts, and the densest
     is kept; certification runs after it. progress(fraction, message) and should_cancel()
-    are polled; cancel or the budget returns the best certified packing so far.
-    snapshot(positions, radii, types), when given, receives the objects placed so far
-    during placement, at most four times a second, from the calling thread: (N, 3) centres,
-    (N,) bounding radii at their current scale, (N,) type indices (copies; container frame,
-    container units), e.g. for a live view. options: the method's options
+    are polled; cancel or the budget returns the best certified packing so far. A message
+    starting with NOTE_PREFIX is advice to keep in view (e.g. a large scene without a
+    budget), not a stage. snapshot(positions, radii, types), when given, receives the
+    objects placed so far during placement, at most four times a second, from the calling
+    thread: (N, 3) centres, (N,) bounding radii at their current scale, (N,) type indices
+    (copies; container frame, container units), e.g. for a live view. options: the method's options
     (`core/options.py`). attempts: run exactly this many attempts (each its own random
     stream from the seed and its index) and keep the densest, ties to the earliest
     (`options.attempts.count`). client: a `distributed.Client` or a scheduler address; the
@@ -133,6 +134,12 @@ def pack(container: MeshSource, types: Sequence[MeshSource],
     t_load = time.perf_counter()
 
     approx = _approximate(scene, q, inputs, names, use_cache)
+    expected = 0.64 * scene.volume / float(np.sum(q * approx.volumes))
+    if inputs.time_budget is None and expected > LONG_WITHOUT_BUDGET:
+        report(0.02, f"{NOTE_PREFIX}about {expected:,.0f} objects and no time budget: the "
+               "cavity passes run until no hole is left, which takes an hour or more at this "
+               "size (their time grows faster than the count). Ctrl-C stops them and keeps "
+               "the best certified packing so far; --time-budget / time_budget sets a limit.")
     report(0.02, f"approximating {len(types)} object types ({approx.fidelity.name} fidelity)")
     approx.build_types(scene, q, inputs, names, use_cache)
     t_approx = time.perf_counter()
@@ -387,6 +394,9 @@ def _tight_fit_spacing(scene: _Scene, sizes: list[TypeSize], live: list[int], co
 #: a container grid with fewer cells than this across the container's thinnest extent
 #: measures its depth again on a grid this fine before refusing every type
 DEPTH_CELLS = 64
+#: objects a packing without a time budget may hold before the run says it will take long
+#: (without one, 1,141 objects took 20 minutes on 2 cores: docs/benchmarks.md, "Growth")
+LONG_WITHOUT_BUDGET = 2000
 #: ... and at most this many across its largest (a 60 x 60 x 2 tray: 256 x 256 x 9 nodes)
 MAX_DEPTH_CELLS = 256
 

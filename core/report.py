@@ -11,6 +11,10 @@ from dataclasses import dataclass, field
 from .fidelity import Fidelity
 from .options import PackOptions
 
+#: a progress message starting with this is advice to keep in view (the command line prints
+#: it as a note), not the stage the run is at
+NOTE_PREFIX = "note: "
+
 
 @dataclass(frozen=True)
 class PackInputs:

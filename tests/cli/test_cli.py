@@ -13,6 +13,7 @@ from pathlib import Path
 
 import numpy as np
 import pytest
+import trimesh
 from testdata import mesh_path
 
 from jampacked.cli import pack_cmd
@@ -682,3 +683,37 @@ def test_ctrl_c_once_the_export_is_written_keeps_status_0(packed, tmp_path, monk
     assert main(["export", str(out), "--mode", "union", "-o", str(u)]) == 0
     assert "export was completed" in " ".join(capsys.readouterr().err.split())
     assert u.is_file()
+
+
+def test_a_large_scene_without_a_budget_says_so_up_front(tmp_path, monkeypatch):
+    # 22,000 oranges and lemons without a budget ran for 27 minutes with no word that the
+    # cavity passes take hours at that size
+    from jampacked.cli import interrupt, reports
+
+    seen, placing, stop_there = [], [], [True]
+    # stop as a Ctrl-C would once placement starts: the note must come before
+    monkeypatch.setattr(interrupt.CancelOnInterrupt, "__call__",
+                        lambda self: bool(placing) and stop_there[0])
+    real = reports.progress_bar
+
+    def bar(stack, err, cancel=None):
+        update = real(stack, err, cancel)
+
+        def spy(fraction, message):
+            seen.extend([message] if message.startswith("note: ") else [])
+            placing.extend([message] if message.startswith("phase") else [])
+            update(fraction, message)
+        return spy
+
+    monkeypatch.setattr("jampacked.cli.pack_cmd.progress_bar", bar)
+    ball = tmp_path / "ball.stl"
+    trimesh.creation.icosphere(subdivisions=1, radius=1.0).export(ball)
+    rc, _, err = run(["pack", "box:30x30x30", "--type", str(ball), "-o",
+                      str(tmp_path / "p.json")])
+    assert rc == 130 and len(seen) == 1
+    assert "note: about 4," in err and "no time budget" in err and "--time-budget" in err
+    seen.clear()
+    stop_there[0] = False
+    rc, _, err = run(["pack", "box:30x30x30", "--type", str(ball), "--time-budget", "0.5",
+                      "-o", str(tmp_path / "p.json")])
+    assert rc == 0 and not seen and "no time budget" not in err
