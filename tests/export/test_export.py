@@ -314,6 +314,21 @@ def test_resolution_saves_triangles_and_stays_valid(tmp_path):
     assert moved <= coarse.resolution_deviation + 1e-3 <= 0.5 + 1e-3
 
 
+def test_a_type_simplified_to_a_resolution_does_not_fold_through_itself():
+    # manifold3d's simplify folded YCB scans (the plum x100 at 0.5 mm, this peach x150 at
+    # 0.8: 4 face pairs crossed), and every such plum in a union of 1,947 fruit was refused
+    # as self-intersecting
+    from jampacked.core.solids import solid_arrays
+    from jampacked.export.simplify import simplify_within
+    from jampacked.export.union import crossing_pairs
+
+    m = load_mesh(mesh_path("fruit/ycb/015_peach.ply"))
+    solid = to_solid((m.vertices - m.centroid) * 150.0, m.faces)
+    simple, moved = simplify_within(solid, 0.8)
+    assert simple.num_tri() < solid.num_tri() / 10 and 0 < moved <= 0.8
+    assert crossing_pairs(*solid_arrays(simple), float32=False)[1] == 0
+
+
 def test_a_resolution_that_folds_the_union_where_objects_meet_still_exports(tmp_path):
     """A lemon and a strawberry (x300) touching as packed in a 120 mm bunny: the union
     simplified by 0.1 mm had faces that cross where the two meet, and the export was
