@@ -116,6 +116,8 @@ _BLENDER_WORDS = (
     # export: the add-on exports with +z up and names an opening by its panel's words
     (", or give another --up (the drain goes under the cavity's lowest point)", ""),
     ("--open-plane or --window", "an Opening (Plane or Window)"),
+    ("--mode parts", "Parts mode"),
+    ("--resolution", "Resolution"),
 )
 
 

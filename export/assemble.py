@@ -308,6 +308,14 @@ def _one_body(packing: Packing, scene: PlacedScene, shell: m3.Manifold | None,
         check_cancel()
         report(0.6, "union, with the shell unsimplified")
         v, f, left = union_arrays(scene.solids + struts, shell, float32=bool(float32))
+    if left > 0 and options.resolution is not None:
+        crossing = crossing_pairs(v, f, float32=False)[1]
+        if crossing > 0:  # the validator would refuse the file; say what helps before writing
+            raise MeshError(
+                f"the union of the objects simplified to --resolution {options.resolution:g} "
+                f"has {crossing} face pairs that cross each other, so nothing was "
+                f"written. A finer --resolution (e.g. {options.resolution / 5:.2g}) or none "
+                "avoids it; --mode parts keeps every object apart.")
     closed_shell = shell is not None and options.opening is None and options.drain is None
     cleaned = clean_bodies(v, f, fill_voids=options.fill_voids, closed_shell=closed_shell)
     out.voids_filled = cleaned.voids_filled

@@ -163,6 +163,10 @@ def test_engine_messages_in_blender_words():
     assert summary.in_blender_words(
         "Try --fidelity high / fidelity='high' (finer grids)") == \
         "Try Fidelity High (finer grids)"
+    assert summary.in_blender_words(
+        "a finer --resolution (e.g. 0.1) or none avoids it; --mode parts keeps every object "
+        "apart.") == "A finer Resolution (e.g. 0.1) or none avoids it; Parts mode keeps every " \
+        "object apart."
     assert summary.in_blender_words("Scale the objects down (--type-scale / type_scale, "
                                     "0.5)") == "Scale the objects down (the type objects' " \
         "scale, 0.5)"
