@@ -291,7 +291,8 @@ def _one_body(packing: Packing, scene: PlacedScene, shell: m3.Manifold | None,
             struts = _struts(packing, scene, shell, options, out, report, cancel, attempt)
             check_cancel()
         report(0.6, "union")
-        v, f, left = union_arrays(scene.solids + struts, shell, float32=bool(float32))
+        v, f, left = union_arrays(scene.solids + struts, shell, float32=bool(float32),
+                                  check_cancel=check_cancel)
         if left == 0:
             break
         # slivers the local repairs cannot remove: struts turned another way meet the
@@ -307,7 +308,8 @@ def _one_body(packing: Packing, scene: PlacedScene, shell: m3.Manifold | None,
                                "simplified one folded where the objects meet it.")
         check_cancel()
         report(0.6, "union, with the shell unsimplified")
-        v, f, left = union_arrays(scene.solids + struts, shell, float32=bool(float32))
+        v, f, left = union_arrays(scene.solids + struts, shell, float32=bool(float32),
+                                  check_cancel=check_cancel)
     if left > 0 and options.resolution is not None:
         crossing = crossing_pairs(v, f, float32=False)[1]
         if crossing > 0:  # the validator would refuse the file; say what helps before writing

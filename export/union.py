@@ -6,6 +6,7 @@ booleans; the arrays go straight to the writer.
 
 from __future__ import annotations
 
+from collections.abc import Callable
 from dataclasses import dataclass, field
 
 import manifold3d as m3
@@ -38,23 +39,26 @@ NEEDLE_ROUNDS = 3
 #: on 150 mm): slivers where struts or objects meet a surface, which float32 rounding folds
 CROSSING_SLIVER_REL = 0.12
 CROSSING_SLIVER_LEN_REL = 2e-4
+#: pieces united at a time, between which a cancel is noticed (`_chunked_union`)
+UNION_CHUNK = 500
 #: how far (of the mesh's diagonal) `separate_pinches` moves vertices that share a position:
 #: about 16-26 float32 steps at the largest coordinates, 0.2 micrometre at 200 mm
 PINCH_STEP_REL = 1e-6
 
 
-def union_arrays(pieces: list[m3.Manifold], shell: m3.Manifold | None, float32: bool = False
+def union_arrays(pieces: list[m3.Manifold], shell: m3.Manifold | None, float32: bool = False,
+                 check_cancel: Callable[[], None] | None = None
                  ) -> tuple[np.ndarray, np.ndarray, int]:
     """Union of the pieces and the shell: (vertices, faces, bad faces left); see
     :func:`clean_arrays` for the bad faces. The union is not simplified again (a printer's
     resolution simplifies each type before it, `scene.make_type_solids`): simplifying it
     folded faces where objects meet, and each simplification adds to how far the surface
-    moves.
+    moves. ``check_cancel`` (which raises to cancel) is called between the union's chunks.
 
     Raises MeshError when manifold3d fails or returns a wrong result (more volume than its
     parts); nothing is written then.
     """
-    result = m3.Manifold.batch_boolean(pieces, m3.OpType.Add)
+    result = _chunked_union(pieces, check_cancel or (lambda: None))
     if shell is not None:
         # a separate boolean: batch_boolean with a hollow shell among hundreds of pieces
         # returned the solid container (cavity filled) in manifold3d 3.x
@@ -71,10 +75,39 @@ def union_arrays(pieces: list[m3.Manifold], shell: m3.Manifold | None, float32: 
                         "was written. Check the type meshes (`jampacked validate`) and the "
                         "packing's placements (`jampacked info`); if both are sound, report "
                         "this with the packing file.")
-    return clean_arrays(result, float32=float32)
+    return clean_arrays(result, float32=float32, check_cancel=check_cancel)
 
 
-def clean_arrays(result: m3.Manifold, float32: bool = False
+def _chunked_union(pieces: list[m3.Manifold], check_cancel: Callable[[], None]
+                   ) -> m3.Manifold:
+    """The union of ``pieces``, added UNION_CHUNK neighbours at a time (in Morton order of
+    their bounding boxes' centres) to the union so far. manifold3d holds the GIL through a
+    boolean, so a Ctrl-C waited for the whole union; between chunks ``check_cancel`` runs.
+    Measured on 4,092 fruit (docs/notes-export.md): the same triangles and volume, in about
+    a fifth more time, with a lower memory peak than one batch."""
+    if len(pieces) <= UNION_CHUNK:
+        return m3.Manifold.batch_boolean(pieces, m3.OpType.Add)
+    boxes = np.array([np.asarray(p.bounding_box(), np.float64) for p in pieces])
+    centres = 0.5 * (boxes[:, :3] + boxes[:, 3:])
+    lo, span = centres.min(axis=0), np.ptp(centres, axis=0)
+    cells = np.floor(1023 * (centres - lo) / np.where(span > 0, span, 1.0)).astype(np.int64)
+    code = np.zeros(len(pieces), np.int64)
+    for bit in range(10):
+        for axis in range(3):
+            code |= ((cells[:, axis] >> bit) & 1) << (3 * bit + axis)
+    order = np.argsort(code, kind="stable")
+    union = None
+    for start in range(0, len(order), UNION_CHUNK):
+        check_cancel()
+        chunk = m3.Manifold.batch_boolean(
+            [pieces[i] for i in order[start:start + UNION_CHUNK]], m3.OpType.Add)
+        union = chunk if union is None else union + chunk
+        union.num_tri()  # manifold3d is lazy: evaluate it here, between the cancel checks
+    return union
+
+
+def clean_arrays(result: m3.Manifold, float32: bool = False,
+                 check_cancel: Callable[[], None] | None = None
                  ) -> tuple[np.ndarray, np.ndarray, int]:
     """The result's arrays without zero-area faces (see export/cleanup.py), with the
     vertices of surfaces that only touch moved apart (`separate_pinches`), and how many
@@ -84,10 +117,12 @@ def clean_arrays(result: m3.Manifold, float32: bool = False
     can fold long thin faces: the needles among the faces that cross have their short
     edges collapsed. Where the local repairs cannot remove them all, manifold3d first
     simplifies by a tolerance far below any printer's resolution (1e-7 to 1e-5 of the
-    size)."""
+    size). ``check_cancel`` (which raises to cancel) is called between the steps."""
+    check = check_cancel or (lambda: None)
 
     def cleaned(m: m3.Manifold) -> tuple[np.ndarray, np.ndarray, int]:
         v, f, left = remove_degenerate_faces(*solid_arrays(m))
+        check()
         if left > 0 or len(f) == 0:
             return v, f, left
         # positions as the file stores them; those that coincide are one vertex there, as
@@ -101,6 +136,7 @@ def clean_arrays(result: m3.Manifold, float32: bool = False
         reach = CROSSING_SLIVER_LEN_REL * float(np.linalg.norm(np.ptp(v, axis=0)))
         for rel, length in ((NEEDLE_REL, np.inf), (CROSSING_SLIVER_REL, reach)):
             for _ in range(NEEDLE_ROUNDS):
+                check()
                 pairs, left = crossing_pairs(v, f, float32)
                 if left == 0:
                     return v, f, 0
@@ -115,6 +151,7 @@ def clean_arrays(result: m3.Manifold, float32: bool = False
         return v, f, left
     diagonal = float(np.linalg.norm(np.ptp(v, axis=0)))
     for rel in (1e-7, 1e-6, 1e-5):
+        check()
         cv, cf, left_here = cleaned(result.simplify(rel * diagonal))
         if left_here == 0:
             return cv, cf, 0
