@@ -703,3 +703,34 @@ def test_identity_transform_shortcut_is_the_product():
     v[::13] = [5e-324, -5e-324, -0.0]
     m = np.eye(4)
     assert same_bits(v + 0.0, v @ m[:3, :3].T + m[:3, 3])
+
+
+def ref_zero_area(p, f):
+    """export/cleanup.py's zero-area test before its kernel."""
+    from jampacked.export.validate import DEGENERATE_REL
+
+    tri = p[f]
+    area2 = np.linalg.norm(np.cross(tri[:, 1] - tri[:, 0], tri[:, 2] - tri[:, 0]), axis=1)
+    longest = np.max(np.linalg.norm(tri - np.roll(tri, 1, axis=1), axis=2), axis=1)
+    diagonal = float(np.linalg.norm(np.ptp(p, axis=0)))
+    return area2 <= DEGENERATE_REL * diagonal * longest
+
+
+def test_zero_area_kernel_matches_numpy():
+    from jampacked.export.cleanup import _zero_area
+
+    rng = np.random.default_rng(5)
+    p = rng.normal(size=(2000, 3)) * 50.0
+    f = rng.integers(0, 2000, (20000, 3))
+    f[:50, 2] = f[:50, 1]  # a repeated corner
+    t = rng.random((50, 1))  # corners on one line, and a hair off it
+    p[f[50:100, 2]] = p[f[50:100, 0]] * t + p[f[50:100, 1]] * (1 - t)
+    p[f[75:100, 2]] += 1e-9 * rng.normal(size=(25, 3))
+    pear = mesh_path("fruit/ycb/016_pear.ply")
+    m = trimesh.load(pear, process=False)
+    for pos, faces in ((p, f), (p.astype(np.float32).astype(np.float64), f),
+                       (np.asarray(m.vertices) * 250.0, np.asarray(m.faces, np.int64))):
+        got = _zero_area(pos, faces)
+        np.testing.assert_array_equal(got, ref_zero_area(pos, faces))
+    zero = ref_zero_area(p, f)  # the cases are there: repeated corners, corners on a line
+    assert zero[:50].all() and zero[50:75].sum() >= 20
