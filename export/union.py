@@ -136,14 +136,13 @@ def clean_arrays(result: m3.Manifold, float32: bool = False,
         reach = CROSSING_SLIVER_LEN_REL * float(np.linalg.norm(np.ptp(v, axis=0)))
         for rel, length in ((NEEDLE_REL, np.inf), (CROSSING_SLIVER_REL, reach)):
             for _ in range(NEEDLE_ROUNDS):
-                check()
-                pairs, left = crossing_pairs(v, f, float32)
+                pairs, left = crossing_pairs(v, f, float32, check)
                 if left == 0:
                     return v, f, 0
                 f, collapsed = collapse_needles(v, f, pairs, rel=rel, max_length=length)
                 if collapsed == 0:
                     break
-        _, left = crossing_pairs(v, f, float32)
+        _, left = crossing_pairs(v, f, float32, check)
         return v, f, left
 
     v, f, left = cleaned(result)
@@ -158,12 +157,15 @@ def clean_arrays(result: m3.Manifold, float32: bool = False,
     return v, f, left
 
 
-def crossing_pairs(v: np.ndarray, f: np.ndarray, float32: bool) -> tuple[np.ndarray, int]:
+def crossing_pairs(v: np.ndarray, f: np.ndarray, float32: bool,
+                   check_cancel: Callable[[], None] | None = None) -> tuple[np.ndarray, int]:
     """Faces that cross or touch another at full precision (a 3MF, an OBJ) and, with
     ``float32``, once rounded as an STL or PLY stores them: (their indices, the number of
-    pairs)."""
+    pairs). ``check_cancel`` (which raises to cancel) runs before each of the two checks."""
     faces, count = [], 0
     for rounded in (False, True) if float32 else (False,):
+        if check_cancel is not None:
+            check_cancel()
         stored = v.astype(np.float32).astype(np.float64) if rounded else v
         first, remap = merge_identical(stored)
         pairs, crossing, _ = intersecting_pairs(stored[first], remap[f])

@@ -1033,3 +1033,19 @@ def test_a_large_union_is_made_in_chunks_that_a_cancel_can_stop_between():
     with pytest.raises(Cancelled):
         union.union_arrays(pieces, None, check_cancel=stop)
     assert len(calls) == 4  # stopped before the second chunk
+
+
+def test_the_crossing_check_can_be_cancelled_between_its_two_passes():
+    from jampacked.export.union import crossing_pairs
+
+    box = trimesh.creation.box()
+    calls = []
+
+    def stop():
+        calls.append(1)
+        if len(calls) == 2:
+            raise Cancelled("stop")
+
+    with pytest.raises(Cancelled):
+        crossing_pairs(np.asarray(box.vertices), np.asarray(box.faces), True, stop)
+    assert len(calls) == 2
