@@ -129,7 +129,7 @@ def print_summary(packing: Packing, console: Console, title: str | None = None) 
     if fd is not None:
         summary.add_row("resolution", f"{fd.spheres} spheres, {fd.grid_cells} grid cells, "
                         f"{fd.surface_points} surface points per type; container grid "
-                        f"{fd.container_cells:g} cells per smallest radius"
+                        f"{fd.container_cells:.3g} cells per smallest radius"
                         + "".join(f"\n{r}" for r in fd.reasons))
     if s.stopped:
         why = {"deadline": "time budget reached", "cancelled": "interrupted"}.get(s.stopped,

@@ -358,8 +358,13 @@ def _approximate(scene: _Scene, q: np.ndarray, inputs: PackInputs,
     fid = _with_overrides(fid, inputs.options.fidelity)
     spacing = f_min / fid.container_cells
     if inputs.options.fidelity.container_cells is None:
-        spacing = _tight_fit_spacing(scene, sizes, live, cont, depth, spacing, clearance,
-                                     type_scale)
+        fine = _tight_fit_spacing(scene, sizes, live, cont, depth, spacing, clearance,
+                                  type_scale)
+        if fine < spacing:
+            spacing = fine
+            fid = replace(fid, container_cells=f_min / fine, reasons=fid.reasons + (
+                f"an object only just fits: {f_min / fine:.3g} container grid cells per "
+                "radius",))
     if cont.grid.spacing != spacing:
         cont = build_container(scene.vertices, cmesh.faces, scene.volume, spacing)
     return _Approximation(cont, fid, f_min, volumes, [])
@@ -383,9 +388,11 @@ def _tight_fit_spacing(scene: _Scene, sizes: list[TypeSize], live: list[int], co
     deepest, _ = _measured_depth(scene, cont)
     slack = []
     for i in near:
-        room = sizes[i].room or inner_room(scene.types[i].vertices,
-                                           scene.types[i].faces) * type_scale
-        left = max(deepest, depth) - room - clearance
+        room = inner_room(scene.types[i].vertices, scene.types[i].faces) * type_scale
+        # the fine grid's deepest node: beyond its exact band it can read high
+        # (docs/notes-robustness.md), which the third taken below still covers; the first
+        # grid's can read far low
+        left = deepest - room - clearance
         if 0.0 < left < spacing:
             slack.append(left)
     return min(spacing, min(slack) / 3.0) if slack else spacing
@@ -394,11 +401,11 @@ def _tight_fit_spacing(scene: _Scene, sizes: list[TypeSize], live: list[int], co
 #: a container grid with fewer cells than this across the container's thinnest extent
 #: measures its depth again on a grid this fine before refusing every type
 DEPTH_CELLS = 64
-#: objects a packing without a time budget may hold before the run says it will take long
-#: (without one, 1,141 objects took 20 minutes on 2 cores: docs/benchmarks.md, "Growth")
-LONG_WITHOUT_BUDGET = 2000
 #: ... and at most this many across its largest (a 60 x 60 x 2 tray: 256 x 256 x 9 nodes)
 MAX_DEPTH_CELLS = 256
+#: objects a packing without a time budget may hold before the run says it will take long
+#: (without one, 1,141 objects took 20 minutes on 2 cores: docs/benchmarks.md, "Growth")
+LONG_WITHOUT_BUDGET = 2500
 
 
 def _measured_depth(scene: _Scene, cont: Container) -> tuple[float, float]:
@@ -540,7 +547,7 @@ def _assemble(container: MeshSource, scene: _Scene, approx: _Approximation, run:
     idx = state.alive_indices()
     clearance = inputs.clearance
     if len(idx) == 0 and not stop.reason:
-        gap = f", the clearance {clearance:g}" if clearance else ""
+        gap = f" plus the clearance {clearance:g}" if clearance else ""
         depth, _ = _measured_depth(scene, approx.container)  # the grid's nodes can miss it
         room, name = min((inner_room(t.vertices, t.faces), t.name) for t in objtypes
                          if t.share > 0)

@@ -334,3 +334,14 @@ def test_no_object_placed_names_the_depth_a_type_needs(tmp_path, monkeypatch):
     with pytest.raises(PackingError, match=r"cube, the type needing the least depth, needs "
                        r"at least 4\.5 \(its inner room\).*--fidelity high"):
         pack("box:9.5x9.5x40", [str(path)], seed=1)
+
+
+def test_a_refined_container_grid_is_what_the_report_says(tmp_path):
+    # the report kept the fidelity's 6 cells per radius after the grid was refined
+    path = tmp_path / "ball.stl"
+    trimesh.creation.icosphere(subdivisions=3, radius=2.0).export(path)
+    p = pack("box:4.2x4.2x4.2", [str(path)], seed=1)
+    detail = p.report.fidelity_detail
+    f_min = (3 * p.types[0].volume / (4 * np.pi)) ** (1 / 3)
+    assert detail.container_cells == pytest.approx(f_min / p.report.container_grid_spacing)
+    assert detail.container_cells > 30 and any("only just fits" in r for r in detail.reasons)
