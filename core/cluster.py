@@ -220,6 +220,7 @@ def client_for(target=None, *, workers: int | None = None) -> Iterator:
     scheduler address ("tcp://host:8786"; connected, closed after) or, with `workers`, a new
     LocalCluster of that many single-threaded worker processes (closed after). An address
     that is not of the form tcp://HOST:PORT, or that nothing answers at, is an InputError."""
+    import dask
     from distributed import Client, LocalCluster
 
     if target is not None and workers is not None:
@@ -248,9 +249,11 @@ def client_for(target=None, *, workers: int | None = None) -> Iterator:
     # workers ignore Ctrl-C (`worker_setup`, for one the nanny restarts later); those started
     # here take it from this process's disposition before their preload runs
     with _children_ignore_interrupt():
+        preload = [*dask.config.get("distributed.worker.preload", []),
+                   "jampacked.core.worker_setup"]  # the user's configured ones too
         cluster = LocalCluster(n_workers=workers, threads_per_worker=1, processes=True,
                                dashboard_address=None, silence_logs=logging.ERROR,
-                               preload=["jampacked.core.worker_setup"])
+                               preload=preload)
     with cluster, Client(cluster) as client:
         yield client
 
@@ -258,10 +261,11 @@ def client_for(target=None, *, workers: int | None = None) -> Iterator:
 @contextlib.contextmanager
 def _children_ignore_interrupt() -> Iterator[None]:
     """Ignore SIGINT while the local cluster starts, so that its worker processes inherit
-    it ignored. A Ctrl-C reaches the whole foreground process group: workers starting then
-    died ("Nanny failed to start", a traceback), running ones printed KeyboardInterrupt
-    tracebacks. This process ignores a Ctrl-C during those seconds too (distributed swallowed
-    it there before: the run went on to its end either way). Main thread only."""
+    it ignored (on POSIX; on Windows only the preload protects them, once it has run).
+    A Ctrl-C reaches the whole foreground process group: workers starting then died
+    ("Nanny failed to start", a traceback), running ones printed KeyboardInterrupt
+    tracebacks. This process ignores a Ctrl-C during those seconds too (distributed
+    swallowed it there before: the run went on to its end either way). Main thread only."""
     if threading.current_thread() is not threading.main_thread():
         yield
         return
@@ -269,4 +273,5 @@ def _children_ignore_interrupt() -> Iterator[None]:
     try:
         yield
     finally:
-        signal.signal(signal.SIGINT, before)
+        # None: a handler not set from Python (an embedding host), which cannot be put back
+        signal.signal(signal.SIGINT, signal.default_int_handler if before is None else before)
