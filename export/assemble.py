@@ -316,8 +316,9 @@ def _one_body(packing: Packing, scene: PlacedScene, shell: m3.Manifold | None,
             raise MeshError(
                 f"the union of the objects simplified to --resolution {options.resolution:g} "
                 f"has {crossing} face pairs that cross each other, so nothing was "
-                f"written. A finer --resolution (e.g. {options.resolution / 5:.2g}) or none "
-                "avoids it; --mode parts keeps every object apart.")
+                "written. Coarser surfaces cross more easily where objects meet: a finer "
+                f"--resolution (e.g. {options.resolution / 5:.2g}) or none may avoid it; "
+                "--mode parts keeps every object apart.")
     closed_shell = shell is not None and options.opening is None and options.drain is None
     cleaned = clean_bodies(v, f, fill_voids=options.fill_voids, closed_shell=closed_shell)
     out.voids_filled = cleaned.voids_filled
