@@ -63,6 +63,7 @@ class JobRunner:
     _job = None  # the worker.Job being followed
     _timer = None  # the window manager timer of the modal UI
     _log = None  # a worker.ProgressLog: progress lines on stdout (background mode)
+    _notes_shown = 0  # the job's notes (worker.Snapshot.notes) already reported
 
     @classmethod
     def poll(cls, context: bpy.types.Context) -> bool:
@@ -103,6 +104,7 @@ class JobRunner:
         try:
             job = self.make_job(context)
             self._job = job.start()
+            self._notes_shown = 0
         except (_errors().JampackedError, worker.BusyError) as exc:
             self._fail(context, str(exc))
             return False
@@ -128,6 +130,9 @@ class JobRunner:
         state.fraction = snap.fraction
         state.message = snap.message
         state.stopping = snap.stopping
+        for advice in snap.notes[self._notes_shown:]:  # e.g. a large scene without a budget
+            self._note(context, 'WARNING', summary.in_blender_words(advice))
+        self._notes_shown = len(snap.notes)
         if snap.state == worker.RUNNING:
             self.on_poll(context, job)
             line = self._log.line(snap) if self._log is not None else None

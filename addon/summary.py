@@ -117,6 +117,7 @@ _BLENDER_WORDS = (
     (", or give another --up (the drain goes under the cavity's lowest point)", ""),
     ("--open-plane or --window", "an Opening (Plane or Window)"),
     ("--mode parts", "Parts mode"),
+    ("Ctrl-C stops them", "Finish Now stops them"),
     ("--resolution", "Resolution"),
 )
 

@@ -56,6 +56,8 @@ class Snapshot:
         message: the engine's last progress message (phase, objects placed, density).
         stopping: a cancel or finish-early request is pending.
         elapsed: seconds since the job started.
+        notes: the engine's advice so far (progress messages with its note prefix, which
+            the next message would hide), oldest first.
     """
 
     state: str
@@ -63,6 +65,7 @@ class Snapshot:
     message: str
     stopping: bool
     elapsed: float
+    notes: tuple[str, ...] = ()
 
 
 @dataclass(frozen=True)
@@ -100,6 +103,7 @@ class Job:
         self._keep = True  # keep the result when stopped (finish early) or not (cancel)
         self._fraction = 0.0
         self._message = "starting"
+        self._notes: list[str] = []
         self._state = RUNNING
         self._result: Any = None
         self._error: str | None = None
@@ -112,9 +116,15 @@ class Job:
     # ---------------------------------------------------------------- thread side
 
     def _progress(self, fraction: float, message: str) -> None:
+        from jampacked.core.report import NOTE_PREFIX
+
+        message = str(message)
         with self._lock:
+            if message.startswith(NOTE_PREFIX):
+                self._notes.append(message[len(NOTE_PREFIX):])
+                return
             self._fraction = min(max(float(fraction), self._fraction), 1.0)
-            self._message = str(message)
+            self._message = message
 
     def _should_cancel(self) -> bool:
         return self._stop.is_set()
@@ -197,7 +207,7 @@ class Job:
             end = self._ended if self._ended is not None else time.perf_counter()
             return Snapshot(state=self._state, fraction=self._fraction, message=self._message,
                             stopping=self._stop.is_set() and self._state == RUNNING,
-                            elapsed=end - self._started)
+                            elapsed=end - self._started, notes=tuple(self._notes))
 
     def placed(self) -> Placed | None:
         """The latest snapshot :meth:`publish` gave, or None."""

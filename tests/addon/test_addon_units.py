@@ -43,6 +43,23 @@ def _job(fn) -> object:
     return job
 
 
+def test_a_note_from_the_engine_is_kept_apart_from_the_progress_message():
+    # the note (a large scene without a time budget) was the progress message until the
+    # next one replaced it, a moment later: the panel never showed it
+    def noted(progress, should_cancel):
+        progress(0.02, "note: about 4,000 objects and no time budget: ... Ctrl-C stops them "
+                       "and keeps the best certified packing so far; --time-budget / "
+                       "time_budget sets a limit.")
+        progress(0.03, "phase 1")
+        return 1
+
+    snap = _job(noted).snapshot()
+    assert snap.message == "phase 1" and len(snap.notes) == 1
+    assert summary.in_blender_words(snap.notes[0]).endswith(
+        "Finish Now stops them and keeps the best certified packing so far; Time Budget "
+        "sets a limit.")
+
+
 def test_job_reports_progress_result_and_errors():
     seen = []
 
