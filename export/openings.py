@@ -113,20 +113,34 @@ RINGS = 64
 def _nearest_wall(shell: m3.Manifold, centre: np.ndarray, offsets: list[np.ndarray],
                   unit: np.ndarray, e1: np.ndarray, e2: np.ndarray, reach: float,
                   span: float) -> tuple[np.ndarray, list[float]] | None:
-    """The window centre nearest ``centre`` (in the plane across the axis, within ``span``)
-    whose whole disc lies over a wall, or else the one with the most of its disc over a
-    wall, nearest first; None when no ray meets a wall anywhere."""
+    """A window centre near ``centre`` (in the plane across the axis, within ``span``)
+    whose whole disc lies over a wall: from the first ring of candidates where one does,
+    out to a window's diameter further, the one where the wall is flattest (the least
+    spread of depths across the disc: a tube's crest rather than its edge), nearest first
+    on ties. Else the one with the most of its disc over a wall, nearest first; None when
+    no ray meets a wall anywhere."""
+    diameter = 2.0 * max(float(np.linalg.norm(o)) for o in offsets)
     best: tuple[int, np.ndarray, list[float]] | None = None
+    flattest: tuple[float, np.ndarray, list[float]] | None = None
+    last = RINGS
     for ring in range(1, RINGS + 1):
+        if ring > last:
+            break
         distance = span * ring / RINGS
         for k in range(RING_POINTS):
             angle = 2 * math.pi * k / RING_POINTS + 0.0731  # off the axes, as the disc's rays
             at = centre + distance * (math.cos(angle) * e1 + math.sin(angle) * e2)
             depths = _wall_depths(shell, at, offsets, unit, reach)
             if len(depths) == len(offsets):
-                return at, depths
-            if depths and (best is None or len(depths) > best[0]):
+                spread = max(depths) - min(depths)
+                if flattest is None:
+                    last = min(RINGS, ring + math.ceil(diameter * RINGS / span))
+                if flattest is None or spread < flattest[0]:
+                    flattest = (spread, at, depths)
+            elif depths and (best is None or len(depths) > best[0]):
                 best = (len(depths), at, depths)
+    if flattest is not None:
+        return flattest[1], flattest[2]
     return None if best is None else (best[1], best[2])
 
 
@@ -135,8 +149,8 @@ def cut_window(shell: m3.Manifold, opening: Opening, lo: np.ndarray, hi: np.ndar
     """Cut a round window through the first wall seen from outside along ``opening.axis``.
 
     The window is centred on the bounding-box centre where the wall is there; where the line
-    through it meets no wall (the hole of a torus), on the nearest place over a wall (a note
-    says how far it moved). The cylinder runs from outside the bounds inward and stops a
+    through it meets no wall (the hole of a torus), near it over a wall (`_nearest_wall`; a
+    note says how far it moved). The cylinder runs from outside the bounds inward and stops a
     little past where rays across its disc leave that wall (never past the bounding-box
     centre's plane), so walls further in (the far side, or the inner ring of a torus) stay
     intact.
@@ -161,7 +175,7 @@ def cut_window(shell: m3.Manifold, opening: Opening, lo: np.ndarray, hi: np.ndar
         moved, depths = found
         notes.append(f"the line through the container's middle along {opening.axis} meets "
                      f"no wall, so the window is centred {np.linalg.norm(moved - centre):.3g} "
-                     "mm from it, over the nearest wall.")
+                     "mm from it, over the wall.")
         centre = moved
     inward = max(depths) + 0.5 * thickness  # a little into the cavity
     if inward >= reach:

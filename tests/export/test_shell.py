@@ -248,10 +248,10 @@ def test_window_over_a_torus_hole_moves_onto_the_ring():
     closed, _ = make_shell(torus.vertices, torus.faces, 1.0, resolution=0.5)
     shell, report = make_shell(torus.vertices, torus.faces, 1.0, resolution=0.5,
                                opening=Opening("window", "+z", size=4.0))
-    moved = [n for n in report.notes if "over the nearest wall" in n]
+    moved = [n for n in report.notes if "over the wall" in n]
     assert len(moved) == 1
     distance = float(re.search(r"centred ([0-9.]+) mm", moved[0]).group(1))
-    assert 8.0 <= distance <= 12.0  # the whole disc over the tube (6..14 from the axis)
+    assert 9.5 <= distance <= 10.5  # on the tube's crest (its edges 6 and 14 from the axis)
     removed = closed.volume() - shell.volume()
     assert removed == pytest.approx(math.pi * 2.0 ** 2 * 1.0, rel=0.3)
     val = validated(shell)
