@@ -289,15 +289,20 @@ def test_parts_closer_than_clearance_are_refused(tmp_path):
     assert not out.exists()
 
 
-def test_resolution_saves_triangles_and_stays_valid(tmp_path):
+def _two_lemons() -> Packing:
+    """Two lemons (x300) 40 mm apart in a 100 mm box."""
     m = load_mesh(LEMON)
     recs = [TypeRecord(name="lemon", path=str(LEMON), sha256=m.sha256, share=1.0,
                        local_from_file=np.diag([300.0, 300, 300, 1]) @ _shift(-m.centroid),
                        volume=m.volume * 300 ** 3)]
-    p = Packing(container_path="box:100x100x100", container_sha256=None,
-                frame_from_file=np.eye(4), container_volume=1e6, types=recs,
-                type_index=np.zeros(2, int), rotations=np.tile([1.0, 0, 0, 0], (2, 1)),
-                translations=np.array([[-20.0, 0, 0], [20.0, 0, 0]]), scales=np.ones(2))
+    return Packing(container_path="box:100x100x100", container_sha256=None,
+                   frame_from_file=np.eye(4), container_volume=1e6, types=recs,
+                   type_index=np.zeros(2, int), rotations=np.tile([1.0, 0, 0, 0], (2, 1)),
+                   translations=np.array([[-20.0, 0, 0], [20.0, 0, 0]]), scales=np.ones(2))
+
+
+def test_resolution_saves_triangles_and_stays_valid(tmp_path):
+    p = _two_lemons()
     full = export_packing(p, tmp_path / "full.stl", ExportOptions(mode="union"))
     coarse = export_packing(p, tmp_path / "coarse.stl",
                             ExportOptions(mode="union", resolution=0.5))
@@ -335,14 +340,7 @@ def test_a_union_that_still_crosses_at_a_resolution_says_to_use_a_finer_one(tmp_
     # it a defect to report, while a finer --resolution exports
     from jampacked.export import assemble
 
-    m = load_mesh(LEMON)
-    recs = [TypeRecord(name="lemon", path=str(LEMON), sha256=m.sha256, share=1.0,
-                       local_from_file=np.diag([300.0, 300, 300, 1]) @ _shift(-m.centroid),
-                       volume=m.volume * 300 ** 3)]
-    p = Packing(container_path="box:100x100x100", container_sha256=None,
-                frame_from_file=np.eye(4), container_volume=1e6, types=recs,
-                type_index=np.zeros(2, int), rotations=np.tile([1.0, 0, 0, 0], (2, 1)),
-                translations=np.array([[-20.0, 0, 0], [20.0, 0, 0]]), scales=np.ones(2))
+    p = _two_lemons()
     real = assemble.union_arrays
     monkeypatch.setattr(assemble, "union_arrays", lambda *a, **k: (*real(*a, **k)[:2], 2))
     monkeypatch.setattr(assemble, "crossing_pairs", lambda v, f, float32: (np.zeros(4), 2))
