@@ -35,7 +35,7 @@ shell and openings:
   --shell T makes a wall of thickness T from the container's surface inwards. Open it so
   the objects show with --open-plane +z@0.75 (removes the shell beyond 75% of the height
   along +z; any of +x -x +y -y +z -z) or --window +y@30 (a 30 mm round hole through the
-  side facing +y, in its middle or, over a torus's hole, on the nearest wall). --drain D
+  side facing +y, in its middle or, over a torus's hole, on the wall beside it). --drain D
   adds a drainage/escape hole of diameter D through the lowest point of the shell along
   --up (default +z) for resin and powder printers. Write negative axes with '=':
   --up=-y, --open-plane=-z@0.3. Union and connect fill sealed voids (pockets between

@@ -244,13 +244,14 @@ def client_for(target=None, *, workers: int | None = None) -> Iterator:
                          f"got {target!r}.")
     if workers is None or workers < 1:
         raise InputError(f"the number of local workers must be >= 1, got {workers!r}.")
-    # silence_logs: the nanny's warnings at shutdown (a worker still busy in numba is
-    # killed after a few seconds) are not the user's concern
-    # workers ignore Ctrl-C (`worker_setup`, for one the nanny restarts later); those started
-    # here take it from this process's disposition before their preload runs
+    # workers ignore Ctrl-C (`worker_setup`, for one the nanny restarts later; the user's
+    # configured preloads too); those started here take it from this process's disposition
+    # before their preload runs
+    preload = [*dask.config.get("distributed.worker.preload", []),
+               "jampacked.core.worker_setup"]
     with _children_ignore_interrupt():
-        preload = [*dask.config.get("distributed.worker.preload", []),
-                   "jampacked.core.worker_setup"]  # the user's configured ones too
+        # silence_logs: the nanny's warnings at shutdown (a worker still busy in numba is
+        # killed after a few seconds) are not the user's concern
         cluster = LocalCluster(n_workers=workers, threads_per_worker=1, processes=True,
                                dashboard_address=None, silence_logs=logging.ERROR,
                                preload=preload)
