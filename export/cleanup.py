@@ -40,8 +40,8 @@ NEEDLE_REL = 1e-3
 @njit(cache=True)
 def _zero_area_kernel(p: np.ndarray, f: np.ndarray, limit: float) -> np.ndarray:
     """(F,) faces whose doubled area is at most ``limit`` times their longest edge, at
-    positions p (V,3). One pass in numba: numpy's temporaries took about 2 s a call at 4.5
-    million faces (docs/notes-export.md); tests/export keep the numpy reference."""
+    positions p (V,3). One pass in numba: numpy's temporaries were slow on the unions of
+    thousands of objects (docs/notes-export.md); tests/export keep the numpy reference."""
     out = np.zeros(len(f), np.bool_)
     for k in range(len(f)):
         a, b, c = f[k, 0], f[k, 1], f[k, 2]

@@ -43,8 +43,8 @@ class Opening:
         side ``axis`` points away from (``+z`` at 0.75: the top quarter of the shell goes).
     kind: "window" cuts a round hole of diameter ``size`` (container units) through the
         shell's side that faces ``axis``, centred on the container's bounding-box centre, or
-        where the line through it meets no wall (the hole of a torus) on the nearest place
-        over a wall.
+        where the line through it meets no wall (the hole of a torus) beside it, where the
+        wall is flattest (`openings.cut_window`).
     """
 
     kind: str = "plane"

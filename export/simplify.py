@@ -53,9 +53,8 @@ def simplify_within(solid: m3.Manifold, tolerance: float) -> tuple[m3.Manifold, 
     solid, its measured deviation). When no try keeps both, the solid is returned as it was
     (deviation 0).
 
-    manifold3d's simplify can fold a coarse surface through itself: the YCB plum scan x100
-    at 0.5 crossed itself in 4 face pairs, and a union of 1,947 such fruit was refused as
-    self-intersecting in 200 bodies (docs/notes-export.md)."""
+    manifold3d's simplify can fold a coarse surface through itself, and every copy of such
+    a type then made the union self-intersecting (YCB scans: docs/notes-export.md)."""
     v0, f0 = solid_arrays(solid)
     asked = tolerance
     for _ in range(TRIES):

@@ -83,8 +83,8 @@ def _chunked_union(pieces: list[m3.Manifold], check_cancel: Callable[[], None]
     """The union of ``pieces``, added UNION_CHUNK neighbours at a time (in Morton order of
     their bounding boxes' centres) to the union so far. manifold3d holds the GIL through a
     boolean, so a Ctrl-C waited for the whole union; between chunks ``check_cancel`` runs.
-    Measured on 4,092 fruit (docs/notes-export.md): the same triangles and volume, in about
-    a fifth more time, with a lower memory peak than one batch."""
+    The same triangles and volume as one batch, a little slower, with a lower memory peak
+    (docs/notes-export.md)."""
     if len(pieces) <= UNION_CHUNK:
         return m3.Manifold.batch_boolean(pieces, m3.OpType.Add)
     boxes = np.array([np.asarray(p.bounding_box(), np.float64) for p in pieces])
