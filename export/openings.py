@@ -169,18 +169,18 @@ def cut_window(shell: m3.Manifold, opening: Opening, lo: np.ndarray, hi: np.ndar
         found = _nearest_wall(shell, centre, offsets, unit, e1, e2, reach, span)
         if found is None:
             raise InputError(
-                f"the window along {opening.axis} misses the shell: no line along that axis "
-                "within the container's bounds meets a wall. Fix: pick another axis or a "
-                "plane opening.")
+                "the window misses the shell: no line along its axis within the "
+                "container's bounds meets a wall. Fix: pick another axis or a plane opening.")
         moved, depths = found
-        notes.append(f"the line through the container's middle along {opening.axis} meets "
+        # no axis named: ``opening`` is in the print frame (turned by --up), not the user's
+        notes.append("the line through the container's middle along the window's axis meets "
                      f"no wall, so the window is centred {np.linalg.norm(moved - centre):.3g} "
                      "mm from it, over the wall.")
         centre = moved
     inward = max(depths) + 0.5 * thickness  # a little into the cavity
     if inward >= reach:
         inward = reach
-        notes.append(f"the window along {opening.axis} reaches the bounding-box centre: the "
+        notes.append("the window reaches the bounding-box centre: the "
                      "wall there is thicker than the window is deep, or it is solid.")
     start = centre + (reach - inward) * unit
     return shell - _cylinder(start, unit, inward + 1.0, radius)

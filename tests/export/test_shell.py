@@ -250,6 +250,9 @@ def test_window_over_a_torus_hole_moves_onto_the_ring():
                                opening=Opening("window", "+z", size=4.0))
     moved = [n for n in report.notes if "over the wall" in n]
     assert len(moved) == 1
+    # the shell is made in the print frame (turned by --up): an axis named here was that
+    # frame's, "+z" for a window the user asked along +y
+    assert not re.search(r"[+-][xyz]\b", moved[0]), moved[0]
     distance = float(re.search(r"centred ([0-9.]+) mm", moved[0]).group(1))
     assert 9.5 <= distance <= 10.5  # on the tube's crest (its edges 6 and 14 from the axis)
     removed = closed.volume() - shell.volume()
