@@ -551,11 +551,14 @@ def _assemble(container: MeshSource, scene: _Scene, approx: _Approximation, run:
         depth, _ = _measured_depth(scene, approx.container)  # the grid's nodes can miss it
         room, name = min((inner_room(t.vertices, t.faces), t.name) for t in objtypes
                          if t.share > 0)
+        fits = depth >= room + clearance
+        finer = ("Try --fidelity high / fidelity='high' (finer grids), or scale"
+                 if fits and approx.fidelity.name != "high" else "Scale")
         raise PackingError(
             f"no object could be placed: the container's deepest interior point is "
             f"{depth:.4g} units from its wall; {name}, the type needing the least depth, "
-            f"needs at least {room:.4g} (its inner room){gap}, and no object fitted "
-            "anywhere. Try --fidelity high / fidelity='high' (finer grids), or scale the "
+            f"needs at least {room:.4g} (its inner room){gap}, "
+            f"{'and no object fitted anywhere' if fits else 'so none fits'}. {finer} the "
             "container up (--container-size / container_size) or the objects down "
             f"(--type-scale / type_scale){' or lower the clearance' if clearance else ''}.")
     typ = state.typ[idx].copy()

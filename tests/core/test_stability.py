@@ -334,6 +334,16 @@ def test_no_object_placed_names_the_depth_a_type_needs(tmp_path, monkeypatch):
     with pytest.raises(PackingError, match=r"cube, the type needing the least depth, needs "
                        r"at least 4\.5 \(its inner room\).*--fidelity high"):
         pack("box:9.5x9.5x40", [str(path)], seed=1)
+    # high fidelity already: no advice to ask for it
+    with pytest.raises(PackingError) as err:
+        pack("box:9.5x9.5x40", [str(path)], seed=1, fidelity="high")
+    assert "no object fitted anywhere" in str(err.value) and "fidelity" not in str(err.value)
+    monkeypatch.undo()
+    # shallower than the cube needs (within a cell, so past the check up front)
+    with pytest.raises(PackingError) as err:
+        pack("box:8.9x8.9x8.9", [str(path)], seed=1)
+    assert "4.45 units from its wall" in str(err.value) and "so none fits" in str(err.value)
+    assert "fidelity" not in str(err.value)
 
 
 def test_a_refined_container_grid_is_what_the_report_says(tmp_path):
