@@ -54,7 +54,7 @@ def _number(text: str, cast: Callable[[str], float], ok: Callable[[float], bool]
 def positive_float(text: str) -> float:
     """A finite number > 0 (argparse names the option before the message)."""
     return _number(text, float, lambda v: math.isfinite(v) and v > 0, "must be a number",
-                   "must be greater than 0")
+                   "must be a finite number greater than 0")
 
 
 def non_negative_float(text: str) -> float:

@@ -15,7 +15,7 @@ from jampacked.cli.args import add_command, fraction, non_negative_float, positi
 from jampacked.cli.cluster_args import add_cluster_arguments, cluster_client, positive_int
 from jampacked.cli.exits import EXIT_INTERRUPTED
 from jampacked.cli.interrupt import CancelOnInterrupt
-from jampacked.cli.reports import consoles, print_summary, progress_bar, warn
+from jampacked.cli.reports import consoles, notes_only, print_summary, progress_bar, warn
 from jampacked.cli.scene import DEFAULT_CONTAINER_SIZE, DEFAULT_TYPE_SCALE, resolve_scene
 from jampacked.core.api import pack
 from jampacked.core.numba_cache import compile_hint
@@ -152,7 +152,7 @@ def cmd_pack(args: argparse.Namespace) -> int:
             warn(err, note)
         client = cluster_client(args, stack)
         cancel = stack.enter_context(CancelOnInterrupt())
-        progress_cb = None if args.quiet else progress_bar(stack, err, cancel)
+        progress_cb = notes_only(err) if args.quiet else progress_bar(stack, err, cancel)
 
         packing = pack(
             scene.container, scene.types, scene.shares, seed=args.seed,

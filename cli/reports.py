@@ -40,6 +40,21 @@ def warn(err: Console, message: str) -> None:
     err.print(f"[yellow]warning:[/] {escape(message)}", highlight=False, soft_wrap=True)
 
 
+def notes_only(err: Console) -> Callable[[float, str], None]:
+    """The engine's ``progress`` callback for a quiet run: its notes only (advice, like a
+    warning), as the progress bar prints them."""
+    def update(fraction: float, message: str) -> None:
+        if message.startswith(NOTE_PREFIX):
+            _print_note(err, message)
+
+    return update
+
+
+def _print_note(err: Console, message: str) -> None:
+    err.print(f"[dim]note:[/] {escape(message[len(NOTE_PREFIX):])}", highlight=False,
+              soft_wrap=True)
+
+
 def progress_bar(stack: contextlib.ExitStack, err: Console,
                  cancel: CancelOnInterrupt | None = None) -> Callable[[float, str], None]:
     """A rich progress bar on ``err`` for the life of ``stack``; returns the engine's
@@ -51,8 +66,7 @@ def progress_bar(stack: contextlib.ExitStack, err: Console,
 
     def update(fraction: float, message: str) -> None:
         if message.startswith(NOTE_PREFIX):  # advice to keep in view, above the bar
-            err.print(f"[dim]note:[/] {escape(message[len(NOTE_PREFIX):])}", highlight=False,
-                      soft_wrap=True)
+            _print_note(err, message)
             return
         if cancel is not None and cancel.requested:
             message = f"{message} [yellow](stopping: Ctrl-C)[/]"

@@ -352,9 +352,11 @@ def test_bad_numbers_are_usage_errors(tmp_path, capsys):
     assert not (tmp_path / "p.json").exists()
     # argparse names the option; the message repeated it ("argument --container-size:
     # --container-size must be greater than 0")
-    for option, value, words in (("--container-size", "0", "must be greater than 0"),
-                                 ("--attempts", "0", "must be 1 or more"),
-                                 ("--time-budget", "x", "must be a number")):
+    for option, value, words in (("--container-size", "0", "must be a finite number greater "
+                                  "than 0"), ("--attempts", "0", "must be 1 or more"),
+                                 ("--time-budget", "x", "must be a number"),
+                                 ("--time-budget", "inf", "must be a finite number greater "
+                                  "than 0")):
         rc = main(["pack", "box:30x30x30", "--type", str(P1), option, value,
                    "-o", str(tmp_path / "p.json")])
         err = capsys.readouterr().err
@@ -717,3 +719,8 @@ def test_a_large_scene_without_a_budget_says_so_up_front(tmp_path, monkeypatch):
     rc, _, err = run(["pack", "box:30x30x30", "--type", str(ball), "--time-budget", "0.5",
                       "-o", str(tmp_path / "p.json")])
     assert rc == 0 and not seen and "no time budget" not in err
+    # quiet keeps warnings, and the note is one (stopped at once, as by a Ctrl-C)
+    monkeypatch.setattr(interrupt.CancelOnInterrupt, "__call__", lambda self: True)
+    rc, _, err = run(["pack", "box:30x30x30", "--type", str(ball), "-q", "-o",
+                      str(tmp_path / "p.json")])
+    assert rc == 130 and "note: about 4," in err
