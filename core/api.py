@@ -340,6 +340,7 @@ def _approximate(scene: _Scene, q: np.ndarray, inputs: PackInputs,
                            f_min / fid.container_cells)
     depth = float(cont.grid.values.max())
     live = [i for i, share in enumerate(q) if share > 0]
+    measured = None  # the depth on a grid fine across the container, once measured
     # an object's inscribed radius is at most half its thinnest extent: below that depth
     # some type may not fit, and its inner room (a lower bound of that radius) decides
     if depth < min(float(sizes[i].extents.min()) for i in live) / 2 + clearance:
@@ -348,6 +349,7 @@ def _approximate(scene: _Scene, q: np.ndarray, inputs: PackInputs,
                       for i in live]
         if depth < min(t.room for t in live_sizes) + clearance:  # measured again, finer
             depth, spacing = _measured_depth(scene, cont)
+            measured = depth
             # the grid's depth is within a cell of the true depth
             if depth + spacing < min(t.room for t in live_sizes) + clearance:
                 _refuse_no_room(scene, live_sizes, depth, spacing, clearance)
@@ -359,7 +361,7 @@ def _approximate(scene: _Scene, q: np.ndarray, inputs: PackInputs,
     spacing = f_min / fid.container_cells
     if inputs.options.fidelity.container_cells is None:
         fine = _tight_fit_spacing(scene, sizes, live, cont, depth, spacing, clearance,
-                                  type_scale)
+                                  type_scale, measured)
         if fine < spacing:
             spacing = fine
             fid = replace(fid, container_cells=f_min / fine, reasons=fid.reasons + (
@@ -372,7 +374,7 @@ def _approximate(scene: _Scene, q: np.ndarray, inputs: PackInputs,
 
 def _tight_fit_spacing(scene: _Scene, sizes: list[TypeSize], live: list[int], cont: Container,
                        depth: float, spacing: float, clearance: float,
-                       type_scale: float) -> float:
+                       type_scale: float, measured: float | None = None) -> float:
     """The container grid's spacing, finer where a type only just fits: at most a third of the
     room its deepest point leaves around the type's inner room (container units).
 
@@ -381,11 +383,12 @@ def _tight_fit_spacing(scene: _Scene, sizes: list[TypeSize], live: list[int], co
     so an object with less room to spare than a cell fitted nowhere for the solver: a
     radius-2 ball in a 4.2 box, a 9 mm cube in a 9.5 mm or a 10 mm one, refused as "no
     object could be placed" (docs/notes-robustness.md). ``depth``: the container's depth
-    on the first grid; ``spacing``: the fidelity's."""
+    on the first grid; ``spacing``: the fidelity's; ``measured``: the fine grid's depth
+    (`_measured_depth`) when the caller has it already."""
     near = [i for i in live if float(sizes[i].extents.min()) / 2 + clearance > depth - spacing]
     if not near:
         return spacing
-    deepest, _ = _measured_depth(scene, cont)
+    deepest = measured if measured is not None else _measured_depth(scene, cont)[0]
     slack = []
     for i in near:
         room = inner_room(scene.types[i].vertices, scene.types[i].faces) * type_scale

@@ -18,7 +18,7 @@ from jampacked.core.errors import MeshError
 from jampacked.core.solids import solid_arrays
 
 from .cleanup import NEEDLE_REL, collapse_needles, remove_degenerate_faces, separate_pinches
-from .intersect import intersecting_pairs
+from .intersect import _morton_order, intersecting_pairs
 from .validate import merge_identical
 
 __all__ = ["SPECK_REL", "Cleaned", "clean_bodies", "clean_arrays", "crossing_pairs", "drop_specks",
@@ -88,14 +88,8 @@ def _chunked_union(pieces: list[m3.Manifold], check_cancel: Callable[[], None]
     if len(pieces) <= UNION_CHUNK:
         return m3.Manifold.batch_boolean(pieces, m3.OpType.Add)
     boxes = np.array([np.asarray(p.bounding_box(), np.float64) for p in pieces])
-    centres = 0.5 * (boxes[:, :3] + boxes[:, 3:])
-    lo, span = centres.min(axis=0), np.ptp(centres, axis=0)
-    cells = np.floor(1023 * (centres - lo) / np.where(span > 0, span, 1.0)).astype(np.int64)
-    code = np.zeros(len(pieces), np.int64)
-    for bit in range(10):
-        for axis in range(3):
-            code |= ((cells[:, axis] >> bit) & 1) << (3 * bit + axis)
-    order = np.argsort(code, kind="stable")
+    order = _morton_order(np.ascontiguousarray(boxes[:, :3]), np.ascontiguousarray(boxes[:, 3:]),
+                          np.arange(len(pieces), dtype=np.int64))
     union = None
     for start in range(0, len(order), UNION_CHUNK):
         check_cancel()
