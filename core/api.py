@@ -39,6 +39,7 @@ from .phases import Stop
 from .placement import Attempt, Snapshots, place
 from .repair import certify_and_repair
 from .report import NOTE_PREFIX, AttemptSummary, PackInputs, RepairStats, RunReport
+from .room import check_types_fit, measured_depth, refuse_no_room, tight_fit_spacing
 from .rotations import matrix_to_quat, quat_to_matrix
 from .run_warnings import run_warnings
 from .solver import PackState, Solver, SolverParams, TypeTable
@@ -320,7 +321,7 @@ class _Approximation:
                 name, m.vertices, m.faces, path=m.path, sha256=m.sha256, share=float(q[i]),
                 type_scale=inputs.type_scale, fidelity=self.fidelity, use_cache=use_cache,
                 reach=inputs.clearance))
-        _check_types_fit(self.types, self.container, inputs.clearance)
+        check_types_fit(self.types, self.container, inputs.clearance)
 
 
 def _approximate(scene: _Scene, q: np.ndarray, inputs: PackInputs,
@@ -348,11 +349,12 @@ def _approximate(scene: _Scene, q: np.ndarray, inputs: PackInputs,
                                                           scene.types[i].faces) * type_scale)
                       for i in live]
         if depth < min(t.room for t in live_sizes) + clearance:  # measured again, finer
-            depth, spacing = _measured_depth(scene, cont)
+            depth, spacing = measured_depth(scene.vertices, cmesh.faces, scene.volume, cont)
             measured = depth
             # the grid's depth is within a cell of the true depth
             if depth + spacing < min(t.room for t in live_sizes) + clearance:
-                _refuse_no_room(scene, live_sizes, depth, spacing, clearance)
+                refuse_no_room(scene.label, scene.vertices, live_sizes, depth, spacing,
+                               clearance)
     if inputs.fidelity == "auto":
         local = [(m.vertices - m.vertices.mean(axis=0)) * type_scale for m in scene.types]
         r_max = max(float(np.sqrt((v ** 2).sum(axis=1)).max()) for v in local)
@@ -360,8 +362,8 @@ def _approximate(scene: _Scene, q: np.ndarray, inputs: PackInputs,
     fid = _with_overrides(fid, inputs.options.fidelity)
     spacing = f_min / fid.container_cells
     if inputs.options.fidelity.container_cells is None:
-        fine = _tight_fit_spacing(scene, sizes, live, cont, depth, spacing, clearance,
-                                  type_scale, measured)
+        fine = tight_fit_spacing(scene.vertices, cmesh.faces, scene.volume, scene.types, sizes,
+                                 live, cont, depth, spacing, clearance, type_scale, measured)
         if fine < spacing:
             spacing = fine
             fid = replace(fid, container_cells=f_min / fine, reasons=fid.reasons + (
@@ -372,102 +374,9 @@ def _approximate(scene: _Scene, q: np.ndarray, inputs: PackInputs,
     return _Approximation(cont, fid, f_min, volumes, [])
 
 
-def _tight_fit_spacing(scene: _Scene, sizes: list[TypeSize], live: list[int], cont: Container,
-                       depth: float, spacing: float, clearance: float,
-                       type_scale: float, measured: float | None = None) -> float:
-    """The container grid's spacing, finer where a type only just fits: at most a third of the
-    room its deepest point leaves around the type's inner room (container units).
-
-    Between its nodes the grid's interpolant reads up to about half a cell less than the
-    true distance where the wall's distance peaks (the medial axis: the middle of a box),
-    so an object with less room to spare than a cell fitted nowhere for the solver: a
-    radius-2 ball in a 4.2 box, a 9 mm cube in a 9.5 mm or a 10 mm one, refused as "no
-    object could be placed" (docs/notes-robustness.md). ``depth``: the container's depth
-    on the first grid; ``spacing``: the fidelity's; ``measured``: the fine grid's depth
-    (`_measured_depth`) when the caller has it already."""
-    near = [i for i in live if float(sizes[i].extents.min()) / 2 + clearance > depth - spacing]
-    if not near:
-        return spacing
-    deepest = measured if measured is not None else _measured_depth(scene, cont)[0]
-    slack = []
-    for i in near:
-        room = inner_room(scene.types[i].vertices, scene.types[i].faces) * type_scale
-        # the fine grid's deepest node: beyond its exact band it can read high
-        # (docs/notes-robustness.md), which the third taken below still covers; the first
-        # grid's can read far low
-        left = deepest - room - clearance
-        if 0.0 < left < spacing:
-            slack.append(left)
-    return min(spacing, min(slack) / 3.0) if slack else spacing
-
-
-#: a container grid with fewer cells than this across the container's thinnest extent
-#: measures its depth again on a grid this fine before refusing every type
-DEPTH_CELLS = 64
-#: ... and at most this many across its largest (a 60 x 60 x 2 tray: 256 x 256 x 9 nodes)
-MAX_DEPTH_CELLS = 256
 #: objects a packing without a time budget may hold before the run says it will take long
 #: (without one, 1,141 objects took 20 minutes on 2 cores: docs/benchmarks.md, "Growth")
 LONG_WITHOUT_BUDGET = 2500
-
-
-def _measured_depth(scene: _Scene, cont: Container) -> tuple[float, float]:
-    """The container's deepest interior distance and the spacing of the grid it was measured
-    on: at least DEPTH_CELLS cells across the container's thinnest extent, within
-    MAX_DEPTH_CELLS across its largest (the approximation's grid follows the objects' size
-    and is coarser than the container when they are far larger: its nodes may all lie
-    outside, or a thin tray's few)."""
-    extents = np.ptp(scene.vertices, axis=0)
-    spacing = max(float(extents.min()) / DEPTH_CELLS, float(extents.max()) / MAX_DEPTH_CELLS)
-    if cont.grid.spacing <= spacing:
-        return float(cont.grid.values.max()), cont.grid.spacing
-    fine = build_container(scene.vertices, scene.container.faces, scene.volume, spacing)
-    return max(float(fine.grid.values.max()), 0.0), fine.grid.spacing
-
-
-def _refuse_no_room(scene: _Scene, sizes: list[TypeSize], depth: float, spacing: float,
-                    clearance: float) -> None:
-    """Refuse a scene where even the smallest of the types asked for (``sizes``, with their
-    inner room) cannot sit at the container's deepest point (``depth``, measured on a grid
-    of ``spacing``: within a cell of the truth), naming the types (and files) that do not
-    fit."""
-    c_ext = np.ptp(scene.vertices, axis=0)
-    dims = " x ".join(f"{x:.4g}" for x in c_ext)
-    most = depth + spacing  # the deepest the container can be
-    big = sorted([t for t in sizes if t.room + clearance >= most], key=lambda t: t.room)
-    listed = "; ".join(
-        f"{t.label}: needs at least {t.room:.4g} units of depth (equivalent radius "
-        f"{t.equivalent_radius:.4g}), {' x '.join(f'{x:.4g}' for x in t.extents)} units "
-        "across" for t in big[:5])
-    more = f"; and {len(big) - 5} more" if len(big) > 5 else ""
-    room = most - clearance
-    factor = (f"by a factor of at least {big[0].room / room:.3g}"
-              if room > 0 else "after lowering the clearance")
-    plus = f" plus the clearance {clearance:g}" if clearance else ""
-    raise PackingError(
-        f"no object fits: the container {scene.label} ({dims} units) is {depth:.4g} units "
-        f"deep at its deepest interior point (within {spacing:.2g}), and each object needs "
-        f"a depth of at least its own inner room{plus} there. Too large: {listed}{more}. "
-        f"Scale the objects down (--type-scale / "
-        f"type_scale, {factor}) or the container up (--container-size / container_size)"
-        f"{', or lower the clearance' if clearance else ''}.")
-
-
-def _check_types_fit(objtypes: list[ObjectType], cont: Container, clearance: float) -> None:
-    """A type whose largest inscribed sphere (plus the clearance) is deeper than the
-    container fits nowhere: the grid's depth is within a cell of the true depth, the
-    spheres' radii never exceed the true inscribed radius."""
-    depth = float(cont.grid.values.max())
-    no_room = [f"{t.name} ({t.path})" if t.path else t.name for t in objtypes if t.share > 0
-               and float(t.sphere_radii.max()) + clearance > depth + cont.grid.spacing]
-    if no_room:
-        raise PackingError(
-            f"object type{'s' if len(no_room) > 1 else ''} {', '.join(no_room)} cannot fit: "
-            f"the container's deepest interior point is {depth:.4g} units from its wall, less "
-            f"than the type's largest inscribed sphere{' plus the clearance' if clearance else ''}"
-            ". Scale the container up (--container-size / container_size) or the objects down "
-            "(--type-scale / type_scale)"
-            f"{', lower the clearance' if clearance else ''}, or remove the type.")
 
 
 @dataclass
@@ -551,7 +460,8 @@ def _assemble(container: MeshSource, scene: _Scene, approx: _Approximation, run:
     clearance = inputs.clearance
     if len(idx) == 0 and not stop.reason:
         gap = f" plus the clearance {clearance:g}" if clearance else ""
-        depth, _ = _measured_depth(scene, approx.container)  # the grid's nodes can miss it
+        depth, _ = measured_depth(scene.vertices, scene.container.faces, scene.volume,
+                                  approx.container)  # the grid's nodes can miss it
         room, name = min((inner_room(t.vertices, t.faces), t.name) for t in objtypes
                          if t.share > 0)
         fits = depth >= room + clearance

@@ -1,0 +1,119 @@
+"""Whether the container has room for the object types: its depth, the refusals up front
+and after placing nothing, and the finer container grid a type that only just fits needs.
+
+Frames and units: the container frame, container units. A type needs, at the container's
+deepest interior point, at least its inner room (`mesh_geometry.inner_room`) plus the
+clearance; the approximation also keeps its contact margins and reads the depth from a
+grid, which can fall short of the true depth by about half a cell at its peak.
+"""
+
+from __future__ import annotations
+
+from collections.abc import Sequence
+
+import numpy as np
+
+from .container import Container, build_container
+from .cost import TypeSize
+from .errors import PackingError
+from .mesh_geometry import inner_room
+from .meshes import MeshData
+from .objects import ObjectType
+
+#: a container grid with fewer cells than this across the container's thinnest extent
+#: measures its depth again on a grid this fine before refusing every type
+DEPTH_CELLS = 64
+#: ... and at most this many across its largest (a 60 x 60 x 2 tray: 256 x 256 x 9 nodes)
+MAX_DEPTH_CELLS = 256
+
+
+def measured_depth(vertices: np.ndarray, faces: np.ndarray, volume: float,
+                   cont: Container) -> tuple[float, float]:
+    """The container's deepest interior distance and the spacing of the grid it was measured
+    on: at least DEPTH_CELLS cells across the container's thinnest extent, within
+    MAX_DEPTH_CELLS across its largest (the approximation's grid follows the objects' size
+    and is coarser than the container when they are far larger: its nodes may all lie
+    outside, or a thin tray's few). vertices (V, 3), faces (F, 3): the container mesh."""
+    extents = np.ptp(vertices, axis=0)
+    spacing = max(float(extents.min()) / DEPTH_CELLS, float(extents.max()) / MAX_DEPTH_CELLS)
+    if cont.grid.spacing <= spacing:
+        return float(cont.grid.values.max()), cont.grid.spacing
+    fine = build_container(vertices, faces, volume, spacing)
+    return max(float(fine.grid.values.max()), 0.0), fine.grid.spacing
+
+
+def refuse_no_room(label: str, vertices: np.ndarray, sizes: list[TypeSize], depth: float,
+                   spacing: float, clearance: float) -> None:
+    """Refuse a scene where even the smallest of the types asked for (``sizes``, with their
+    inner room) cannot sit at the container's deepest point (``depth``, measured on a grid
+    of ``spacing``: within a cell of the truth), naming the types (and files) that do not
+    fit. label: the container for messages; vertices (V, 3): its mesh's."""
+    c_ext = np.ptp(vertices, axis=0)
+    dims = " x ".join(f"{x:.4g}" for x in c_ext)
+    most = depth + spacing  # the deepest the container can be
+    big = sorted([t for t in sizes if t.room + clearance >= most], key=lambda t: t.room)
+    listed = "; ".join(
+        f"{t.label}: needs at least {t.room:.4g} units of depth (equivalent radius "
+        f"{t.equivalent_radius:.4g}), {' x '.join(f'{x:.4g}' for x in t.extents)} units "
+        "across" for t in big[:5])
+    more = f"; and {len(big) - 5} more" if len(big) > 5 else ""
+    room = most - clearance
+    factor = (f"by a factor of at least {big[0].room / room:.3g}"
+              if room > 0 else "after lowering the clearance")
+    plus = f" plus the clearance {clearance:g}" if clearance else ""
+    raise PackingError(
+        f"no object fits: the container {label} ({dims} units) is {depth:.4g} units "
+        f"deep at its deepest interior point (within {spacing:.2g}), and each object needs "
+        f"a depth of at least its own inner room{plus} there. Too large: {listed}{more}. "
+        f"Scale the objects down (--type-scale / "
+        f"type_scale, {factor}) or the container up (--container-size / container_size)"
+        f"{', or lower the clearance' if clearance else ''}.")
+
+
+def tight_fit_spacing(vertices: np.ndarray, faces: np.ndarray, volume: float,
+                      types: Sequence[MeshData], sizes: list[TypeSize], live: list[int],
+                      cont: Container, depth: float, spacing: float, clearance: float,
+                      type_scale: float, measured: float | None = None) -> float:
+    """The container grid's spacing, finer where a type only just fits: at most a third of the
+    room its deepest point leaves around the type's inner room (container units).
+
+    Between its nodes the grid's interpolant reads up to about half a cell less than the
+    true distance where the wall's distance peaks (the medial axis: the middle of a box),
+    so an object with less room to spare than a cell fitted nowhere for the solver: a
+    radius-2 ball in a 4.2 box, a 9 mm cube in a 9.5 mm or a 10 mm one, refused as "no
+    object could be placed" (docs/notes-robustness.md). vertices, faces, volume: the
+    container mesh; types: the object meshes (their files' units, scaled by type_scale);
+    ``depth``: the container's depth on the first grid; ``spacing``: the fidelity's;
+    ``measured``: the fine grid's depth (`measured_depth`) when the caller has it already."""
+    near = [i for i in live if float(sizes[i].extents.min()) / 2 + clearance > depth - spacing]
+    if not near:
+        return spacing
+    deepest = measured if measured is not None else measured_depth(vertices, faces, volume,
+                                                                   cont)[0]
+    slack = []
+    for i in near:
+        room = inner_room(types[i].vertices, types[i].faces) * type_scale
+        # the fine grid's deepest node: beyond its exact band it can read high
+        # (docs/notes-robustness.md), which the third taken below still covers; the first
+        # grid's can read far low
+        left = deepest - room - clearance
+        if 0.0 < left < spacing:
+            slack.append(left)
+    return min(spacing, min(slack) / 3.0) if slack else spacing
+
+
+def check_types_fit(objtypes: list[ObjectType], cont: Container, clearance: float) -> None:
+    """A type whose largest inscribed sphere (plus the clearance) is deeper than the
+    container fits nowhere: the grid's depth is within a cell of the true depth, the
+    spheres' radii never exceed the true inscribed radius."""
+    depth = float(cont.grid.values.max())
+    no_room = [f"{t.name} ({t.path})" if t.path else t.name for t in objtypes if t.share > 0
+               and float(t.sphere_radii.max()) + clearance > depth + cont.grid.spacing]
+    if no_room:
+        raise PackingError(
+            f"object type{'s' if len(no_room) > 1 else ''} {', '.join(no_room)} cannot fit: "
+            f"the container's deepest interior point is {depth:.4g} units from its wall, less "
+            f"than the type's largest inscribed sphere{' plus the clearance' if clearance else ''}"
+            ". Scale the container up (--container-size / container_size) or the objects down "
+            "(--type-scale / type_scale)"
+            f"{', lower the clearance' if clearance else ''}, or remove the type.")
