@@ -39,7 +39,13 @@ from .phases import Stop
 from .placement import Attempt, Snapshots, place
 from .repair import certify_and_repair
 from .report import NOTE_PREFIX, AttemptSummary, PackInputs, RepairStats, RunReport
-from .room import check_types_fit, measured_depth, refuse_no_room, tight_fit_spacing
+from .room import (
+    check_types_fit,
+    measured_depth,
+    nothing_placed_message,
+    refuse_no_room,
+    tight_fit_spacing,
+)
 from .rotations import matrix_to_quat, quat_to_matrix
 from .run_warnings import run_warnings
 from .solver import PackState, Solver, SolverParams, TypeTable
@@ -366,9 +372,14 @@ def _approximate(scene: _Scene, q: np.ndarray, inputs: PackInputs,
                                  live, cont, depth, spacing, clearance, type_scale, measured)
         if fine < spacing:
             spacing = fine
-            fid = replace(fid, container_cells=f_min / fine, reasons=fid.reasons + (
-                f"an object only just fits: {f_min / fine:.3g} container grid cells per "
-                "radius",))
+            cont = build_container(scene.vertices, cmesh.faces, scene.volume, spacing)
+            # the grid's cap on cells per axis may keep it coarser than asked
+            spacing = cont.grid.spacing
+            cells = f_min / spacing
+            capped = " (the most the container's size allows)" if spacing > fine else ""
+            fid = replace(fid, container_cells=cells, reasons=fid.reasons + (
+                f"an object only just fits: {cells:.3g} container grid cells per "
+                f"radius{capped}",))
     if cont.grid.spacing != spacing:
         cont = build_container(scene.vertices, cmesh.faces, scene.volume, spacing)
     return _Approximation(cont, fid, f_min, volumes, [])
@@ -459,21 +470,11 @@ def _assemble(container: MeshSource, scene: _Scene, approx: _Approximation, run:
     idx = state.alive_indices()
     clearance = inputs.clearance
     if len(idx) == 0 and not stop.reason:
-        gap = f" plus the clearance {clearance:g}" if clearance else ""
         depth, _ = measured_depth(scene.vertices, scene.container.faces, scene.volume,
                                   approx.container)  # the grid's nodes can miss it
-        room, name = min((inner_room(t.vertices, t.faces), t.name) for t in objtypes
-                         if t.share > 0)
-        fits = depth >= room + clearance
-        finer = ("Try --fidelity high / fidelity='high' (finer grids), or scale"
-                 if fits and approx.fidelity.name != "high" else "Scale")
-        raise PackingError(
-            f"no object could be placed: the container's deepest interior point is "
-            f"{depth:.4g} units from its wall; {name}, the type needing the least depth, "
-            f"needs at least {room:.4g} (its inner room){gap}, "
-            f"{'and no object fitted anywhere' if fits else 'so none fits'}. {finer} the "
-            "container up (--container-size / container_size) or the objects down "
-            f"(--type-scale / type_scale){' or lower the clearance' if clearance else ''}.")
+        raise PackingError(nothing_placed_message(depth, objtypes, run.margins,
+                                                  approx.container, scene.vertices, clearance,
+                                                  approx.fidelity.name))
     typ = state.typ[idx].copy()
     pos = state.pos[idx].copy()
     quat = matrix_to_quat(quat_to_matrix(state.quat[idx]))  # canonical sign, unit length

@@ -13,9 +13,10 @@ from collections.abc import Sequence
 
 import numpy as np
 
-from .container import Container, build_container
+from .container import MAX_CELLS_PER_AXIS, Container, build_container
 from .cost import TypeSize
 from .errors import PackingError
+from .margins import Margins
 from .mesh_geometry import inner_room
 from .meshes import MeshData
 from .objects import ObjectType
@@ -117,3 +118,52 @@ def check_types_fit(objtypes: list[ObjectType], cont: Container, clearance: floa
             ". Scale the container up (--container-size / container_size) or the objects down "
             "(--type-scale / type_scale)"
             f"{', lower the clearance' if clearance else ''}, or remove the type.")
+
+
+def nothing_placed_message(depth: float, objtypes: list[ObjectType], margins: Margins,
+                           cont: Container, vertices: np.ndarray, clearance: float,
+                           fidelity: str) -> str:
+    """Why a run that was not stopped placed no object, and what to change: the container's
+    depth (``depth``, measured finer than the approximation's grid) against the room the
+    type needing the least takes there: its inner room, the clearance, the contact margins
+    (``margins``) and half a cell of the container grid, whose interpolant reads the depth's
+    peak up to that much low. vertices (V, 3): the container mesh's, for the size to ask
+    for; fidelity: the run's preset name."""
+    spacing = cont.grid.spacing
+    half_cell = 0.5 * spacing
+    need = []
+    for i, t in enumerate(objtypes):
+        if t.share > 0:
+            room = inner_room(t.vertices, t.faces)
+            kept = float(margins.objects[i] + margins.wall)
+            need.append((room + clearance + kept + half_cell, room, kept, t.name))
+    total, room, kept, name = min(need)
+    plus = f" plus the clearance {clearance:g}" if clearance else ""
+    extra = (f", and the approximation up to {kept + half_cell:.2g} more (contact margins "
+             f"{kept:.2g} and half a container grid cell, {half_cell:.2g})")
+    if depth < room + clearance:
+        verdict = "so none fits"
+    elif depth < total:
+        verdict = "so none fits the approximation"
+    else:
+        verdict = "and no object fitted anywhere"
+    # a finer preset refines the objects' approximation, and the container grid and the
+    # margins unless the grid is at its cap already
+    size = float(np.ptp(vertices, axis=0).max())
+    capped = spacing * MAX_CELLS_PER_AXIS >= size * (1 - 1e-9)
+    useful = depth >= total or (depth >= room + clearance and not capped)
+    finer = ("Try --fidelity high / fidelity='high' (finer grids, smaller margins), or "
+             if fidelity != "high" and useful else "")
+    larger = ""
+    if depth > 0:
+        factor = total / depth * 1.001
+        larger = (f" by at least {(factor - 1) * 100:.2g}% (--container-size "
+                  f"{size * factor:.4g} / container_size)" if factor > 1 else "")
+    if not larger:
+        larger = " (--container-size / container_size)"
+    return (
+        f"no object could be placed: the container's deepest interior point is {depth:.4g} "
+        f"units from its wall; {name}, the type needing the least depth, needs at least "
+        f"{room:.4g} (its inner room){plus}{extra}, {verdict}. {finer}"
+        f"{'s' if finer else 'S'}cale the container up{larger} or the objects down "
+        f"(--type-scale / type_scale){' or lower the clearance' if clearance else ''}.")

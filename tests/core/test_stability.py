@@ -9,6 +9,7 @@ manifold3d on the placed mesh files. bench/stability.py runs the same cases at f
 from __future__ import annotations
 
 import json
+import re
 import sys
 
 import manifold3d as m3
@@ -355,3 +356,35 @@ def test_a_refined_container_grid_is_what_the_report_says(tmp_path):
     f_min = (3 * p.types[0].volume / (4 * np.pi)) ** (1 / 3)
     assert detail.container_cells == pytest.approx(f_min / p.report.container_grid_spacing)
     assert detail.container_cells > 30 and any("only just fits" in r for r in detail.reasons)
+
+
+def test_a_capped_container_grid_is_what_the_report_says(tmp_path):
+    # a 9 mm cube in a 9.05 box asks for 670 cells per radius; the grid's cap per axis
+    # allows 136, and the report said 670
+    path = tmp_path / "cube.stl"
+    trimesh.creation.box([9.0, 9.0, 9.0]).export(path)
+    p = pack("box:9.05x9.05x9.05", [str(path)], seed=1)
+    assert p.n == 1 and p.certificate["certified"]
+    detail = p.report.fidelity_detail
+    f_min = (3 * p.types[0].volume / (4 * np.pi)) ** (1 / 3)
+    assert detail.container_cells == pytest.approx(f_min / p.report.container_grid_spacing)
+    assert any("the most the container's size allows" in r for r in detail.reasons)
+
+
+@pytest.mark.parametrize("side,clearance", [(9.03, 0.0), (9.29, 0.1)])
+def test_no_object_placed_says_what_the_approximation_keeps_and_the_size_that_fits(
+        tmp_path, side, clearance):
+    # the depth was enough for the cube's inner room plus the clearance, and the message
+    # said only "no object fitted anywhere" and advised --fidelity high, which failed too:
+    # the contact margins and the grid's half cell at the depth's peak took the rest
+    path = tmp_path / "cube.stl"
+    trimesh.creation.box([9.0, 9.0, 9.0]).export(path)
+    with pytest.raises(PackingError) as err:
+        pack(f"box:{side}x{side}x{side}", [str(path)], seed=1, clearance=clearance)
+    msg = str(err.value)
+    assert "contact margins" in msg and "half a container grid cell" in msg, msg
+    assert "so none fits the approximation" in msg and "fidelity" not in msg, msg
+    size = float(re.search(r"--container-size ([0-9.]+) ", msg).group(1))
+    assert side < size < side * 1.01
+    p = pack(f"box:{size}x{size}x{size}", [str(path)], seed=1, clearance=clearance)
+    assert p.n == 1 and p.certificate["certified"]
