@@ -14,7 +14,11 @@ holds the values those checks would have given. Every object gets the exact volu
 the container, except objects the container's distance grid proves deep inside: all its
 vertices at depth >= c + its longest edge + the grid's interpolation error (every surface
 point of a triangle lies within an edge length of a vertex, so the surface then cannot reach
-the wall).
+the wall). That error is at most sqrt(3)/2 of a cell wherever the nodes hold true
+distances (the distance is 1-Lipschitz and a cell's trilinear weights keep their nodes
+that near on average), also beside a wall feature thinner than a cell, which a flat wall's
+half cell misses; nodes beyond the grid's exact band hold distances too deep, so the test
+reads them as the band's depth, which every such node lies beyond.
 """
 
 from __future__ import annotations
@@ -28,7 +32,7 @@ import numpy as np
 from scipy.spatial import cKDTree
 
 from .check_pool import CheckPool, usable_processes
-from .container import Container
+from .container import GRID_BAND, Container
 from .exact_checks import (
     GAP_SEARCH,
     PlacedSolids,
@@ -58,6 +62,8 @@ POOL_MIN_SECONDS = 3.0
 #: hulls proven apart by less than this, relative to the coordinates' size, still get
 #: their exact check: many times the rounding of the supports' and manifold3d's doubles
 APART_MARGIN = 1e-9
+#: the container grid's interpolation error (cells) where its nodes hold true distances
+WALL_READ_ERROR = 0.5 * 3 ** 0.5
 
 
 @dataclass
@@ -124,6 +130,9 @@ class Certifier:
         self._pool_broken = False
         self.volumes = np.asarray(type_volumes, np.float64)
         self.max_edge = np.asarray(type_max_edge, np.float64)
+        # the grid as the wall test reads it: nodes beyond the exact band at its depth
+        g = container.grid
+        self._wall_values = np.minimum(g.values, GRID_BAND * g.spacing)
         # hulls of the solids' own (float32) vertices: the points the exact checks read
         self.hulls = hull_table([hull_points(np.asarray(s.to_mesh().vert_properties)[:, :3])
                                  for s in self.types])
@@ -157,7 +166,8 @@ class Certifier:
         lo, hi, depth = memo.lo[ids], memo.hi[ids], memo.depth[ids]
         pairs = self._touching_pairs(lo, hi, check, clearance)
         g = self.container.grid
-        walls = np.flatnonzero(check & (depth < clearance + self.max_edge[typ] + 0.5 * g.spacing))
+        walls = np.flatnonzero(check & (depth < clearance + self.max_edge[typ]
+                                        + WALL_READ_ERROR * g.spacing))
         # an object wholly beyond the outside solid's box misses it: outside entirely
         beyond = (np.any(hi[walls] < self.outside_box[0], axis=1)
                   | np.any(lo[walls] > self.outside_box[1], axis=1))
@@ -274,7 +284,8 @@ class Certifier:
             got = known(memo.pairs.get((min(a, b), max(a, b)), (None, None))[0], search)
             return got if got is not None else float(solid(i).min_gap(solid(j), search))
 
-        wall_lower = depth - self.max_edge[typ] - 0.5 * self.container.grid.spacing - slack
+        wall_lower = (depth - self.max_edge[typ] - WALL_READ_ERROR * self.container.grid.spacing
+                      - slack)
 
         def walls_within(search: float) -> tuple[np.ndarray, list]:
             near = np.flatnonzero(wall_lower < search)
@@ -374,8 +385,9 @@ class Certifier:
     def _bounds_and_depth(self, typ: np.ndarray, matrices: np.ndarray
                           ) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
         """Each object's bounding box lo, hi (N,3) and the container grid's smallest value at
-        its vertices (N,), container frame; a type's objects at a time, in chunks of at
-        most CHUNK_VERTICES vertices, so that memory does not grow with the count."""
+        its vertices (N,) as the wall test reads the grid (`_wall_values`), container frame;
+        a type's objects at a time, in chunks of at most CHUNK_VERTICES vertices, so that
+        memory does not grow with the count."""
         n = len(typ)
         lo, hi, depth = np.zeros((n, 3)), np.zeros((n, 3)), np.zeros(n)
         g = self.container.grid
@@ -389,7 +401,8 @@ class Certifier:
                          + m[:, None, :3, 3])  # (k, V, 3)
                 lo[part] = world.min(axis=1)
                 hi[part] = world.max(axis=1)
-                d = sample_grid_many(g.values, g.origin, g.spacing, world.reshape(-1, 3))
+                d = sample_grid_many(self._wall_values, g.origin, g.spacing,
+                                     world.reshape(-1, 3))
                 depth[part] = d.reshape(len(part), -1).min(axis=1)
         return lo, hi, depth
 

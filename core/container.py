@@ -24,6 +24,10 @@ WALL_SAMPLES_PER_CELL = 16
 WALL_SAMPLES = (20_000, 1_000_000)
 #: overshoot (cells) below which the grid is taken as exact: a wall on grid planes
 ROUNDOFF = 1e-9
+#: cells from the wall within which the container grid's nodes hold exact distances; a
+#: node beyond holds a distance to some triangle, at least the true one
+#: (`distance.distance_grid`)
+GRID_BAND = 4
 
 
 @dataclass(frozen=True)
@@ -50,7 +54,8 @@ def build_container(vertices: np.ndarray, faces: np.ndarray, volume: float,
     vertices = np.ascontiguousarray(vertices, np.float64)
     extent = float(np.ptp(vertices, axis=0).max())
     spacing = max(float(spacing), extent / MAX_CELLS_PER_AXIS)
-    grid = tighten_to_surface(distance_grid(vertices, faces, spacing, pad=2 * spacing, band=4),
+    grid = tighten_to_surface(distance_grid(vertices, faces, spacing, pad=2 * spacing,
+                                              band=GRID_BAND),
                               vertices, faces)
     return Container(vertices, np.ascontiguousarray(faces, np.int64), float(volume), grid,
                      min_pyramid(grid.values))

@@ -17,12 +17,14 @@ def to_solid(vertices: np.ndarray, faces: np.ndarray, *, double: bool = True) ->
     (`Mesh`), which certification and the topology check use. Check `.status()` for
     whether manifold3d accepted the mesh.
     """
+    # manifold3d takes writeable arrays only: a read-only one (`load_mesh`'s) is copied
+    need = ["C_CONTIGUOUS", "WRITEABLE"]
     if double:
-        mesh = m3.Mesh64(vert_properties=np.ascontiguousarray(vertices, np.float64),
-                         tri_verts=np.ascontiguousarray(faces, np.uint64))
+        mesh = m3.Mesh64(vert_properties=np.require(vertices, np.float64, need),
+                         tri_verts=np.require(faces, np.uint64, need))
     else:
-        mesh = m3.Mesh(vert_properties=np.ascontiguousarray(vertices, np.float32),
-                       tri_verts=np.ascontiguousarray(faces, np.uint32))
+        mesh = m3.Mesh(vert_properties=np.require(vertices, np.float32, need),
+                       tri_verts=np.require(faces, np.uint32, need))
     return m3.Manifold(mesh)
 
 

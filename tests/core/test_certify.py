@@ -9,7 +9,7 @@ import trimesh
 
 from jampacked.core import certify, exact_checks
 from jampacked.core.certify import Certifier
-from jampacked.core.container import build_container
+from jampacked.core.container import GRID_BAND, build_container
 from jampacked.core.kernels import sample_grid_many
 from jampacked.core.rotations import quat_to_matrix
 
@@ -49,7 +49,9 @@ def test_bounds_and_depth_match_each_objects_vertices(certifier, monkeypatch, ch
         world = certifier.vertices[typ[i]] @ m[i, :3, :3].T + m[i, :3, 3]
         np.testing.assert_allclose(lo[i], world.min(axis=0), rtol=0, atol=1e-12)
         np.testing.assert_allclose(hi[i], world.max(axis=0), rtol=0, atol=1e-12)
-        ref = sample_grid_many(g.values, g.origin, g.spacing, world).min()
+        # nodes beyond the grid's exact band read as the band's depth
+        clipped = np.minimum(g.values, GRID_BAND * g.spacing)
+        ref = sample_grid_many(clipped, g.origin, g.spacing, world).min()
         assert depth[i] == pytest.approx(ref, abs=1e-9)
 
 
@@ -338,3 +340,70 @@ def test_least_gaps_are_measured_beyond_the_checks_search(certifier):
     one[0, :3, 3] = 0.0
     assert certifier.certify(typ[:1], one, 0.1, memo=memo, ids=ids[:1]).certified
     assert certifier.least_gaps(typ[:1], one, 0.1, memo, ids[:1]) == (None, None)
+
+
+def test_an_object_pierced_by_a_wall_thinner_than_a_cell_gets_its_wall_check(monkeypatch):
+    # a cavity reached by a tunnel 0.01 wide, with grid cells of 1: the interpolant read the
+    # tunnel 0.70 deep from nodes 0.7 away, above the half-cell allowance (0.67 with the
+    # ball's edges), so the ball around the cavity skipped its wall check and was certified
+    # with 12% of it outside. The grid's lowering where surface samples see room beyond the
+    # wall catches the tunnel only where a sample lands in it (3 of 10 variants did not):
+    # without it, the nodes' true distances alone must keep the check
+    import manifold3d as m3
+
+    from jampacked.core import container
+
+    monkeypatch.setattr(container, "tighten_to_surface", lambda grid, v, f: grid)
+
+    from jampacked.core.mesh_repair import check_and_repair
+    from jampacked.core.solids import solid_arrays
+
+    cave = (m3.Manifold.sphere(2.0, 48).translate([0.5, 0.5, 0.0])
+            + m3.Manifold.cylinder(30.0, 0.005, 0.005, 12).translate([0.5, 0.5, 0.0]))
+    cv, cf = solid_arrays(m3.Manifold.cube([40.0, 40.0, 40.0], True) - cave)
+    # as `pack` loads it: the load checks accept it
+    cv, cf, volume, _ = check_and_repair(cv, cf, "container 'tunnel'", "container")
+    cont = build_container(cv, cf, volume, 1.0)
+    ball = trimesh.creation.icosphere(subdivisions=5, radius=4.0)
+    cert = Certifier(cont, [np.asarray(ball.vertices)], [np.asarray(ball.faces)],
+                     np.array([ball.volume]), np.array([ball.edges_unique_length.max()]))
+    m = np.eye(4)[None].copy()
+    m[0, :3, 3] = [0.5, 0.5, 0.0]
+    for clearance in (0.0, 0.02):
+        rep = cert.certify(np.array([0]), m, clearance=clearance)
+        assert rep.walls_checked == 1 and not rep.certified
+    assert rep.worst_outside > 0.1
+
+
+def test_a_node_beyond_the_exact_band_does_not_skip_a_wall_check():
+    # beyond GRID_BAND cells the grid holds the distance to some triangle, up to 0.7 cell
+    # deeper than the true one on Spot at 40 cells: a small ball there skipped its wall check
+    # with a clearance of 4 cells although its gap was 1.8% short
+    from importlib import resources
+
+    from jampacked.core.distance import band_distances
+    from jampacked.core.meshes import load_mesh
+    from jampacked.core.solids import outside_of, to_solid
+
+    md = load_mesh(str(resources.files("jampacked.core").joinpath(
+        "data", "default_scene", "spot.obj")), role="container")
+    v, f = np.asarray(md.vertices), np.asarray(md.faces)
+    cont = build_container(v, f, md.volume, float(np.ptp(v, axis=0).max()) / 40)
+    g = cont.grid
+    exact, _ = band_distances(v, f, g.origin, float(g.spacing),
+                              np.asarray(g.values.shape, np.int64), 1e6)
+    over = np.where(g.values > 0, g.values - exact, -np.inf)
+    node = np.array(np.unravel_index(np.argmax(over), over.shape))
+    assert over.max() > 0.3 * g.spacing  # the grid reads this node too deep
+    p = g.origin + node * g.spacing
+    ball = trimesh.creation.icosphere(subdivisions=2, radius=0.1 * g.spacing)
+    cert = Certifier(cont, [np.asarray(ball.vertices)], [np.asarray(ball.faces)],
+                     np.array([ball.volume]), np.array([ball.edges_unique_length.max()]))
+    m = np.eye(4)[None].copy()
+    m[0, :3, 3] = p
+    clearance = float(exact[tuple(node)]) - 0.05 * g.spacing  # the ball's gap falls short
+    gap = to_solid(np.asarray(ball.vertices) + p, np.asarray(ball.faces)).min_gap(
+        outside_of(v, f), 2 * clearance)
+    assert gap < clearance
+    rep = cert.certify(np.array([0]), m, clearance=clearance)
+    assert rep.walls_checked == 1 and not rep.certified
