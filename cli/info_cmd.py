@@ -10,6 +10,7 @@ from jampacked.cli.args import add_command
 from jampacked.cli.exits import EXIT_ERROR
 from jampacked.cli.reports import consoles, print_summary, warn
 from jampacked.core.packing import is_spec, load_packing, verify_sources
+from jampacked.core.packing_digest import placements_status
 
 INFO_EPILOG = """\
 examples:
@@ -41,11 +42,16 @@ def cmd_info(args: argparse.Namespace) -> int:
     print_summary(packing, out, title=f"packing {args.packing}")
     for w in packing.report.warnings:
         warn(err, w)
-    problems = verify_sources(packing)
+    problems = [f"[red]source:[/] {escape(p)}" for p in verify_sources(packing)]
+    if placements_status(packing) == "changed":
+        problems.insert(0, "[red]placements:[/] changed after the packing was certified (its "
+                        "certificate's digest no longer matches the placements, frames, "
+                        "volumes or certificate): 'jampacked export' certifies them again "
+                        "before it exports them, or pack again")
     n_files = len(packing.types) + (0 if is_spec(packing.container_path) else 1)
     if problems:
         for p in problems:
-            err.print(f"[red]source:[/] {escape(p)}", highlight=False, soft_wrap=True)
+            err.print(p, highlight=False, soft_wrap=True)
         return EXIT_ERROR
     out.print(f"sources: all {n_files} mesh files present and unchanged", highlight=False)
     return 0

@@ -150,8 +150,13 @@ def print_summary(packing: Packing, console: Console, title: str | None = None) 
                                                                                  s.stopped)
         summary.add_row("stopped early", why)
     summary.add_section()
-    summary.add_row("certified", "[green]yes[/]" if s.certified else
-                    ("[red]NO[/]" if s.certified is False else "-"))
+    if s.placements == "changed":
+        summary.add_row("certified", "[red]no longer[/]: the placements were changed after "
+                        "certification, so the figures below are for other placements "
+                        "('export' checks them again)")
+    else:
+        summary.add_row("certified", "[green]yes[/]" if s.certified else
+                        ("[red]NO[/]" if s.certified is False else "-"))
     summary.add_row("worst overlap", _num(s.worst_overlap, "{:.2e}")
                     + f"  of the smaller object (limit {_num(s.tol, '{:.0e}')})")
     summary.add_row("worst wall violation", _num(s.worst_outside, "{:.2e}")

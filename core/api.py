@@ -34,6 +34,7 @@ from .metrics import compute_metrics, equivalent_radius
 from .numba_cache import COMPILE_MESSAGE, cache_is_cold
 from .objects import ObjectType, build_type
 from .options import FidelityOverrides, PackOptions
+from .packing_digest import DIGEST, placements_digest
 from .packing_types import Packing, TypeRecord
 from .phases import Stop
 from .placement import Attempt, Snapshots, place
@@ -499,7 +500,7 @@ def _assemble(container: MeshSource, scene: _Scene, approx: _Approximation, run:
                        run.best.phase1, inputs.time_budget, stop.reason or None,
                        inputs.options.attempts.count, len(run.attempts),
                        extra_passes_ran=bool(run.best.extra_passes)))
-    return Packing(
+    packing = Packing(
         container_path=_source_name(container, scene.container),
         container_sha256=scene.container.sha256, frame_from_file=scene.frame_from_file,
         container_volume=scene.volume,
@@ -509,6 +510,9 @@ def _assemble(container: MeshSource, scene: _Scene, approx: _Approximation, run:
         type_index=typ, rotations=quat, translations=pos, scales=np.ones(len(idx)),
         inputs=inputs, report=report, seed=seed, metrics=metrics, timings=timings,
         certificate=cert)
+    if cert.get("certified") is True:  # what the certificate vouches for, to tell edits
+        packing.certificate[DIGEST] = placements_digest(packing)
+    return packing
 
 
 def _with_overrides(fid: Fidelity, overrides: FidelityOverrides) -> Fidelity:

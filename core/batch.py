@@ -28,9 +28,10 @@ from .api import pack
 from .atomic import atomic_output, refusal_advice, write_refusal
 from .batch_exports import export_scene, exports_record
 from .batch_file import SceneSpec
-from .batch_verify import DIGEST, check_done, placements_digest
+from .batch_verify import check_done
 from .errors import InputError, JampackedError
 from .options import CavityPassOptions, PackOptions
+from .packing_digest import DIGEST
 from .packing_json import save_packing
 from .packing_types import Packing
 
@@ -149,8 +150,6 @@ def run_batch(scenes: list[SceneSpec], out_dir: str | os.PathLike, client=None,
                                            message="stopped before the end; not written")
         else:
             path = scene_file(out, spec)
-            if packing.certificate.get("certified") is True:
-                packing.certificate[DIGEST] = placements_digest(packing)
             try:
                 save_packing(packing, path)
             except OSError as exc:

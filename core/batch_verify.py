@@ -1,14 +1,12 @@
 """Whether a batch scene's packing file can be trusted on a rerun (`check_done`): made for
 the scene's meshes, seed and settings, its sources unchanged, certified, its placements the
-ones certified (`placements_digest`, which `core/batch.py` records in the certificate when
-it saves a certified packing) and its numbers what its placements give. A file that fails
+ones certified (`packing_digest.placements_digest`, which every certified packing records
+in its certificate) and its numbers what its placements give. A file that fails
 is packed again, and the reason is shown.
 """
 
 from __future__ import annotations
 
-import hashlib
-import json
 import os
 from pathlib import Path
 
@@ -18,11 +16,10 @@ from .batch_file import SceneSpec
 from .errors import JampackedError
 from .metrics import compute_metrics
 from .options import CavityPassOptions
-from .packing_json import load_packing, to_jsonable, verify_sources
-from .packing_types import Packing, is_spec
+from .packing_digest import DIGEST, placements_digest
+from .packing_json import load_packing, verify_sources
+from .packing_types import Packing
 
-#: the certificate's key for `placements_digest`
-DIGEST = "placements_sha256"
 #: the numbers a skipped file's metrics must hold, recomputed from its placements
 CHECKED_METRICS = ("count", "count_per_type", "density", "tvd", "nni_per_type", "nni_mean",
                    "shares")
@@ -52,7 +49,7 @@ def check_done(spec: SceneSpec, path: Path) -> tuple[Packing | None, str]:
     recorded = p.certificate.get(DIGEST)
     if not isinstance(recorded, str):
         return None, ("its certificate records no digest of the certified placements (written "
-                      "by 'jampacked pack' or an older jampacked), so they cannot be verified")
+                      "by an older jampacked), so they cannot be verified")
     if recorded != placements_digest(p):
         return None, ("its placements, frames, volumes or certificate were changed after it "
                       "was certified (the certificate's digest no longer matches)")
@@ -60,34 +57,6 @@ def check_done(spec: SceneSpec, path: Path) -> tuple[Packing | None, str]:
     if wrong:
         return None, wrong
     return p, ""
-
-
-def placements_digest(p: Packing) -> str:
-    """sha256 (hex) over what a packing's certificate vouches for: the placements (type
-    index, rotation, translation, scale), the container's identity (sha256 or box spec),
-    frame and volume, each type's sha256, local frame and volume, and the certificate's
-    own values (without the digest). Floats hash as their exact binary64 value, which the
-    packing JSON keeps, so a saved and loaded packing has the digest it was saved with."""
-    h = hashlib.sha256(b"jampacked.placements.1\0")
-
-    def add(a, dtype: str) -> None:
-        a = np.ascontiguousarray(np.asarray(a, dtype=dtype))
-        h.update(repr(a.shape).encode() + a.tobytes())
-
-    container = p.container_sha256 if p.container_sha256 or not is_spec(p.container_path) \
-        else p.container_path
-    head = {"container": container, "types": [t.sha256 for t in p.types],
-            "certificate": {k: v for k, v in to_jsonable(p.certificate, "certificate").items()
-                            if k != DIGEST}}
-    h.update(json.dumps(head, sort_keys=True, allow_nan=False).encode() + b"\0")
-    add(p.frame_from_file, "<f8")
-    add([p.container_volume, *(t.volume for t in p.types)], "<f8")
-    add([t.local_from_file for t in p.types], "<f8")
-    add(p.type_index, "<i8")
-    add(p.rotations, "<f8")
-    add(p.translations, "<f8")
-    add(p.scales, "<f8")
-    return h.hexdigest()
 
 
 def _wrong_metric(p: Packing) -> str:

@@ -15,6 +15,7 @@ from typing import Any
 import numpy as np
 
 from .fidelity import Fidelity
+from .packing_digest import placements_status
 from .packing_types import Packing
 from .report import AttemptSummary, RepairStats
 
@@ -91,6 +92,9 @@ class PackingSummary:
     kept_attempt: int | None = None  # index of the densest attempt
     phases: list[PhaseLine] = field(default_factory=list)
     total_seconds: float | None = None
+    # "as certified", "changed" (edited after certification: the certificate no longer
+    # applies) or "unrecorded" (`packing_digest.placements_status`)
+    placements: str = "unrecorded"
 
 
 def summarize(packing: Packing) -> PackingSummary:
@@ -127,7 +131,8 @@ def summarize(packing: Packing) -> PackingSummary:
         pairs_checked=_count(cert.get("pairs_checked")),
         walls_checked=_count(cert.get("walls_checked")),
         repair=run.repair if repaired else None, attempts=attempts, kept_attempt=kept,
-        phases=_phase_lines(m, timings, total), total_seconds=number(timings.get("total")))
+        phases=_phase_lines(m, timings, total), total_seconds=number(timings.get("total")),
+        placements=placements_status(packing))
 
 
 def _phase_lines(m: dict, timings: dict, total: int) -> list[PhaseLine]:

@@ -29,6 +29,7 @@ import numpy as np
 from jampacked.core.errors import Cancelled, InputError, MeshError
 from jampacked.core.meshes import MeshData
 from jampacked.core.packing import Packing, is_spec
+from jampacked.core.packing_digest import placements_status
 from jampacked.core.packing_json import load_packing
 from jampacked.core.solids import solid_arrays
 
@@ -39,6 +40,7 @@ from .mesh_write import Instances, write_format
 from .openings import drain_cover, solid_boxes
 from .options import ExportOptions, check_scale, print_size_warning, rotate_axis, up_rotation
 from .parts import require_gap, separate_parts
+from .recertify import certify_edited
 from .report import ExportReport
 from .scene import PlacedScene, load_sources, packing_clearance, place, smallest_object
 from .union import clean_bodies, crossing_pairs, union_arrays
@@ -114,6 +116,10 @@ def export_packing(packing: Packing | str | os.PathLike,
     out = ExportReport(mode=options.mode, paths=paths, bodies=0, objects=packing.n,
                        triangles=0, clearance=clearance)
     scene = place(packing, container, types, source)
+    if placements_status(packing) == "changed":
+        report(0.01, "the packing was changed after it was certified: certifying it again")
+        out.warnings.append(certify_edited(packing, scene, clearance, source))
+        check_cancel()
     check_scale(options, scene.hi - scene.lo, smallest_object(packing))
     out.warnings += print_size_warning(scene.hi - scene.lo)
     scene.make_type_solids(packing, options.resolution)

@@ -184,6 +184,7 @@ def test_info_gives_the_least_gaps_or_says_none_came_near(packed, capsys):
     d, out, *_ = packed
     doc = json.loads(out.read_text())
     doc["certificate"].update(clearance=0.3, min_pair_gap=0.3125, min_wall_gap=None)
+    del doc["certificate"]["placements_sha256"]  # as an older jampacked wrote it
     edited = d / "gaps.json"
     edited.write_text(json.dumps(doc))
     assert main(["info", str(edited)]) == 0
@@ -202,6 +203,24 @@ def test_info_reports_changed_source(packed, capsys):
     assert main(["info", str(edited)]) == 1
     err = capsys.readouterr().err
     assert "polytope1" in err and "changed" in err
+
+
+def test_info_says_when_the_placements_changed_after_certification(packed, capsys):
+    # an edited packing still read "certified: yes" with its old figures
+    d, out, *_ = packed
+    doc = json.loads(out.read_text())
+    doc["placements"][0]["translation"][0] += 0.5
+    doc["placements"][0]["matrix"][0][3] += 0.5
+    edited = d / "moved.json"
+    edited.write_text(json.dumps(doc))
+    assert main(["info", str(edited)]) == 1
+    captured = capsys.readouterr()
+    rows = {line.split("│")[1].strip(): line.split("│")[2].strip()
+            for line in captured.out.splitlines() if line.count("│") >= 3}
+    assert rows["certified"].startswith("no longer")
+    assert "placements: changed after the packing was certified" in " ".join(
+        captured.err.split())
+    assert main(["info", str(out)]) == 0  # the file as written
 
 
 def test_ctrl_c_saves_best_certified_packing(tmp_path, monkeypatch, capsys):

@@ -1,0 +1,57 @@
+"""Whether a packing's placements are the ones its certificate vouches for.
+
+Every certified packing records `placements_digest` in its certificate (key DIGEST) when it
+is made; a packing file whose placements, frames, volumes or certificate were changed since
+no longer matches it (`placements_status`), and its certificate then says nothing about it.
+"""
+
+from __future__ import annotations
+
+import hashlib
+import json
+
+import numpy as np
+
+from .packing_json import to_jsonable
+from .packing_types import Packing, is_spec
+
+#: the certificate's key for `placements_digest`
+DIGEST = "placements_sha256"
+
+
+def placements_digest(p: Packing) -> str:
+    """sha256 (hex) over what a packing's certificate vouches for: the placements (type
+    index, rotation, translation, scale), the container's identity (sha256 or box spec),
+    frame and volume, each type's sha256, local frame and volume, and the certificate's
+    own values (without the digest). Floats hash as their exact binary64 value, which the
+    packing JSON keeps, so a saved and loaded packing has the digest it was saved with."""
+    h = hashlib.sha256(b"jampacked.placements.1\0")
+
+    def add(a, dtype: str) -> None:
+        a = np.ascontiguousarray(np.asarray(a, dtype=dtype))
+        h.update(repr(a.shape).encode() + a.tobytes())
+
+    container = p.container_sha256 if p.container_sha256 or not is_spec(p.container_path) \
+        else p.container_path
+    head = {"container": container, "types": [t.sha256 for t in p.types],
+            "certificate": {k: v for k, v in to_jsonable(p.certificate, "certificate").items()
+                            if k != DIGEST}}
+    h.update(json.dumps(head, sort_keys=True, allow_nan=False).encode() + b"\0")
+    add(p.frame_from_file, "<f8")
+    add([p.container_volume, *(t.volume for t in p.types)], "<f8")
+    add([t.local_from_file for t in p.types], "<f8")
+    add(p.type_index, "<i8")
+    add(p.rotations, "<f8")
+    add(p.translations, "<f8")
+    add(p.scales, "<f8")
+    return h.hexdigest()
+
+
+def placements_status(p: Packing) -> str:
+    """"as certified" (the certificate records this packing's digest), "changed" (it
+    records another: the packing was edited after it was certified), or "unrecorded" (no
+    digest: not certified, or written by an older jampacked)."""
+    recorded = p.certificate.get(DIGEST) if isinstance(p.certificate, dict) else None
+    if not isinstance(recorded, str):
+        return "unrecorded"
+    return "as certified" if recorded == placements_digest(p) else "changed"

@@ -1,0 +1,78 @@
+"""An export of a packing edited after it was certified certifies it again first
+(`export/recertify.py`)."""
+
+from __future__ import annotations
+
+import json
+
+import pytest
+from testdata import mesh_path
+
+from jampacked.core.api import pack
+from jampacked.core.errors import InputError
+from jampacked.core.packing_digest import DIGEST, placements_status
+from jampacked.core.packing_json import load_packing, save_packing
+from jampacked.export.assemble import export_packing
+
+LEMON = mesh_path("fruit/ycb_lowpoly/014_lemon.obj")
+
+
+@pytest.fixture(scope="module")
+def packed(tmp_path_factory):
+    d = tmp_path_factory.mktemp("recertify")
+    p = pack("box:30x30x30", [str(LEMON)], type_scale=300.0, seed=1)
+    assert p.n >= 3 and p.certificate["certified"]
+    path = d / "packing.json"
+    save_packing(p, path)
+    return d, path
+
+
+def _edited(d, path, name, edit):
+    doc = json.loads(path.read_text())
+    edit(doc)
+    out = d / f"{name}.json"
+    out.write_text(json.dumps(doc))
+    return out
+
+
+def _onto_the_next(doc):
+    # object 0 put where object 1 is
+    p0, p1 = doc["placements"][0], doc["placements"][1]
+    p0["translation"] = list(p1["translation"])
+    for r in range(3):
+        p0["matrix"][r][3] = p1["translation"][r]
+
+
+def test_a_packing_records_the_digest_of_what_it_certified(packed):
+    d, path = packed
+    p = load_packing(path)
+    assert isinstance(p.certificate[DIGEST], str)
+    assert placements_status(p) == "as certified"
+    assert placements_status(load_packing(_edited(d, path, "moved", _onto_the_next))) \
+        == "changed"
+
+
+def test_an_edit_that_makes_objects_overlap_is_refused_by_name(packed, tmp_path):
+    # the export wrote a valid union of two lemons in one place, as if certified
+    d, path = packed
+    edited = _edited(d, path, "overlap", _onto_the_next)
+    with pytest.raises(InputError, match=r"changed after it was certified.*object 0 "
+                       r"\(014_lemon\) and object 1 \(014_lemon\)") as err:
+        export_packing(edited, tmp_path / "out.stl")
+    assert "Undo the edit, or pack again" in str(err.value)
+    assert not (tmp_path / "out.stl").exists()
+
+
+def test_an_edit_that_keeps_the_packing_sound_exports_with_a_note(packed, tmp_path):
+    # removing objects leaves the rest as certified: checked again, then exported
+    d, path = packed
+
+    def cut(doc):
+        doc["placements"] = doc["placements"][:2]
+
+    edited = _edited(d, path, "cut", cut)
+    rep = export_packing(edited, tmp_path / "out.stl")
+    assert rep.objects == 2 and rep.bodies >= 1
+    assert any("certified again before export" in w for w in rep.warnings)
+    rep = export_packing(path, tmp_path / "whole.stl")  # as written: no note, no check
+    assert not any("certified again" in w for w in rep.warnings)
