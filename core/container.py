@@ -11,11 +11,10 @@ from dataclasses import dataclass
 import numpy as np
 
 from .distance import DistanceGrid, distance_grid, min_pyramid
+from .grid_size import finest_spacing
 from .kernels import sample_grid_many
 from .mesh_geometry import face_areas2, sample_surface
 
-#: grid cells across the container's largest extent are capped to keep memory and time sane
-MAX_CELLS_PER_AXIS = 220
 #: lattice points `interior_points` tests at a time
 SLAB_POINTS = 1 << 20
 #: surface samples per cell face's area (spacing^2) that `tighten_to_surface` tests, and
@@ -52,8 +51,7 @@ def build_container(vertices: np.ndarray, faces: np.ndarray, volume: float,
                     spacing: float) -> Container:
     """Distance grid of the container at about `spacing` (coarsened if too many cells)."""
     vertices = np.ascontiguousarray(vertices, np.float64)
-    extent = float(np.ptp(vertices, axis=0).max())
-    spacing = max(float(spacing), extent / MAX_CELLS_PER_AXIS)
+    spacing = max(float(spacing), finest_spacing(np.ptp(vertices, axis=0)))
     grid = tighten_to_surface(distance_grid(vertices, faces, spacing, pad=2 * spacing,
                                               band=GRID_BAND),
                               vertices, faces)

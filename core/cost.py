@@ -19,6 +19,7 @@ from dataclasses import dataclass
 import numpy as np
 
 from .errors import InputError, PackingError
+from .grid_size import finest_spacing
 
 #: lengths (container units) outside this window are refused: below it the solver's absolute
 #: tolerances (1e-12) stop being negligible; above it nothing overflows yet (a cube's volume
@@ -35,9 +36,6 @@ BYTES_PER_OBJECT = 600
 BYTES_PER_LATTICE_POINT = 100
 #: bytes per node of the container's distance grid while it is built
 BYTES_PER_GRID_NODE = 100
-#: the container grid's cap (`container.MAX_CELLS_PER_AXIS`), repeated to keep this module
-#: free of the numba kernels that module imports
-GRID_CELLS_CAP = 220
 #: fraction of the machine's memory a request may plan to use
 MEMORY_FRACTION = 0.8
 
@@ -171,7 +169,7 @@ def estimate_cost(container_extents: np.ndarray, container_volume: float,
     finest = phase2_spacing * min([1.0, *cavity_factors])
     cavity = container_volume / (s1 * finest) ** 3
     f_min = float((3.0 * volumes[shares > 0].min() / (4.0 * math.pi)) ** (1.0 / 3.0))
-    h = max(f_min / container_cells, float(ext.max()) / GRID_CELLS_CAP)
+    h = max(f_min / container_cells, finest_spacing(ext))
     nodes = float(np.prod(ext / h + 8.0))  # padding and the band on both sides
     memory = (nodes * BYTES_PER_GRID_NODE + full * BYTES_PER_OBJECT
               + max(phase1, cavity) * BYTES_PER_LATTICE_POINT)

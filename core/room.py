@@ -13,9 +13,10 @@ from collections.abc import Sequence
 
 import numpy as np
 
-from .container import MAX_CELLS_PER_AXIS, Container, build_container
+from .container import Container, build_container
 from .cost import TypeSize
 from .errors import PackingError
+from .grid_size import finest_spacing
 from .margins import Margins
 from .mesh_geometry import inner_room
 from .meshes import MeshData
@@ -36,7 +37,7 @@ def measured_depth(vertices: np.ndarray, faces: np.ndarray, volume: float,
     and is coarser than the container when they are far larger: its nodes may all lie
     outside, or a thin tray's few). vertices (V, 3), faces (F, 3): the container mesh."""
     extents = np.ptp(vertices, axis=0)
-    spacing = max(float(extents.min()) / DEPTH_CELLS, float(extents.max()) / MAX_DEPTH_CELLS)
+    spacing = max(float(extents.min()) / DEPTH_CELLS, finest_spacing(extents, MAX_DEPTH_CELLS))
     if cont.grid.spacing <= spacing:
         return float(cont.grid.values.max()), cont.grid.spacing
     fine = build_container(vertices, faces, volume, spacing)
@@ -150,7 +151,7 @@ def nothing_placed_message(depth: float, objtypes: list[ObjectType], margins: Ma
     # a finer preset refines the objects' approximation, and the container grid and the
     # margins unless the grid is at its cap already
     size = float(np.ptp(vertices, axis=0).max())
-    capped = spacing * MAX_CELLS_PER_AXIS >= size * (1 - 1e-9)
+    capped = spacing <= finest_spacing(np.ptp(vertices, axis=0)) * (1 + 1e-9)
     useful = depth >= total or (depth >= room + clearance and not capped)
     finer = ("Try --fidelity high / fidelity='high' (finer grids, smaller margins), or "
              if fidelity != "high" and useful else "")
