@@ -16,6 +16,7 @@ import numpy as np
 from .container import deepest_points, interior_points
 from .fidelity import MANY_OBJECTS
 from .kernels import sample_grid_many
+from .lie_flat import flat_quaternion
 from .metrics import best_tvd, density, equivalent_radius, tvd_of_counts
 from .report import PhaseStats
 from .rotations import random_quaternions
@@ -252,6 +253,9 @@ def phase1(solver: Solver, shares: np.ndarray, spacing: float, rng: np.random.Ge
             k = queue[done - 1]
         solver.s.typ[k] = t
         solver.s.margin[k] = margin[t]
+        if solver.flat[t]:
+            solver.s.quat[k] = flat_quaternion(solver.t.axes[t], solver.s.pos[k],
+                                               solver.c.grid, rng)
         if grow(solver, k, solver.s.scale[k], iters, stop, growth_steps):
             counts[t] += 1
             st.grown += 1
@@ -295,7 +299,8 @@ def phase2(solver: Solver, shares: np.ndarray, spacing: float, rng: np.random.Ge
         st.stopped = stop.reason
         return st
     table = solver.t
-    f = equivalent_radius(table.volume)
+    # a type that fits only lying flat needs its half thickness of room, not its radius
+    f = np.where(solver.flat, table.half_extents[:, 2], equivalent_radius(table.volume))
     # libm's log and exp, as equivalent_radius's cube root: numpy's differ on AVX-512 CPUs
     logs = np.fromiter(map(math.log, table.volume.tolist()), np.float64, len(table.volume))
     vbar = math.exp(float(np.sum(shares * logs)))
@@ -346,6 +351,8 @@ def phase2(solver: Solver, shares: np.ndarray, spacing: float, rng: np.random.Ge
                                          replace=False))
         for t in tries:
             q = random_quaternions(rng, 1)[0]
+            if solver.flat[t]:
+                q = flat_quaternion(table.axes[t], p, solver.c.grid, rng)
             # steps below the free radius are collision free: start growing there (dist
             # is already less the clearance: `Solver.free_distances`)
             room = (dist - 2 * margin[t]) / table.radius[t]

@@ -1,0 +1,84 @@
+"""Types that fit the container only lying flat start lying flat.
+
+A type whose middle half extent (along its principal axes) exceeds the container's deepest
+interior distance fits nowhere across the container's thin direction: a 20 x 20 x 1 plate in
+a 2 mm slab, a tile in a thin frame. Drawn at a random rotation it almost never grows, and
+the solver's rotation does not turn it flat in time (such plates needed a slab 2.5 times
+their thickness: docs/notes-robustness.md). Such a type is inserted with its thinnest axis
+along the container's thinnest direction at the point and its longest along the roomiest,
+up to the frame's symmetries (drawn at random). Every other type keeps its random rotation,
+so scenes without such a type pack as before.
+
+Frames: a type's local frame; the container frame, container units.
+"""
+
+from __future__ import annotations
+
+import numpy as np
+
+from .distance import DistanceGrid
+from .kernels import sample_grid_many
+from .rotations import matrix_to_quat
+
+#: directions the container's room at a point is probed along (one of each opposite pair)
+_PROBES = np.array([d for d in np.ndindex(3, 3, 3) if d > (1, 1, 1)], np.float64) - 1.0
+_PROBES /= np.linalg.norm(_PROBES, axis=1, keepdims=True)
+
+
+def principal_frame(vertices: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+    """A mesh's principal axes (3, 3), columns longest first, right-handed, and its half
+    extents (3,) along them, about the middle of its extent (local frame)."""
+    v = np.asarray(vertices, np.float64)
+    centred = v - v.mean(axis=0)
+    _, vecs = np.linalg.eigh(centred.T @ centred)
+    axes = vecs[:, ::-1].copy()  # largest spread first
+    if np.linalg.det(axes) < 0:
+        axes[:, 2] *= -1.0
+    along = v @ axes
+    half = 0.5 * (along.max(axis=0) - along.min(axis=0))
+    order = np.argsort(-half, kind="stable")
+    axes, half = axes[:, order], half[order]
+    if np.linalg.det(axes) < 0:
+        axes[:, 2] *= -1.0
+    return axes, half
+
+
+def flat_only(half_extents: np.ndarray, depth: float) -> np.ndarray:
+    """(T,) whether each type (half extents (T, 3), longest first) fits the container,
+    ``depth`` deep at its deepest, only lying flat."""
+    return np.asarray(half_extents, np.float64)[:, 1] > depth
+
+
+def room_frame(grid: DistanceGrid, p: np.ndarray) -> np.ndarray:
+    """The container's directions at point p (3,), columns roomiest first and thinnest
+    last (right-handed): the room along a direction is the grid's depth at p plus and minus
+    twice p's depth along it, which is least across a slab or a tube."""
+    depth = max(float(sample_grid_many(grid.values, grid.origin, grid.spacing,
+                                       p[None])[0]), grid.spacing)
+    reach = 2.0 * depth
+
+    def room(dirs: np.ndarray) -> np.ndarray:
+        probes = np.concatenate([p + reach * dirs, p - reach * dirs])
+        d = sample_grid_many(grid.values, grid.origin, grid.spacing, probes)
+        return d[: len(dirs)] + d[len(dirs):]
+
+    thin = _PROBES[int(np.argmin(room(_PROBES)))]
+    # the roomiest of 12 directions across the thin one
+    u = np.cross(thin, [1.0, 0.0, 0.0] if abs(thin[0]) < 0.9 else [0.0, 1.0, 0.0])
+    u /= np.linalg.norm(u)
+    w = np.cross(thin, u)
+    angles = np.arange(12) * (np.pi / 12)
+    ring = np.cos(angles)[:, None] * u + np.sin(angles)[:, None] * w
+    long = ring[int(np.argmax(room(ring)))]
+    frame = np.stack([long, np.cross(thin, long), thin], axis=1)
+    return frame
+
+
+def flat_quaternion(type_axes: np.ndarray, p: np.ndarray, grid: DistanceGrid,
+                    rng: np.random.Generator) -> np.ndarray:
+    """(4,) rotation (w, x, y, z) taking a type's principal axes (3, 3) onto the
+    container's room frame at p, with one of the four turns that keep it (random)."""
+    flips = np.array([[1, 1, 1], [-1, -1, 1], [-1, 1, -1], [1, -1, -1]], np.float64)
+    s = flips[int(rng.integers(4))]
+    r = room_frame(grid, p) @ np.diag(s) @ type_axes.T
+    return matrix_to_quat(r[None])[0]

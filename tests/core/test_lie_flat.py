@@ -1,0 +1,52 @@
+"""Types that fit only lying flat start lying flat (`core/lie_flat.py`)."""
+
+from __future__ import annotations
+
+import numpy as np
+import trimesh
+
+from jampacked.core.api import pack
+from jampacked.core.container import build_container
+from jampacked.core.lie_flat import flat_only, flat_quaternion, principal_frame, room_frame
+from jampacked.core.rotations import quat_to_matrix
+
+
+def test_principal_frame_is_right_handed_and_longest_first():
+    box = trimesh.creation.box(extents=(2.0, 20.0, 10.0))
+    turn = trimesh.transformations.rotation_matrix(0.3, [1.0, 2.0, 0.5])
+    v = trimesh.transform_points(box.vertices, turn)
+    axes, half = principal_frame(v)
+    np.testing.assert_allclose(half, [10.0, 5.0, 1.0], atol=1e-9)
+    assert np.linalg.det(axes) > 0.999
+    # the thinnest axis is the box's x turned
+    assert abs(float(axes[:, 2] @ turn[:3, 0])) > 0.999999
+
+
+def test_only_a_type_wider_than_the_container_is_deep_is_flat_only():
+    half = np.array([[10.0, 10.0, 0.5], [10.0, 0.5, 0.5], [3.0, 2.5, 1.0]])
+    assert flat_only(half, 2.0).tolist() == [True, False, True]
+    assert flat_only(half, 5.0).tolist() == [True, False, False]
+
+
+def test_the_room_frame_of_a_slab_is_thinnest_across_it():
+    slab = trimesh.creation.box(extents=(60.0, 40.0, 2.0))
+    cont = build_container(slab.vertices, slab.faces, float(slab.volume), 0.2)
+    rng = np.random.default_rng(1)
+    for p in ([0.0, 0.0, 0.0], [10.0, -5.0, 0.3], [25.0, 12.0, -0.4]):
+        frame = room_frame(cont.grid, np.array(p))
+        assert abs(frame[2, 2]) > 0.99 and np.linalg.det(frame) > 0.999
+        plate_axes = np.eye(3)  # a plate's principal axes: its thin one is z
+        r = quat_to_matrix(flat_quaternion(plate_axes, np.array(p), cont.grid, rng)[None])[0]
+        assert abs(r[2, 2]) > 0.99  # lying flat
+
+
+def test_plates_that_fit_a_slab_only_lying_flat_are_placed(tmp_path):
+    # 20 x 20 x 1 plates in a 2 mm slab: every candidate point was judged by the plates'
+    # equivalent radius (4.6, deeper than the slab), none was tried, and the run ended in
+    # "no object could be placed"; slabs up to 2.5 times their thickness took none
+    plate = trimesh.creation.box(extents=(20.0, 20.0, 1.0))
+    plate.export(tmp_path / "plate.stl")
+    p = pack("box:45x45x2", [str(tmp_path / "plate.stl")], seed=1, time_budget=3.0)
+    assert p.n >= 2 and p.certificate["certified"]
+    r = quat_to_matrix(p.rotations)
+    assert np.all(np.abs(r[:, 2, 2]) > 0.99)  # each lies flat
