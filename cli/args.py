@@ -60,7 +60,7 @@ def positive_float(text: str) -> float:
 def non_negative_float(text: str) -> float:
     """A finite number >= 0."""
     return _number(text, float, lambda v: math.isfinite(v) and v >= 0, "must be a number",
-                   "must be 0 or more")
+                   "must be a finite number, 0 or more")
 
 
 def fraction(text: str) -> float:

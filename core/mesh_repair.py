@@ -494,10 +494,18 @@ def _require_one_body(vertices: np.ndarray, faces: np.ndarray, labels: np.ndarra
             "body as its own file), or make them one space (a boolean union where they "
             "overlap; parts apart need a channel joining them)"
         )
+    elif nested:
+        fix = (
+            "an object type must be one solid: for a hollow object delete the inner surface "
+            "(it then packs and prints solid); for a part inside a part join them with a "
+            "boolean union (Blender: Boolean modifier, Union)"
+        )
     else:
         fix = (
-            "an object type must be one solid: join the parts with a boolean union "
-            "(Blender: Boolean modifier, Union), or export each body as its own file"
+            "an object type must be one solid: join the parts where they touch with a "
+            "boolean union (Blender: Boolean modifier, Union), parts apart with a piece "
+            "between them (a union alone leaves them apart), or export each body as its "
+            "own file and pack them as separate types"
         )
     raise MeshError(
         f"{cap} has {n_comp} separate bodies (volumes {vols}){nested_text}. Fix: {fix}."

@@ -158,7 +158,7 @@ def nothing_placed_message(depth: float, objtypes: list[ObjectType], margins: Ma
     larger = ""
     if depth > 0:
         factor = total / depth * 1.001
-        larger = (f" by at least {(factor - 1) * 100:.2g}% (--container-size "
+        larger = (f" by at least {(factor - 1) * 100:.3g}% (--container-size "
                   f"{size * factor:.4g} / container_size)" if factor > 1 else "")
     if not larger:
         larger = " (--container-size / container_size)"

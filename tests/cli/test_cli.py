@@ -375,7 +375,9 @@ def test_bad_numbers_are_usage_errors(tmp_path, capsys):
                                   "than 0"), ("--attempts", "0", "must be 1 or more"),
                                  ("--time-budget", "x", "must be a number"),
                                  ("--time-budget", "inf", "must be a finite number greater "
-                                  "than 0")):
+                                  "than 0"),
+                                 # inf was "must be 0 or more"
+                                 ("--clearance", "inf", "must be a finite number, 0 or more")):
         rc = main(["pack", "box:30x30x30", "--type", str(P1), option, value,
                    "-o", str(tmp_path / "p.json")])
         err = capsys.readouterr().err

@@ -302,6 +302,16 @@ def test_two_bodies_is_an_error(tmp_path):
         load_mesh(write_obj(tmp_path / "hollow.obj", nested, faces), role="container")
     assert "2 separate bodies" in str(info.value) and "inside another" in str(info.value)
     assert "delete the extra surfaces" in str(info.value)
+    # as an object: a union keeps the void, so the advice is to delete the inner surface
+    with pytest.raises(MeshError) as info:
+        load_mesh(write_obj(tmp_path / "hollow.obj", nested, faces), role="object")
+    msg = " ".join(str(info.value).split())
+    assert "delete the inner surface" in msg
+    # two objects apart (a pair of cherries): a union alone leaves two bodies
+    with pytest.raises(MeshError) as info:
+        load_mesh(path, role="object")
+    msg = " ".join(str(info.value).split())
+    assert "a union alone leaves them apart" in msg and "separate types" in msg
 
 
 def test_non_orientable_is_an_error(tmp_path):
