@@ -48,7 +48,7 @@ from .room import (
     tight_fit_spacing,
 )
 from .rotations import matrix_to_quat, quat_to_matrix
-from .run_warnings import run_warnings
+from .run_warnings import run_warnings, slow_certification
 from .solver import PackState, Solver, SolverParams, TypeTable
 from .spheres import sphere_coverage
 from .threads import ThreadTuner
@@ -499,7 +499,9 @@ def _assemble(container: MeshSource, scene: _Scene, approx: _Approximation, run:
                        float(metrics["tvd"]), inputs.options.cavity.max_tvd,
                        run.best.phase1, inputs.time_budget, stop.reason or None,
                        inputs.options.attempts.count, len(run.attempts),
-                       extra_passes_ran=bool(run.best.extra_passes)))
+                       extra_passes_ran=bool(run.best.extra_passes))
+        + slow_certification(timings["certify"], inputs.time_budget,
+                             [t.name for t in objtypes], [len(t.faces) for t in objtypes]))
     packing = Packing(
         container_path=_source_name(container, scene.container),
         container_sha256=scene.container.sha256, frame_from_file=scene.frame_from_file,

@@ -62,3 +62,27 @@ def run_warnings(names: Sequence[str], shares: np.ndarray, counts: np.ndarray, t
             "budget ended; the same attempts give the same packing only when all of them "
             "run. Give a larger --time-budget / time_budget, or none.")
     return out
+
+
+#: certification longer than this (s) and than the time budget, with a type of more faces
+#: than HEAVY_FACES, gets a word on the faces
+SLOW_CERTIFY = 30.0
+HEAVY_FACES = 20_000
+
+
+def slow_certification(seconds: float, time_budget: float | None, names: Sequence[str],
+                       faces: Sequence[int]) -> list[str]:
+    """A warning when certification (``seconds``) ran long beside the time budget, which
+    bounds placement only, and a type's mesh (``faces`` per type) is what makes the exact
+    checks slow."""
+    if seconds <= max(SLOW_CERTIFY, time_budget or 0.0) or not len(faces):
+        return []
+    heavy = int(np.argmax(faces))
+    if faces[heavy] <= HEAVY_FACES:
+        return []
+    budget = (f" (the time budget, {time_budget:g} s, bounds placement only)"
+              if time_budget else "")
+    return [f"certification took {seconds:.0f} s{budget}: type {names[heavy]} has "
+            f"{faces[heavy]:,} faces, and the exact checks' time grows with them. A copy "
+            "simplified to a few thousand faces (Blender: Decimate modifier) certifies far "
+            "faster and looks the same in print at most sizes."]

@@ -10,7 +10,7 @@ import trimesh
 from jampacked.core import placement
 from jampacked.core.api import pack
 from jampacked.core.report import PhaseStats
-from jampacked.core.run_warnings import run_warnings
+from jampacked.core.run_warnings import run_warnings, slow_certification
 
 NAMES = ["apple", "plum"]
 HALF = np.array([0.5, 0.5])
@@ -93,3 +93,31 @@ def test_pack_warns_when_a_type_fits_nowhere(tmp_path):
     assert p.certificate["certified"]
     assert np.all(p.type_index == 1)
     assert any(w.startswith("type rod (share 50%) was not placed") for w in p.report.warnings)
+
+
+def test_a_long_certification_of_a_heavy_mesh_names_its_faces():
+    # 155 s of certification after a 20 s budget, with an 81,920-face sphere, said nothing
+    warned = slow_certification(155.0, 20.0, ["cube", "sphere"], [12, 81_920])
+    assert len(warned) == 1
+    assert "sphere has 81,920 faces" in warned[0] and "20 s" in warned[0]
+    assert slow_certification(155.0, 20.0, ["cube", "ball"], [12, 1_280]) == []  # light
+    assert slow_certification(25.0, None, ["sphere"], [81_920]) == []  # quick
+    assert slow_certification(100.0, 300.0, ["sphere"], [81_920]) == []  # within the budget
+
+
+def test_pack_passes_its_certification_time_and_faces(tmp_path, monkeypatch):
+    import jampacked.core.api as api
+
+    seen = {}
+
+    def spy(seconds, budget, names, faces):
+        seen.update(seconds=seconds, budget=budget, names=list(names), faces=list(faces))
+        return ["spied"]
+
+    monkeypatch.setattr(api, "slow_certification", spy)
+    ball = tmp_path / "ball.stl"
+    trimesh.creation.icosphere(2, radius=2.0).export(ball)
+    p = pack("box:14x14x14", [str(ball)], seed=1, time_budget=2.0)
+    assert "spied" in p.report.warnings
+    assert seen["budget"] == 2.0 and seen["faces"] == [320] and seen["names"] == ["ball"]
+    assert seen["seconds"] == p.timings["certify"]
