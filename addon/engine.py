@@ -162,6 +162,7 @@ def pack_triangles(container: Triangles, types: Sequence[Triangles], shares: Seq
     """
     from jampacked.core.api import pack
     from jampacked.core.options import CavityPassOptions, PackOptions
+    from jampacked.core.packing_digest import record_digest
 
     progress(0.0, f"checking {container.name}")
     cmesh = container.mesh_data("container")
@@ -173,6 +174,7 @@ def pack_triangles(container: Triangles, types: Sequence[Triangles], shares: Seq
                    options=None if mix_tolerance is None
                    else PackOptions(cavity=CavityPassOptions(max_tvd=mix_tolerance)))
     packing.container_path = CONTAINER_SPEC + container.name
+    record_digest(packing)  # the certified packing under the container's Blender name
     return PackOutcome(packing=packing, json_text=packing_to_json(packing))
 
 
@@ -188,8 +190,11 @@ def scaled(packing: Packing, container: Triangles, types: Sequence[Triangles],
     """
     import dataclasses
 
+    from jampacked.core.packing_digest import placements_status, record_digest
+
     s = np.diag([k, k, k, 1.0])
     s_inv = np.diag([1.0 / k, 1.0 / k, 1.0 / k, 1.0])
+    certified = placements_status(packing) == "as certified"
     out = copy.deepcopy(packing)
     out.translations = packing.translations * k
     out.frame_from_file = s @ packing.frame_from_file @ s_inv
@@ -198,6 +203,13 @@ def scaled(packing: Packing, container: Triangles, types: Sequence[Triangles],
         rec.local_from_file = s @ rec.local_from_file @ s_inv
         rec.volume *= k ** 3
     out.inputs = dataclasses.replace(out.inputs, clearance=out.inputs.clearance * k)
+    for key in ("clearance", "min_pair_gap", "min_wall_gap"):
+        if isinstance(out.certificate.get(key), int | float):
+            out.certificate[key] *= k
+    out.report = dataclasses.replace(
+        out.report, container_grid_spacing=out.report.container_grid_spacing * k)
+    if certified:  # the same certified packing in other units
+        record_digest(out)
 
     def length(v: float | None) -> float | None:
         return None if v is None else v * k

@@ -34,7 +34,7 @@ from .metrics import compute_metrics, equivalent_radius
 from .numba_cache import COMPILE_MESSAGE, cache_is_cold
 from .objects import ObjectType, build_type
 from .options import FidelityOverrides, PackOptions
-from .packing_digest import DIGEST, placements_digest
+from .packing_digest import record_digest
 from .packing_types import Packing, TypeRecord
 from .phases import Stop
 from .placement import Attempt, Snapshots, place
@@ -512,8 +512,7 @@ def _assemble(container: MeshSource, scene: _Scene, approx: _Approximation, run:
         type_index=typ, rotations=quat, translations=pos, scales=np.ones(len(idx)),
         inputs=inputs, report=report, seed=seed, metrics=metrics, timings=timings,
         certificate=cert)
-    if cert.get("certified") is True:  # what the certificate vouches for, to tell edits
-        packing.certificate[DIGEST] = placements_digest(packing)
+    record_digest(packing)  # what the certificate vouches for, to tell edits apart
     return packing
 
 

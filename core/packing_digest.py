@@ -47,11 +47,27 @@ def placements_digest(p: Packing) -> str:
     return h.hexdigest()
 
 
+def record_digest(p: Packing) -> None:
+    """Record in a certified packing's certificate the digest of what it vouches for (in
+    place): when it is made, and when its maker renames or rescales what was certified."""
+    if isinstance(p.certificate, dict) and p.certificate.get("certified") is True:
+        p.certificate[DIGEST] = placements_digest(p)
+
+
 def placements_status(p: Packing) -> str:
-    """"as certified" (the certificate records this packing's digest), "changed" (it
-    records another: the packing was edited after it was certified), or "unrecorded" (no
-    digest: not certified, or written by an older jampacked)."""
+    """"as certified" (the certificate records this packing's digest, and the clearance
+    its inputs ask is the one certified), "changed" (the packing was edited after it was
+    certified), or "unrecorded" (no digest: not certified, or written by an older
+    jampacked)."""
     recorded = p.certificate.get(DIGEST) if isinstance(p.certificate, dict) else None
     if not isinstance(recorded, str):
         return "unrecorded"
-    return "as certified" if recorded == placements_digest(p) else "changed"
+    if recorded != placements_digest(p):
+        return "changed"
+    # an export keeps the clearance the inputs give, which the digest does not cover
+    certified = p.certificate.get("clearance")
+    asked = p.inputs.clearance
+    if isinstance(certified, int | float) and isinstance(asked, int | float) \
+            and float(certified) != float(asked):
+        return "changed"
+    return "as certified"

@@ -359,3 +359,35 @@ def test_progress_log_is_throttled():
     assert log.line(snap(0.07)) is None
     now[0] = 2.6
     assert log.line(snap(0.07, "phase 2")) == "Jampacked packing:   7% phase 2 (2.6 s)"
+
+
+def test_a_blender_packing_stays_as_certified_through_its_name_and_units():
+    # the engine renamed the container to blender:<name> after pack() recorded the digest,
+    # and scaled() to millimetres changed every length: each unedited Blender export was
+    # certified again and said the packing had been edited
+    import trimesh
+
+    from jampacked.core.packing_digest import placements_status
+
+    engine = load_standalone("engine")
+
+    def tris(mesh, name):
+        f = np.asarray(mesh.faces, np.int64)
+        return engine.Triangles(name, np.asarray(mesh.vertices, np.float64), f,
+                                np.arange(len(f)), len(f))
+
+    box = tris(trimesh.creation.box(extents=(0.03, 0.03, 0.03)), "Cube")
+    ball = tris(trimesh.creation.icosphere(2, radius=0.004), "Ball")
+    out = engine.pack_triangles(box, [ball], [1.0], seed=1, clearance=0.0005, fidelity="low",
+                                time_budget=2.0, progress=lambda f, m: None,
+                                should_cancel=lambda: False)
+    assert out.packing.container_path == "blender:Cube" and out.packing.n > 0
+    assert placements_status(out.packing) == "as certified"
+    again = engine.packing_from_json(out.json_text)
+    assert placements_status(again) == "as certified"
+    mm, *_ = engine.scaled(again, box, [ball], engine.export_options(
+        "UNION", 0.0, "NONE", "+z", 0.7, 0.0, 0.0, 0.0, 0.0, False), 1000.0)
+    assert placements_status(mm) == "as certified"
+    assert mm.certificate["clearance"] == pytest.approx(0.5)
+    assert mm.report.container_grid_spacing == pytest.approx(
+        1000.0 * again.report.container_grid_spacing)

@@ -51,6 +51,14 @@ def test_a_packing_records_the_digest_of_what_it_certified(packed):
     assert placements_status(load_packing(_edited(d, path, "moved", _onto_the_next))) \
         == "changed"
 
+    # the inputs' clearance, which parts mode trusts, is not in the digest: a packing made
+    # without one read "as certified" with 0.5 written in
+    def clearance(doc):
+        doc["inputs"]["clearance"] = 0.5
+
+    assert placements_status(load_packing(_edited(d, path, "clearance", clearance))) \
+        == "changed"
+
 
 def test_an_edit_that_makes_objects_overlap_is_refused_by_name(packed, tmp_path):
     # the export wrote a valid union of two lemons in one place, as if certified
