@@ -14,7 +14,10 @@ Frames: a type's local frame; the container frame, container units.
 
 from __future__ import annotations
 
+from collections.abc import Sequence
+
 import numpy as np
+import trimesh
 
 from .distance import DistanceGrid
 from .kernels import sample_grid_many
@@ -26,16 +29,13 @@ _PROBES /= np.linalg.norm(_PROBES, axis=1, keepdims=True)
 
 
 def principal_frame(vertices: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
-    """A mesh's principal axes (3, 3), columns longest first, right-handed, and its half
-    extents (3,) along them, about the middle of its extent (local frame)."""
-    v = np.asarray(vertices, np.float64)
-    centred = v - v.mean(axis=0)
-    _, vecs = np.linalg.eigh(centred.T @ centred)
-    axes = vecs[:, ::-1].copy()  # largest spread first
-    if np.linalg.det(axes) < 0:
-        axes[:, 2] *= -1.0
-    along = v @ axes
-    half = 0.5 * (along.max(axis=0) - along.min(axis=0))
+    """A mesh's box axes (3, 3), columns longest first, right-handed, and its half extents
+    (3,) along them (local frame): those of its oriented bounding box (trimesh's, about the
+    smallest), which, unlike the axes of the vertices' spread, do not turn with the file
+    for a cube or a regular solid (their spread is the same in every direction)."""
+    to_box, extents = trimesh.bounds.oriented_bounds(np.asarray(vertices, np.float64))
+    axes = np.asarray(to_box, np.float64)[:3, :3].T.copy()  # box axes in the local frame
+    half = 0.5 * np.asarray(extents, np.float64)
     order = np.argsort(-half, kind="stable")
     axes, half = axes[:, order], half[order]
     if np.linalg.det(axes) < 0:
@@ -49,12 +49,33 @@ def flat_only(half_extents: np.ndarray, depth: float) -> np.ndarray:
     return np.asarray(half_extents, np.float64)[:, 1] > depth
 
 
+def flat_types(types: Sequence, radius: np.ndarray, depth: float
+               ) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+    """(T,) which of the types (each with .vertices, local frame; bounding radius (T,))
+    fit a container ``depth`` deep only lying flat, and (T, 3, 3) / (T, 3) their box axes
+    and half extents: identity and zeros for a type that can turn anywhere its bounding
+    ball fits (radius <= depth), whose box is not measured (0.3 s for an 8,000-vertex
+    scan)."""
+    n = len(types)
+    axes = np.tile(np.eye(3), (n, 1, 1))
+    half = np.zeros((n, 3))
+    for i, t in enumerate(types):
+        if radius[i] > depth:
+            axes[i], half[i] = principal_frame(t.vertices)
+    return flat_only(half, depth), axes, half
+
+
 def room_frame(grid: DistanceGrid, p: np.ndarray) -> np.ndarray:
     """The container's directions at point p (3,), columns roomiest first and thinnest
-    last (right-handed): the room along a direction is the grid's depth at p plus and minus
-    twice p's depth along it, which is least across a slab or a tube."""
-    depth = max(float(sample_grid_many(grid.values, grid.origin, grid.spacing,
-                                       p[None])[0]), grid.spacing)
+    last (right-handed). Across: the wall's normal (the grid's slope) where p is nearer one
+    wall than the others, else the direction of least room, the grid's depth at p plus and
+    minus twice p's depth along it (least across the middle of a slab or a tube). The
+    roomiest is taken the same way across that."""
+    h = grid.spacing
+    steps = np.concatenate([p + h * np.eye(3), p - h * np.eye(3), p[None]])
+    d = sample_grid_many(grid.values, grid.origin, h, steps)
+    slope = (d[:3] - d[3:6]) / (2.0 * h)
+    depth = max(float(d[6]), h)
     reach = 2.0 * depth
 
     def room(dirs: np.ndarray) -> np.ndarray:
@@ -62,7 +83,12 @@ def room_frame(grid: DistanceGrid, p: np.ndarray) -> np.ndarray:
         d = sample_grid_many(grid.values, grid.origin, grid.spacing, probes)
         return d[: len(dirs)] + d[len(dirs):]
 
-    thin = _PROBES[int(np.argmin(room(_PROBES)))]
+    if np.linalg.norm(slope) > 0.5:
+        # nearer one wall than the others: across is along the wall's normal (the probes
+        # tie there, every direction reading twice the depth)
+        thin = slope / np.linalg.norm(slope)
+    else:
+        thin = _PROBES[int(np.argmin(room(_PROBES)))]
     # the roomiest of 12 directions across the thin one
     u = np.cross(thin, [1.0, 0.0, 0.0] if abs(thin[0]) < 0.9 else [0.0, 1.0, 0.0])
     u /= np.linalg.norm(u)

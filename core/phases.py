@@ -254,7 +254,7 @@ def phase1(solver: Solver, shares: np.ndarray, spacing: float, rng: np.random.Ge
         solver.s.typ[k] = t
         solver.s.margin[k] = margin[t]
         if solver.flat[t]:
-            solver.s.quat[k] = flat_quaternion(solver.t.axes[t], solver.s.pos[k],
+            solver.s.quat[k] = flat_quaternion(solver.flat_axes[t], solver.s.pos[k],
                                                solver.c.grid, rng)
         if grow(solver, k, solver.s.scale[k], iters, stop, growth_steps):
             counts[t] += 1
@@ -300,12 +300,16 @@ def phase2(solver: Solver, shares: np.ndarray, spacing: float, rng: np.random.Ge
         return st
     table = solver.t
     # a type that fits only lying flat needs its half thickness of room, not its radius
-    f = np.where(solver.flat, table.half_extents[:, 2], equivalent_radius(table.volume))
+    f = np.where(solver.flat, solver.flat_half[:, 2], equivalent_radius(table.volume))
     # libm's log and exp, as equivalent_radius's cube root: numpy's differ on AVX-512 CPUs
     logs = np.fromiter(map(math.log, table.volume.tolist()), np.float64, len(table.volume))
     vbar = math.exp(float(np.sum(shares * logs)))
     if threshold is None:
-        threshold = 0.5 * (float(equivalent_radius(vbar)) + float(f.min()))
+        f_bar = float(equivalent_radius(vbar))
+        if solver.flat.any():  # the mean of the room each type needs, flat ones flat
+            live = shares > 0
+            f_bar = math.exp(float(np.sum(shares[live] * np.log(f[live]))))
+        threshold = 0.5 * (f_bar + float(f.min()))
     pts = interior_points(solver.c, spacing, threshold, rng)
     if len(pts) == 0:
         st.seconds = time.perf_counter() - t0
@@ -352,7 +356,7 @@ def phase2(solver: Solver, shares: np.ndarray, spacing: float, rng: np.random.Ge
         for t in tries:
             q = random_quaternions(rng, 1)[0]
             if solver.flat[t]:
-                q = flat_quaternion(table.axes[t], p, solver.c.grid, rng)
+                q = flat_quaternion(solver.flat_axes[t], p, solver.c.grid, rng)
             # steps below the free radius are collision free: start growing there (dist
             # is already less the clearance: `Solver.free_distances`)
             room = (dist - 2 * margin[t]) / table.radius[t]

@@ -98,7 +98,7 @@ def place_once(solver: Solver, q: np.ndarray, s1: float, f_min: float,
     extra: list[ExtraPassStats] = []
     n_extra = max(len(cav.factors), 1)
     if solver.flat.any():  # their holes are as deep as they are thick (`lie_flat`)
-        f_min = min(f_min, float(solver.t.half_extents[solver.flat, 2].min()))
+        f_min = min(f_min, float(solver.flat_half[solver.flat, 2].min()))
     rounds = cav.rounds if budgeted else 1
     for rnd in range(rounds):
         grown = 0

@@ -16,7 +16,7 @@ import numpy as np
 from . import kernels
 from .cellgrid import CellGrid, insert_range
 from .container import Container
-from .lie_flat import flat_only, principal_frame
+from .lie_flat import flat_types
 from .objects import ObjectType, point_clusters
 from .options import PhysicsOptions
 from .threads import ThreadTuner
@@ -65,10 +65,6 @@ class TypeTable:
         self.g_shape = np.array([t.grid.values.shape for t in types], np.int64)
         self.g_origin = np.array([t.grid.origin for t in types], np.float64)
         self.g_h = np.array([t.grid.spacing for t in types], np.float64)
-        # (T,3,3) principal axes (columns, longest first) and (T,3) half extents along them
-        frames = [principal_frame(t.vertices) for t in types]
-        self.axes = np.array([a for a, _ in frames], np.float64).reshape(len(types), 3, 3)
-        self.half_extents = np.array([h for _, h in frames], np.float64).reshape(len(types), 3)
 
     def arrays(self) -> tuple:
         """The table as the kernels take it: (radius, sph_off, sph_c, sph_r, pc_off, pcl,
@@ -162,8 +158,10 @@ class Solver:
         self.cells = CellGrid(g.origin, g.origin + g.spacing * (np.array(g.values.shape) - 1),
                               float(table.radius.max()) if len(table.radius) else 0.0,
                               params.clearance)
-        # (T,) types that fit only lying flat, inserted so (`lie_flat`)
-        self.flat = flat_only(table.half_extents, float(g.values.max()))
+        # (T,) types that fit only lying flat, inserted so (`lie_flat`), with (T,3,3) their
+        # box axes and (T,3) half extents (identity and zeros for the other types)
+        self.flat, self.flat_axes, self.flat_half = flat_types(table.types, table.radius,
+                                                               float(g.values.max()))
 
     def resolve(self, focus: np.ndarray, max_iter: int, rollback: bool = True,
                 settle_every: int = 0) -> bool:

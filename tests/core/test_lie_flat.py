@@ -3,11 +3,18 @@
 from __future__ import annotations
 
 import numpy as np
+import pytest
 import trimesh
 
 from jampacked.core.api import pack
 from jampacked.core.container import build_container
-from jampacked.core.lie_flat import flat_only, flat_quaternion, principal_frame, room_frame
+from jampacked.core.lie_flat import (
+    flat_only,
+    flat_quaternion,
+    flat_types,
+    principal_frame,
+    room_frame,
+)
 from jampacked.core.rotations import quat_to_matrix
 
 
@@ -28,11 +35,30 @@ def test_only_a_type_wider_than_the_container_is_deep_is_flat_only():
     assert flat_only(half, 5.0).tolist() == [True, False, False]
 
 
-def test_the_room_frame_of_a_slab_is_thinnest_across_it():
-    slab = trimesh.creation.box(extents=(60.0, 40.0, 2.0))
+def test_a_cube_turned_in_its_file_is_not_flat_only():
+    # the axes of the vertices' spread are arbitrary for a cube: turned in its file, a 2 mm
+    # cube read half extents 1.71 / 1.50 / 1.50 and was taken as flat-only in a 2.2 slab
+    cube = trimesh.creation.box(extents=(2.0, 2.0, 2.0))
+    turned = trimesh.transform_points(
+        cube.vertices, trimesh.transformations.rotation_matrix(0.37, [1.0, 2.0, 3.0]))
+
+    class Type:
+        vertices = turned
+
+    flat, _, half = flat_types([Type()], np.array([1.74]), 1.1)
+    np.testing.assert_allclose(half[0], [1.0, 1.0, 1.0], atol=1e-6)
+    assert not flat[0]
+
+
+@pytest.mark.parametrize("thick", [2.0, 4.0])
+def test_the_room_frame_of_a_slab_is_thinnest_across_it(thick):
+    # near one wall of a 4 mm slab every probe read twice the depth, and noise chose
+    slab = trimesh.creation.box(extents=(60.0, 40.0, thick))
     cont = build_container(slab.vertices, slab.faces, float(slab.volume), 0.2)
     rng = np.random.default_rng(1)
-    for p in ([0.0, 0.0, 0.0], [10.0, -5.0, 0.3], [25.0, 12.0, -0.4]):
+    top = thick / 2
+    for p in ([0.0, 0.0, 0.0], [10.0, -5.0, 0.3], [25.0, 12.0, -0.4], [3.0, 2.0, top - 0.3],
+              [-7.0, 1.0, 0.5 - top]):
         frame = room_frame(cont.grid, np.array(p))
         assert abs(frame[2, 2]) > 0.99 and np.linalg.det(frame) > 0.999
         plate_axes = np.eye(3)  # a plate's principal axes: its thin one is z
