@@ -118,7 +118,9 @@ def export_packing(packing: Packing | str | os.PathLike,
     scene = place(packing, container, types, source)
     if placements_status(packing) == "changed":
         report(0.01, "the packing was changed after it was certified: certifying it again")
-        out.warnings.append(certify_edited(packing, scene, clearance, source))
+        out.warnings.append(certify_edited(
+            packing, scene, clearance, source,
+            lambda f, m: report(0.01 + 0.04 * f, m), check_cancel))
         check_cancel()
     check_scale(options, scene.hi - scene.lo, smallest_object(packing))
     out.warnings += print_size_warning(scene.hi - scene.lo)

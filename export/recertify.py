@@ -9,6 +9,7 @@ wall) as if it had been checked. Frames and units: the container frame, containe
 from __future__ import annotations
 
 import math
+from collections.abc import Callable
 
 import numpy as np
 
@@ -25,24 +26,33 @@ CELLS_PER_RADIUS = 4.0
 
 
 def certify_edited(packing: Packing, scene: PlacedScene, clearance: float,
-                   source: str | None) -> str:
+                   source: str | None, progress: Callable[[float, str], None],
+                   check_cancel: Callable[[], None]) -> str:
     """Certify the packing's placements as they now are, on the real meshes; returns the
     note an export gives, or raises InputError naming what fails (overlapping objects,
     objects through the wall, gaps below the clearance). source: the packing file, for
-    messages."""
+    messages; progress(fraction of the check, message); check_cancel() raises Cancelled
+    when the export is cancelled, between the checks."""
+    progress(0.0, f"certifying the edited packing: {packing.n:,} objects")
     volumes = np.array([t.volume for t in packing.types], np.float64)
     spacing = packing.report.container_grid_spacing
     if not (isinstance(spacing, float) and math.isfinite(spacing) and spacing > 0):
         spacing = float(equivalent_radius(volumes.min())) / CELLS_PER_RADIUS
     cont = build_container(scene.container_vertices, scene.container_faces,
                            float(packing.container_volume), spacing)
+    check_cancel()  # the grid can take seconds
     scale = float(np.abs(packing.scales).max(initial=1.0))
     max_edge = np.array([float(np.linalg.norm(v[f[:, [1, 2, 0]]] - v[f], axis=2).max())
                          for v, f in zip(scene.local, scene.type_faces, strict=True)]) * scale
+    def checked(done: int, total: int) -> None:
+        check_cancel()
+        progress(done / max(total, 1), f"certifying the edited packing: {done:,} of "
+                 f"{total:,} checks")
+
     with Certifier(cont, scene.local, [np.asarray(f, np.int64) for f in scene.type_faces],
-                   volumes, max_edge) as certifier:
+                   volumes, max_edge, processes=0) as certifier:
         rep = certifier.certify(np.asarray(scene.type_index, np.int64), scene.matrices,
-                                clearance)
+                                clearance, progress=checked)
     where = f"the packing file {source}" if source else "the packing"
     if not rep.certified:
         raise InputError(
@@ -55,21 +65,36 @@ def certify_edited(packing: Packing, scene: PlacedScene, clearance: float,
 
 
 def _failures(packing: Packing, rep: CertifyReport) -> str:
-    """What the certificate found, naming the worst objects."""
+    """What the certificate found, naming the worst objects: by overlap where objects
+    overlap, else by how far a gap falls short of the clearance."""
     def name(i: int) -> str:
         return f"object {i} ({packing.types[packing.type_index[i]].name})"
 
+    def count(n: int, one: str, many: str) -> str:
+        return f"{n} {one if n == 1 else many}"
+
     found = []
     if rep.bad_pairs:
-        a, b = rep.worst_overlap_pair or rep.bad_pairs[0]
-        found.append(f"{len(rep.bad_pairs)} pair{'s' if len(rep.bad_pairs) > 1 else ''} "
-                     f"overlap{'' if len(rep.bad_pairs) > 1 else 's'} or come closer than the "
-                     f"clearance (worst: {name(a)} and {name(b)}, overlapping by "
-                     f"{rep.worst_overlap:.3g} of the smaller)")
+        head = count(len(rep.bad_pairs), "pair fails", "pairs fail")
+        bad = set(rep.bad_pairs)
+        if rep.worst_overlap > rep.tol and rep.worst_overlap_pair in bad:
+            a, b = rep.worst_overlap_pair
+            found.append(f"{head} (worst: {name(a)} and {name(b)} overlap by "
+                         f"{rep.worst_overlap:.3g} of the smaller)")
+        else:
+            (a, b), short = max(rep.pair_shortfall.items(), key=lambda kv: kv[1],
+                                default=(rep.bad_pairs[0], 0.0))
+            found.append(f"{head} (worst: {name(a)} and {name(b)} are {short:.3g} closer "
+                         f"than the clearance {rep.clearance:g})")
     if rep.bad_wall:
-        i = rep.worst_outside_object if rep.worst_outside_object is not None \
-            else rep.bad_wall[0]
-        found.append(f"{len(rep.bad_wall)} object{'s' if len(rep.bad_wall) > 1 else ''} "
-                     f"through or too near the container's wall (worst: {name(i)}, "
-                     f"{rep.worst_outside:.3g} of it outside)")
+        head = count(len(rep.bad_wall), "object fails", "objects fail") + " at the wall"
+        if rep.worst_outside > rep.tol and rep.worst_outside_object in rep.bad_wall:
+            i = rep.worst_outside_object
+            found.append(f"{head} (worst: {name(i)}, {rep.worst_outside:.3g} of it outside "
+                         "the container)")
+        else:
+            i, short = max(rep.wall_shortfall.items(), key=lambda kv: kv[1],
+                           default=(rep.bad_wall[0], 0.0))
+            found.append(f"{head} (worst: {name(i)}, {short:.3g} closer to the wall than the "
+                         f"clearance {rep.clearance:g})")
     return "; ".join(found)

@@ -84,3 +84,34 @@ def test_an_edit_that_keeps_the_packing_sound_exports_with_a_note(packed, tmp_pa
     assert any("certified again before export" in w for w in rep.warnings)
     rep = export_packing(path, tmp_path / "whole.stl")  # as written: no note, no check
     assert not any("certified again" in w for w in rep.warnings)
+
+
+def test_a_failure_by_clearance_is_named_by_its_shortfall(packed):
+    # a pair failing on its gap alone read "overlapping by 0 of the smaller", a wall gap
+    # "0 of it outside", and the pair named could be one within the tolerance
+    from jampacked.core.certify import CertifyReport
+    from jampacked.export.recertify import _failures
+
+    p = load_packing(packed[1])
+    rep = CertifyReport(certified=False, tol=1e-4, clearance=0.5, worst_overlap=5e-5,
+                        worst_overlap_pair=(0, 2), worst_outside=0.0,
+                        worst_outside_object=None, min_pair_gap=0.38, min_wall_gap=0.41,
+                        bad_pairs=[(0, 1)], bad_wall=[2], pair_shortfall={(0, 1): 0.12},
+                        wall_shortfall={2: 0.09})
+    msg = _failures(p, rep)
+    assert "1 pair fails (worst: object 0 (014_lemon) and object 1 (014_lemon) are 0.12 " \
+           "closer than the clearance 0.5)" in msg
+    assert "1 object fails at the wall (worst: object 2 (014_lemon), 0.09 closer" in msg
+    assert "overlap" not in msg and "outside" not in msg
+
+
+def test_an_edited_packing_being_certified_again_can_be_cancelled(packed, tmp_path):
+    from jampacked.core.errors import Cancelled
+
+    d, path = packed
+    edited = _edited(d, path, "cancel", _onto_the_next)
+    seen = []
+    with pytest.raises(Cancelled):
+        export_packing(edited, tmp_path / "out.stl", progress=lambda f, m: seen.append(m),
+                       should_cancel=lambda: any("certifying the edited" in m for m in seen))
+    assert not (tmp_path / "out.stl").exists()
