@@ -501,7 +501,9 @@ def _assemble(container: MeshSource, scene: _Scene, approx: _Approximation, run:
                        inputs.options.attempts.count, len(run.attempts),
                        extra_passes_ran=bool(run.best.extra_passes))
         + slow_certification(timings["certify"], inputs.time_budget,
-                             [t.name for t in objtypes], [len(t.faces) for t in objtypes]))
+                             [t.name for t in objtypes],
+                             [len(t.faces) if np.any(typ == i) else 0
+                              for i, t in enumerate(objtypes)]))
     packing = Packing(
         container_path=_source_name(container, scene.container),
         container_sha256=scene.container.sha256, frame_from_file=scene.frame_from_file,

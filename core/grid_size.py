@@ -25,7 +25,7 @@ def finest_spacing(extents: np.ndarray, cells: int = MAX_CELLS_PER_AXIS,
     ``cells``, or, where the thinnest extent spans fewer than ``thin`` cells at that spacing,
     the thinnest extent over ``thin``, coarsened where needed to hold the grid (with its
     padding) to the nodes of a cube's at ``cells``."""
-    ext = np.asarray(extents, np.float64)
+    ext = np.maximum(np.asarray(extents, np.float64), 1e-300)  # a flat box: no division by 0
     coarse = float(ext.max()) / cells
     if float(ext.min()) / coarse >= thin:
         return coarse

@@ -23,22 +23,21 @@ from .meshes import MeshData
 from .objects import ObjectType
 
 #: a container grid with fewer cells than this across the container's thinnest extent
-#: measures its depth again on a grid this fine before refusing every type
+#: measures its depth again on a grid this fine (within the container grid's cap,
+#: `grid_size.finest_spacing`) before refusing every type
 DEPTH_CELLS = 64
-#: ... and at most this many across its largest (a 60 x 60 x 2 tray: 256 x 256 x 9 nodes)
-MAX_DEPTH_CELLS = 256
 
 
 def measured_depth(vertices: np.ndarray, faces: np.ndarray, volume: float,
                    cont: Container) -> tuple[float, float]:
     """The container's deepest interior distance and the spacing of the grid it was measured
-    on: at least DEPTH_CELLS cells across the container's thinnest extent, within
-    MAX_DEPTH_CELLS across its largest (the approximation's grid follows the objects' size
-    and is coarser than the container when they are far larger: its nodes may all lie
-    outside, or a thin tray's few). vertices (V, 3), faces (F, 3): the container mesh."""
+    on: DEPTH_CELLS cells across the container's thinnest extent, or as many as the
+    container grid's cap allows (the approximation's grid follows the objects' size and is
+    coarser than the container when they are far larger: its nodes may all lie outside, or
+    a thin tray's few). vertices (V, 3), faces (F, 3): the container mesh."""
     extents = np.ptp(vertices, axis=0)
-    spacing = max(float(extents.min()) / DEPTH_CELLS, finest_spacing(extents, MAX_DEPTH_CELLS))
-    if cont.grid.spacing <= spacing:
+    spacing = max(float(extents.min()) / DEPTH_CELLS, finest_spacing(extents))
+    if cont.grid.spacing <= spacing * (1 + 1e-12):  # as fine already: the same grid
         return float(cont.grid.values.max()), cont.grid.spacing
     fine = build_container(vertices, faces, volume, spacing)
     return max(float(fine.grid.values.max()), 0.0), fine.grid.spacing
