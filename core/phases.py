@@ -16,7 +16,7 @@ import numpy as np
 from .container import deepest_points, interior_points
 from .fidelity import MANY_OBJECTS
 from .kernels import sample_grid_many
-from .lie_flat import flat_quaternion
+from .lie_flat import flat_quaternion, flat_spacing
 from .metrics import best_tvd, density, equivalent_radius, tvd_of_counts
 from .report import PhaseStats
 from .rotations import random_quaternions
@@ -310,6 +310,8 @@ def phase2(solver: Solver, shares: np.ndarray, spacing: float, rng: np.random.Ge
             live = shares > 0
             f_bar = math.exp(float(np.sum(shares[live] * np.log(f[live]))))
         threshold = 0.5 * (f_bar + float(f.min()))
+    if solver.flat.any() and patience is not None:  # the extra passes, which end on patience
+        spacing = flat_spacing(spacing, solver.c, threshold)
     pts = interior_points(solver.c, spacing, threshold, rng)
     if len(pts) == 0:
         st.seconds = time.perf_counter() - t0

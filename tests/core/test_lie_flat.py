@@ -76,3 +76,13 @@ def test_plates_that_fit_a_slab_only_lying_flat_are_placed(tmp_path):
     assert p.n >= 2 and p.certificate["certified"]
     r = quat_to_matrix(p.rotations)
     assert np.all(np.abs(r[:, 2, 2]) > 0.99)  # each lies flat
+
+
+@pytest.mark.parametrize("seed", [3, 4, 9])
+def test_the_passes_lattice_does_not_miss_a_thin_slabs_middle(tmp_path, seed):
+    # in a 1.1 mm slab the points deep enough for a plate lie in a band 0.3 mm thick, and the
+    # passes' lattice (3 mm and more) missed it on these seeds: "no object could be placed"
+    plate = trimesh.creation.box(extents=(20.0, 20.0, 1.0))
+    plate.export(tmp_path / "plate.stl")
+    p = pack("box:45x45x1.1", [str(tmp_path / "plate.stl")], seed=seed, time_budget=3.0)
+    assert p.n >= 3 and p.certificate["certified"]
