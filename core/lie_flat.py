@@ -1,6 +1,6 @@
 """Types that fit the container only lying flat start lying flat.
 
-A type whose middle half extent (along its principal axes) exceeds the container's deepest
+A type whose middle half extent (along its bounding box's axes) exceeds the container's deepest
 interior distance fits nowhere across the container's thin direction: a 20 x 20 x 1 plate in
 a 2 mm slab, a tile in a thin frame. Drawn at a random rotation it almost never grows, and
 the solver's rotation does not turn it flat in time (such plates needed a slab 2.5 times
@@ -116,7 +116,7 @@ def room_frame(grid: DistanceGrid, p: np.ndarray) -> np.ndarray:
 
 def flat_quaternion(type_axes: np.ndarray, p: np.ndarray, grid: DistanceGrid,
                     rng: np.random.Generator) -> np.ndarray:
-    """(4,) rotation (w, x, y, z) taking a type's principal axes (3, 3) onto the
+    """(4,) rotation (w, x, y, z) taking a type's box axes (3, 3) onto the
     container's room frame at p, with one of the four turns that keep it (random)."""
     flips = np.array([[1, 1, 1], [-1, -1, 1], [-1, 1, -1], [1, -1, -1]], np.float64)
     s = flips[int(rng.integers(4))]
