@@ -221,6 +221,14 @@ class _Reader:
             raise self.fail(f"{where} must be a string or null, got {_short(value)}")
         return value
 
+    def mesh_path(self, value: Any, where: str) -> str | None:
+        """A mesh path (or null): a string no file system refuses outright."""
+        value = self.opt_str(value, where)
+        if value is not None and "\x00" in value:
+            raise self.fail(f"{where} holds a NUL character, which no file name can",
+                            "write the mesh's path there, or pack again")
+        return value
+
     def vector(self, value: Any, size: int, where: str) -> np.ndarray:
         if (
             not isinstance(value, list)
@@ -320,8 +328,8 @@ def load_packing(path: str | os.PathLike) -> Packing:
     base_dir = os.path.dirname(src)
 
     cont = r.dict_(r.get(doc, "container", ""), "container")
-    cpath = r.get(cont, "path", "container")
-    if not isinstance(cpath, str) or not cpath:
+    cpath = r.mesh_path(r.get(cont, "path", "container"), "container.path")
+    if not cpath:
         raise r.fail("container.path must be a non-empty string")
     container_path = _resolve(cpath, base_dir)
     container_sha = r.opt_str(r.get(cont, "sha256", "container"), "container.sha256")
@@ -340,7 +348,7 @@ def load_packing(path: str | os.PathLike) -> Packing:
         types.append(
             TypeRecord(
                 name=name,
-                path=_resolve(r.opt_str(r.get(t, "path", w), f"{w}.path"), base_dir),
+                path=_resolve(r.mesh_path(r.get(t, "path", w), f"{w}.path"), base_dir),
                 sha256=r.opt_str(r.get(t, "sha256", w), f"{w}.sha256"),
                 share=r.number(r.get(t, "share", w), f"{w}.share"),
                 local_from_file=r.matrix(r.get(t, "local_from_file", w), f"{w}.local_from_file"),

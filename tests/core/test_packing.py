@@ -477,3 +477,17 @@ def test_a_bad_placement_is_named_among_good_ones(saved, where, value, match):
         obj = obj[key]
     obj[where[-1]] = value
     _bad(out, doc, match)
+
+
+@pytest.mark.parametrize("where", ["container", "type"])
+def test_a_path_with_a_nul_character_is_refused_by_name(saved, where):
+    # export then crashed with "ValueError: embedded null byte" from os.path.realpath
+    # (the shared fuzzer, seed 4374, case 193)
+    path, doc = saved
+    if where == "container":
+        doc["container"]["path"] = "a\x00b.stl"
+        match = r"container\.path holds a NUL character"
+    else:
+        doc["types"][0]["path"] = "a\x00b.stl"
+        match = r"types\[0\]\.path holds a NUL character"
+    _bad(path, doc, match)
