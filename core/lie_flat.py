@@ -110,8 +110,7 @@ def room_frame(grid: DistanceGrid, p: np.ndarray) -> np.ndarray:
     angles = np.arange(12) * (np.pi / 12)
     ring = np.cos(angles)[:, None] * u + np.sin(angles)[:, None] * w
     long = ring[int(np.argmax(room(ring)))]
-    frame = np.stack([long, np.cross(thin, long), thin], axis=1)
-    return frame
+    return np.stack([long, np.cross(thin, long), thin], axis=1)
 
 
 def flat_quaternion(type_axes: np.ndarray, p: np.ndarray, grid: DistanceGrid,

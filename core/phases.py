@@ -278,7 +278,7 @@ def phase2(solver: Solver, shares: np.ndarray, spacing: float, rng: np.random.Ge
            stop: Stop, *, iters: int = 80, margin: np.ndarray, retries: int = 2,
            threshold: float | None = None, fit_factor: float = 1.0,
            patience: int | None = None, max_tvd: float = 0.04,
-           growth_steps: int = GROWTH_STEPS, min_start: float = 0.0,
+           growth_steps: int = GROWTH_STEPS, min_start: float = 0.0, flat_lattice: bool = False,
            progress: Callable[[float, str], None] | None = None) -> PhaseStats:
     """Fill cavities: at lattice points far enough from every object and the wall, insert
     the largest type whose equivalent radius f(V) is below that distance and grow it; on
@@ -291,7 +291,9 @@ def phase2(solver: Solver, shares: np.ndarray, spacing: float, rng: np.random.Ge
     pass ends after that many candidate points in a row where nothing could be added.
     Objects grow in steps of 1/growth_steps. A type is not tried where it would start below
     `min_start` of its size (the scale its room allows: free radius less two margins, over
-    bounding radius).
+    bounding radius). flat_lattice: where a type fits only lying flat, the lattice is no
+    wider than the band of points deep enough for it (`lie_flat.flat_spacing`; the extra
+    passes, which end on patience).
     """
     t0 = time.perf_counter()
     st = PhaseStats()
@@ -310,7 +312,7 @@ def phase2(solver: Solver, shares: np.ndarray, spacing: float, rng: np.random.Ge
             live = shares > 0
             f_bar = math.exp(float(np.sum(shares[live] * np.log(f[live]))))
         threshold = 0.5 * (f_bar + float(f.min()))
-    if solver.flat.any() and patience is not None:  # the extra passes, which end on patience
+    if flat_lattice and solver.flat.any():
         spacing = flat_spacing(spacing, solver.c, threshold)
     pts = interior_points(solver.c, spacing, threshold, rng)
     if len(pts) == 0:

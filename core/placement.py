@@ -111,6 +111,7 @@ def place_once(solver: Solver, q: np.ndarray, s1: float, f_min: float,
                 iters=cav.iterations, margin=margin, retries=cav.retries,
                 growth_steps=cav.growth_steps, min_start=cav.min_start,
                 threshold=factor * f_min, fit_factor=factor, patience=cav.patience,
+                flat_lattice=True,
                 max_tvd=cav.max_tvd,
                 progress=lambda f, m, lo=lo: report(lo + 0.1 * f / (n_extra * rounds), m))
             grown += st.grown

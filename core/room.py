@@ -149,8 +149,9 @@ def nothing_placed_message(depth: float, objtypes: list[ObjectType], margins: Ma
         verdict = "and no object fitted anywhere"
     # a finer preset refines the objects' approximation, and the container grid and the
     # margins unless the grid is at its cap already
-    size = float(np.ptp(vertices, axis=0).max())
-    capped = spacing <= finest_spacing(np.ptp(vertices, axis=0)) * (1 + 1e-9)
+    extents = np.ptp(vertices, axis=0)
+    size = float(extents.max())
+    capped = spacing <= finest_spacing(extents) * (1 + 1e-9)
     useful = depth >= total or (depth >= room + clearance and not capped)
     finer = ("Try --fidelity high / fidelity='high' (finer grids, smaller margins), or "
              if fidelity != "high" and useful else "")
