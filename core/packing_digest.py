@@ -71,3 +71,19 @@ def placements_status(p: Packing) -> str:
             and float(certified) != float(asked):
         return "changed"
     return "as certified"
+
+
+def uncertified_since(p: Packing) -> str | None:
+    """Why a packing's certificate no longer vouches for it, as a phrase after "the packing",
+    or None where it does or claims nothing: edited after it was certified, or claiming to be
+    certified without the digest of what was (written by a jampacked before digests were
+    recorded, or the digest was removed, which then hides any edit)."""
+    status = placements_status(p)
+    if status == "changed":
+        return ("was changed after it was certified (its certificate's digest no longer "
+                "matches its placements)")
+    if status == "unrecorded" and isinstance(p.certificate, dict) \
+            and p.certificate.get("certified") is True:
+        return ("says it is certified but records no digest of what was certified (it was "
+                "written by an older jampacked, or the digest was removed)")
+    return None

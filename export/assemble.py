@@ -29,7 +29,7 @@ import numpy as np
 from jampacked.core.errors import Cancelled, InputError, MeshError
 from jampacked.core.meshes import MeshData
 from jampacked.core.packing import Packing, is_spec
-from jampacked.core.packing_digest import placements_status
+from jampacked.core.packing_digest import uncertified_since
 from jampacked.core.packing_json import load_packing
 from jampacked.core.solids import solid_arrays
 
@@ -116,10 +116,11 @@ def export_packing(packing: Packing | str | os.PathLike,
     out = ExportReport(mode=options.mode, paths=paths, bodies=0, objects=packing.n,
                        triangles=0, clearance=clearance)
     scene = place(packing, container, types, source)
-    if placements_status(packing) == "changed":
-        report(0.01, "the packing was changed after it was certified: certifying it again")
+    why = uncertified_since(packing)
+    if why is not None:
+        report(0.01, f"the packing {why}: certifying it again")
         out.warnings.append(certify_edited(
-            packing, scene, clearance, source,
+            packing, scene, clearance, source, why,
             lambda f, m: report(0.01 + 0.04 * f, m), check_cancel))
         check_cancel()
     check_scale(options, scene.hi - scene.lo, smallest_object(packing))

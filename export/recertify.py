@@ -1,9 +1,10 @@
 """A packing edited after it was certified is certified again before it is exported.
 
 A packing file records the digest of the placements its certificate vouches for
-(`core.packing_digest`); an export of one whose placements, frames or volumes no longer match
-would otherwise print whatever the file now says (two objects in one place, one through the
-wall) as if it had been checked. Frames and units: the container frame, container units.
+(`core.packing_digest`); an export of one whose placements, frames or volumes no longer match,
+or of one that says it is certified without a digest, would otherwise print whatever the file
+now says (two objects in one place, one through the wall) as if it had been checked.
+Frames and units: the container frame, container units.
 """
 
 from __future__ import annotations
@@ -26,14 +27,15 @@ CELLS_PER_RADIUS = 4.0
 
 
 def certify_edited(packing: Packing, scene: PlacedScene, clearance: float,
-                   source: str | None, progress: Callable[[float, str], None],
+                   source: str | None, why: str, progress: Callable[[float, str], None],
                    check_cancel: Callable[[], None]) -> str:
     """Certify the packing's placements as they now are, on the real meshes; returns the
     note an export gives, or raises InputError naming what fails (overlapping objects,
     objects through the wall, gaps below the clearance). source: the packing file, for
-    messages; progress(fraction of the check, message); check_cancel() raises Cancelled
-    when the export is cancelled, between the checks."""
-    progress(0.0, f"certifying the edited packing: {packing.n:,} objects")
+    messages; why: why its certificate does not vouch for it (`uncertified_since`);
+    progress(fraction of the check, message); check_cancel() raises Cancelled when the
+    export is cancelled, between the checks."""
+    progress(0.0, f"certifying the packing again: {packing.n:,} objects")
     volumes = np.array([t.volume for t in packing.types], np.float64)
     spacing = packing.report.container_grid_spacing
     if not (isinstance(spacing, float) and math.isfinite(spacing) and spacing > 0):
@@ -46,7 +48,7 @@ def certify_edited(packing: Packing, scene: PlacedScene, clearance: float,
                          for v, f in zip(scene.local, scene.type_faces, strict=True)]) * scale
     def checked(done: int, total: int) -> None:
         check_cancel()
-        progress(done / max(total, 1), f"certifying the edited packing: {done:,} of "
+        progress(done / max(total, 1), f"certifying the packing again: {done:,} of "
                  f"{total:,} checks")
 
     with Certifier(cont, scene.local, [np.asarray(f, np.int64) for f in scene.type_faces],
@@ -56,12 +58,11 @@ def certify_edited(packing: Packing, scene: PlacedScene, clearance: float,
     where = f"the packing file {source}" if source else "the packing"
     if not rep.certified:
         raise InputError(
-            f"cannot export: {where} was changed after it was certified (its certificate's "
-            f"digest no longer matches its placements), and certified again they fail: "
+            f"cannot export: {where} {why}, and certified again its placements fail: "
             f"{_failures(packing, rep)}. Undo the edit, or pack again.")
     gaps = f", every gap at least the clearance {clearance:g}" if clearance > 0 else ""
-    return (f"{where} was changed after it was certified; its {packing.n} placements were "
-            f"certified again before export: no overlap, nothing outside the container{gaps}.")
+    return (f"{where} {why}; its {packing.n} placements were certified again before "
+            f"export: no overlap, nothing outside the container{gaps}.")
 
 
 def _failures(packing: Packing, rep: CertifyReport) -> str:

@@ -18,6 +18,7 @@ import numpy as np
 from jampacked.core.errors import InputError
 from jampacked.core.meshes import MeshData, load_mesh
 from jampacked.core.packing import Packing, container_mesh, verify_sources
+from jampacked.core.packing_digest import placements_status
 from jampacked.core.phases import equivalent_radius
 from jampacked.core.solids import to_solid
 
@@ -68,11 +69,15 @@ def load_sources(packing: Packing) -> tuple[MeshData, list[MeshData]]:
         if volume == 0 or not math.isfinite(volume):
             continue  # a singular frame: refused later, by name (`PlacedScene`)
         if not math.isclose(volume, recorded, rel_tol=VOLUME_REL):
+            cause = ("the packing file was edited after it was certified (its certificate's "
+                     "digest no longer matches it): undo the edit, or re-run the packing"
+                     if placements_status(packing) == "changed" else
+                     "it was packed by a version that read the file differently, or the "
+                     "file's volumes were edited. Re-run the packing")
             raise InputError(
                 f"cannot export: the mesh file of {label} reads as {volume:.6g} units^3 in the "
                 f"packing's frame, but the packing recorded {recorded:.6g} (x"
-                f"{(volume / recorded) ** (1 / 3):.4g} in size): it was packed by a version "
-                "that read the file differently. Re-run the packing.")
+                f"{(volume / recorded) ** (1 / 3):.4g} in size): {cause}.")
     return container, types
 
 

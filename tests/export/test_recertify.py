@@ -113,5 +113,41 @@ def test_an_edited_packing_being_certified_again_can_be_cancelled(packed, tmp_pa
     seen = []
     with pytest.raises(Cancelled):
         export_packing(edited, tmp_path / "out.stl", progress=lambda f, m: seen.append(m),
-                       should_cancel=lambda: any("certifying the edited" in m for m in seen))
+                       should_cancel=lambda: any("certifying the packing again" in m for m in seen))
     assert not (tmp_path / "out.stl").exists()
+
+
+def _no_digest(doc):
+    del doc["certificate"][DIGEST]
+
+
+def test_a_packing_that_says_it_is_certified_without_a_digest_is_certified_again(
+        packed, tmp_path):
+    # with its digest deleted an edited packing read as one written before digests, and
+    # its two lemons in one place were exported as a valid union
+    d, path = packed
+
+    def moved(doc):
+        _no_digest(doc)
+        _onto_the_next(doc)
+
+    with pytest.raises(InputError, match=r"records no digest of what was certified.*"
+                       r"object 0 \(014_lemon\) and object 1 \(014_lemon\)"):
+        export_packing(_edited(d, path, "no-digest-moved", moved), tmp_path / "out.stl")
+    assert not (tmp_path / "out.stl").exists()
+    rep = export_packing(_edited(d, path, "no-digest", _no_digest), tmp_path / "out.stl")
+    assert rep.passed
+    assert any("records no digest" in w and "certified again before export" in w
+               for w in rep.warnings)
+
+
+def test_an_edited_volume_is_named_as_an_edit(packed, tmp_path):
+    # it read "packed by a version that read the file differently"
+    d, path = packed
+
+    def volume(doc):
+        doc["types"][0]["volume"] *= 1.5
+
+    with pytest.raises(InputError, match=r"edited after it was certified") as err:
+        export_packing(_edited(d, path, "volume", volume), tmp_path / "out.stl")
+    assert "version" not in str(err.value)
