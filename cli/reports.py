@@ -154,6 +154,10 @@ def print_summary(packing: Packing, console: Console, title: str | None = None) 
         summary.add_row("certified", "[red]no longer[/]: the placements were changed after "
                         "certification, so the figures below are for other placements "
                         "('export' checks them again)")
+    elif s.certified and s.placements == "unrecorded":
+        summary.add_row("certified", "[green]yes[/], by an older jampacked or with its digest "
+                        "removed: nothing shows the placements were not changed since "
+                        "('export' certifies them again)")
     else:
         summary.add_row("certified", "[green]yes[/]" if s.certified else
                         ("[red]NO[/]" if s.certified is False else "-"))

@@ -223,6 +223,19 @@ def test_info_says_when_the_placements_changed_after_certification(packed, capsy
     assert main(["info", str(out)]) == 0  # the file as written
 
 
+def test_info_says_when_a_certified_packing_records_no_digest(packed, capsys):
+    # with its digest deleted, an edited packing read "certified: yes"
+    d, out, *_ = packed
+    doc = json.loads(out.read_text())
+    del doc["certificate"]["placements_sha256"]
+    edited = d / "no-digest.json"
+    edited.write_text(json.dumps(doc))
+    assert main(["info", str(edited)]) == 0  # an older jampacked's file is not an error
+    text = " ".join(capsys.readouterr().out.split())
+    assert "certified │ yes, by an older jampacked or with its digest" in text
+    assert "'export' certifies them again" in text
+
+
 def test_ctrl_c_saves_best_certified_packing(tmp_path, monkeypatch, capsys):
     """The first Ctrl-C makes should_cancel() true; the packing so far is certified and saved."""
     real_pack = pack_cmd.pack
