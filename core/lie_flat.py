@@ -22,10 +22,16 @@ import trimesh
 from .container import Container
 from .distance import DistanceGrid
 from .kernels import sample_grid_many
-from .rotations import matrix_to_quat
+from .rotations import matrix_to_quat, quat_to_matrix, random_quaternions
 
 #: the most lattice points a cavity pass spaced for a flat-only type may have
 MAX_FLAT_POINTS = 2_000_000
+#: a type that fits at the container's deepest point at fewer than this share of rotations
+#: drawn at random fits only lying down
+RARE_FIT = 0.125
+#: the rotations and the most vertices that share is measured with
+_FIT_ROTATIONS = 64
+_FIT_VERTICES = 2000
 #: directions the container's room at a point is probed along (one of each opposite pair)
 _PROBES = np.array([d for d in np.ndindex(3, 3, 3) if d > (1, 1, 1)], np.float64) - 1.0
 _PROBES /= np.linalg.norm(_PROBES, axis=1, keepdims=True)
@@ -52,20 +58,41 @@ def flat_only(half_extents: np.ndarray, depth: float) -> np.ndarray:
     return np.asarray(half_extents, np.float64)[:, 1] > depth
 
 
-def flat_types(types: Sequence, radius: np.ndarray, depth: float
+def fit_share(grid: DistanceGrid, vertices: np.ndarray) -> float:
+    """The share of rotations (drawn from a fixed stream) at which a mesh (vertices in its
+    local frame, about its origin) lies inside the container with its origin at the grid's
+    deepest node, by the grid's interpolated depth at (up to 2,000 of) its vertices."""
+    i = np.unravel_index(int(np.argmax(grid.values)), grid.values.shape)
+    p = grid.origin + grid.spacing * np.asarray(i, np.float64)
+    v = np.asarray(vertices, np.float64)
+    v = v[:: max(1, len(v) // _FIT_VERTICES)]
+    turns = quat_to_matrix(random_quaternions(np.random.default_rng(0), _FIT_ROTATIONS))
+    pts = (p + np.einsum("rij,vj->rvi", turns, v)).reshape(-1, 3)
+    depth = sample_grid_many(grid.values, grid.origin, grid.spacing, pts)
+    return float((depth.reshape(_FIT_ROTATIONS, -1).min(axis=1) >= 0.0).mean())
+
+
+def flat_types(types: Sequence, radius: np.ndarray, grid: DistanceGrid
                ) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
     """(T,) which of the types (each with .vertices, local frame; bounding radius (T,))
-    fit a container ``depth`` deep only lying flat, and (T, 3, 3) / (T, 3) their box axes
-    and half extents: identity and zeros for a type that can turn anywhere its bounding
-    ball fits (radius <= depth), whose box is not measured (0.3 s for an 8,000-vertex
-    scan)."""
+    fit the container (its distance grid) only lying down, and (T, 3, 3) / (T, 3) their
+    box axes and half extents: identity and zeros for a type that can turn anywhere its
+    bounding ball fits (radius <= the container's depth), whose box is not measured (0.3 s
+    for an 8,000-vertex scan). Lying down: wider than the container is deep (`flat_only`),
+    or longer than it is deep and fitting at its deepest point at fewer than RARE_FIT of
+    random rotations."""
     n = len(types)
+    depth = float(grid.values.max())
     axes = np.tile(np.eye(3), (n, 1, 1))
     half = np.zeros((n, 3))
+    rare = np.zeros(n, bool)
     for i, t in enumerate(types):
         if radius[i] > depth:
             axes[i], half[i] = principal_frame(t.vertices)
-    return flat_only(half, depth), axes, half
+            # a type no longer than the container is deep fits turned (a cube in a slab a
+            # little thicker than it is packed densest turned as the solver turns it)
+            rare[i] = half[i, 0] > depth and fit_share(grid, t.vertices) < RARE_FIT
+    return flat_only(half, depth) | rare, axes, half
 
 
 def flat_spacing(spacing: float, container: Container, threshold: float) -> float:

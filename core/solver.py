@@ -158,10 +158,9 @@ class Solver:
         self.cells = CellGrid(g.origin, g.origin + g.spacing * (np.array(g.values.shape) - 1),
                               float(table.radius.max()) if len(table.radius) else 0.0,
                               params.clearance)
-        # (T,) types that fit only lying flat, inserted so (`lie_flat`), with (T,3,3) their
+        # (T,) types that fit only lying down, inserted so (`lie_flat`), with (T,3,3) their
         # box axes and (T,3) half extents (identity and zeros for the other types)
-        self.flat, self.flat_axes, self.flat_half = flat_types(table.types, table.radius,
-                                                               float(g.values.max()))
+        self.flat, self.flat_axes, self.flat_half = flat_types(table.types, table.radius, g)
 
     def resolve(self, focus: np.ndarray, max_iter: int, rollback: bool = True,
                 settle_every: int = 0) -> bool:

@@ -9,6 +9,8 @@ import trimesh
 from jampacked.core.api import pack
 from jampacked.core.container import build_container
 from jampacked.core.lie_flat import (
+    RARE_FIT,
+    fit_share,
     flat_only,
     flat_quaternion,
     flat_types,
@@ -35,19 +37,55 @@ def test_only_a_type_wider_than_the_container_is_deep_is_flat_only():
     assert flat_only(half, 5.0).tolist() == [True, False, False]
 
 
-def test_a_cube_turned_in_its_file_is_not_flat_only():
+def test_a_cube_turned_in_its_file_is_measured_by_its_faces_and_not_laid_down():
     # the axes of the vertices' spread are arbitrary for a cube: turned in its file, a 2 mm
-    # cube read half extents 1.71 / 1.50 / 1.50 and was taken as flat-only in a 2.2 slab
+    # cube read half extents 1.71 / 1.50 / 1.50 and was laid down tilted in a 2.2 slab
     cube = trimesh.creation.box(extents=(2.0, 2.0, 2.0))
-    turned = trimesh.transform_points(
-        cube.vertices, trimesh.transformations.rotation_matrix(0.37, [1.0, 2.0, 3.0]))
+    turn = trimesh.transformations.rotation_matrix(0.37, [1.0, 2.0, 3.0])
+    turned = trimesh.transform_points(cube.vertices, turn)
 
     class Type:
         vertices = turned
 
-    flat, _, half = flat_types([Type()], np.array([1.74]), 1.1)
+    slab = trimesh.creation.box(extents=(20.0, 20.0, 2.2))
+    cont = build_container(slab.vertices, slab.faces, float(slab.volume), 0.1)
+    flat, axes, half = flat_types([Type()], np.array([1.74]), cont.grid)
     np.testing.assert_allclose(half[0], [1.0, 1.0, 1.0], atol=1e-6)
+    assert not flat_only(half, 1.1)[0]
+    # no longer than the slab is deep, it is left to turn (70 x 70 x 2.2, seed 1, 20 s:
+    # 70.1% so, 64.1% laid down square to the slab)
     assert not flat[0]
+    np.testing.assert_allclose(np.abs(axes[0].T @ turn[:3, :3]).max(axis=1), 1.0, atol=1e-6)
+
+
+def _tube(radius: float, length: float):
+    tube = trimesh.creation.cylinder(radius=radius, height=length, sections=64)
+    return build_container(tube.vertices, tube.faces, float(tube.volume), 0.1)
+
+
+def test_a_rod_longer_than_a_tube_is_wide_fits_at_few_rotations():
+    tube = _tube(3.0, 60.0)
+    rod = trimesh.creation.box(extents=(40.0, 2.0, 2.0))
+    ball = trimesh.creation.icosphere(subdivisions=2, radius=2.5)
+    assert fit_share(tube.grid, rod.vertices) < RARE_FIT
+    assert fit_share(tube.grid, ball.vertices) == 1.0
+
+    class Rod:
+        vertices = rod.vertices
+
+    flat, axes, _ = flat_types([Rod()], np.array([20.2]), tube.grid)
+    assert flat[0]
+
+
+@pytest.mark.parametrize("seed", [1, 3])
+def test_rods_in_a_narrow_tube_are_laid_along_it(tmp_path, seed):
+    # 40 x 2 x 2 rods in a tube 6 wide and 200 long: drawn at random rotations, 8 and 10
+    # grew on these seeds (the tube holds 20, four side by side)
+    tube = trimesh.creation.cylinder(radius=3.0, height=200.0, sections=64)
+    tube.export(tmp_path / "tube.stl")
+    trimesh.creation.box(extents=(40.0, 2.0, 2.0)).export(tmp_path / "rod.stl")
+    p = pack(str(tmp_path / "tube.stl"), [str(tmp_path / "rod.stl")], seed=seed)
+    assert p.n >= 11 and p.certificate["certified"]
 
 
 @pytest.mark.parametrize("thick", [2.0, 4.0])
