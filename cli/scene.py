@@ -93,7 +93,7 @@ def resolve_shares(shares: Sequence[float | None], labels: Sequence[str]) -> lis
     missing = [lab for lab, s in zip(labels, shares, strict=True) if s is None]
     if total >= 1.0 - 1e-9:
         raise UsageError(
-            f"the shares given add up to {total:.0%}, which leaves nothing for "
+            f"the shares given add up to {_percent(total)}, which leaves nothing for "
             f"{', '.join(missing)}: give shares that add up to less than 100%, or give every "
             "type a share")
     rest = (1.0 - total) / len(missing)
@@ -112,8 +112,15 @@ def shares_note(shares: Sequence[float] | None, labels: Sequence[str]) -> str | 
     # one decimal where a whole percent would not add up (50% and 30%: 62.5% and 37.5%)
     scaled = ", ".join(f"{Path(lab).stem} {f'{100 * s / total:.1f}'.removesuffix('.0')}%"
                        for lab, s in zip(labels, shares, strict=True))
-    return (f"the shares add up to {total:.0%}, not 100%; they are taken as proportions: "
+    return (f"the shares add up to {_percent(total)}, not 100%; they are taken as proportions: "
             f"{scaled}")
+
+
+def _percent(fraction: float) -> str:
+    """A total of shares in percent: whole above 10%, two digits below (0.3% + 0.2% read
+    as 0%)."""
+    v = 100.0 * fraction
+    return f"{v:.0f}%" if v >= 9.5 else f"{v:.2g}%"
 
 
 def check_mesh_file(path: str, role: str) -> None:

@@ -450,6 +450,8 @@ def test_shares_note_when_percents_do_not_add_up():
     assert "60%" in shares_note([0.3, 0.3], ["a", "b"])
     # 50% and 30% are 62.5% and 37.5% (whole percents read 62% and 37%: 99%)
     assert shares_note([0.5, 0.3], ["a", "b"]).endswith("a 62.5%, b 37.5%")
+    # small shares read "add up to 0%"
+    assert "add up to 0.5%, not 100%" in shares_note([0.003, 0.002], ["a", "b"])
 
 
 def test_pack_warns_when_percents_do_not_add_up(tmp_path):
