@@ -10,7 +10,13 @@ from jampacked.cli.args import add_command
 from jampacked.cli.exits import EXIT_ERROR
 from jampacked.cli.reports import consoles, print_summary, warn
 from jampacked.core.packing import is_spec, load_packing, verify_sources
-from jampacked.core.packing_digest import placements_status
+from jampacked.core.packing_digest import (
+    DIGEST,
+    clearance_changed,
+    placements_digest,
+    placements_status,
+    uncertified_since,
+)
 
 INFO_EPILOG = """\
 examples:
@@ -43,7 +49,12 @@ def cmd_info(args: argparse.Namespace) -> int:
     for w in packing.report.warnings:
         warn(err, w)
     problems = [f"[red]source:[/] {escape(p)}" for p in verify_sources(packing)]
-    if placements_status(packing) == "changed":
+    if placements_status(packing) == "changed" and clearance_changed(packing) \
+            and packing.certificate.get(DIGEST) == placements_digest(packing):
+        problems.insert(0, f"[red]clearance:[/] the packing {escape(uncertified_since(packing))}"
+                        ": 'jampacked export' certifies it again with the clearance asked, "
+                        "or pack again")
+    elif placements_status(packing) == "changed":
         problems.insert(0, "[red]placements:[/] changed after the packing was certified (its "
                         "certificate's digest no longer matches the placements, frames, "
                         "volumes or certificate): 'jampacked export' certifies them again "

@@ -150,7 +150,11 @@ def print_summary(packing: Packing, console: Console, title: str | None = None) 
                                                                                  s.stopped)
         summary.add_row("stopped early", why)
     summary.add_section()
-    if s.placements == "changed":
+    if s.placements == "clearance changed":
+        summary.add_row("certified", "[red]no longer[/]: the packing's inputs ask another "
+                        f"clearance than the {_num(s.clearance, '{:g}')} certified ('export' "
+                        "checks it again)")
+    elif s.placements == "changed":
         summary.add_row("certified", "[red]no longer[/]: the placements were changed after "
                         "certification, so the figures below are for other placements "
                         "('export' checks them again)")

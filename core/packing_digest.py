@@ -62,15 +62,18 @@ def placements_status(p: Packing) -> str:
     recorded = p.certificate.get(DIGEST) if isinstance(p.certificate, dict) else None
     if not isinstance(recorded, str):
         return "unrecorded"
-    if recorded != placements_digest(p):
-        return "changed"
-    # an export keeps the clearance the inputs give, which the digest does not cover
-    certified = p.certificate.get("clearance")
-    asked = p.inputs.clearance
-    if isinstance(certified, int | float) and isinstance(asked, int | float) \
-            and float(certified) != float(asked):
+    if recorded != placements_digest(p) or clearance_changed(p):
         return "changed"
     return "as certified"
+
+
+def clearance_changed(p: Packing) -> bool:
+    """Whether the clearance the packing's inputs ask (which an export keeps, and which the
+    digest does not cover) is not the one its certificate vouches for."""
+    certified = p.certificate.get("clearance") if isinstance(p.certificate, dict) else None
+    asked = p.inputs.clearance
+    return isinstance(certified, int | float) and isinstance(asked, int | float) \
+        and float(certified) != float(asked)
 
 
 def uncertified_since(p: Packing) -> str | None:
@@ -79,6 +82,9 @@ def uncertified_since(p: Packing) -> str | None:
     certified without the digest of what was (written by a jampacked before digests were
     recorded, or the digest was removed, which then hides any edit)."""
     status = placements_status(p)
+    if status == "changed" and p.certificate.get(DIGEST) == placements_digest(p):
+        return (f"asks a clearance of {p.inputs.clearance:g}, but was certified with "
+                f"{p.certificate.get('clearance'):g}")
     if status == "changed":
         return ("was changed after it was certified (its certificate's digest no longer "
                 "matches its placements)")

@@ -15,7 +15,7 @@ from typing import Any
 import numpy as np
 
 from .fidelity import Fidelity
-from .packing_digest import placements_status
+from .packing_digest import DIGEST, placements_digest, placements_status
 from .packing_types import Packing
 from .report import AttemptSummary, RepairStats
 
@@ -93,7 +93,8 @@ class PackingSummary:
     phases: list[PhaseLine] = field(default_factory=list)
     total_seconds: float | None = None
     # "as certified", "changed" (edited after certification: the certificate no longer
-    # applies) or "unrecorded" (`packing_digest.placements_status`)
+    # applies), "clearance changed" (only the clearance asked was) or "unrecorded"
+    # (`packing_digest.placements_status`)
     placements: str = "unrecorded"
 
 
@@ -132,7 +133,9 @@ def summarize(packing: Packing) -> PackingSummary:
         walls_checked=_count(cert.get("walls_checked")),
         repair=run.repair if repaired else None, attempts=attempts, kept_attempt=kept,
         phases=_phase_lines(m, timings, total), total_seconds=number(timings.get("total")),
-        placements=placements_status(packing))
+        placements=("clearance changed" if placements_status(packing) == "changed"
+                    and placements_digest(packing) == cert.get(DIGEST)
+                    else placements_status(packing)))
 
 
 def _phase_lines(m: dict, timings: dict, total: int) -> list[PhaseLine]:

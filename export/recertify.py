@@ -85,8 +85,8 @@ def _failures(packing: Packing, rep: CertifyReport) -> str:
         else:
             (a, b), short = max(rep.pair_shortfall.items(), key=lambda kv: kv[1],
                                 default=(rep.bad_pairs[0], 0.0))
-            found.append(f"{head} (worst: {name(a)} and {name(b)} are {short:.3g} closer "
-                         f"than the clearance {rep.clearance:g})")
+            found.append(f"{head} (worst: {name(a)} and {name(b)} "
+                         f"{_short(short, rep, 'touch', 'are {} apart')})")
     if rep.bad_wall:
         head = count(len(rep.bad_wall), "object fails", "objects fail") + " at the wall"
         if rep.worst_outside > rep.tol and rep.worst_outside_object in rep.bad_wall:
@@ -96,6 +96,17 @@ def _failures(packing: Packing, rep: CertifyReport) -> str:
         else:
             i, short = max(rep.wall_shortfall.items(), key=lambda kv: kv[1],
                            default=(rep.bad_wall[0], 0.0))
-            found.append(f"{head} (worst: {name(i)}, {short:.3g} closer to the wall than the "
-                         f"clearance {rep.clearance:g})")
+            found.append(f"{head} (worst: {name(i)} "
+                         f"{_short(short, rep, 'touches the wall', 'is {} from the wall')})")
     return "; ".join(found)
+
+
+def _short(shortfall: float, rep: CertifyReport, touching: str, apart: str) -> str:
+    """A gap that falls short of the clearance, said by what it is: `touching` where there
+    is none (a clearance written into a packing made without one), else `apart` with the
+    gap, and the shortfall."""
+    gap = rep.clearance - shortfall
+    if gap <= 1e-9 * max(rep.clearance, 1.0):
+        return f"{touching} (the clearance is {rep.clearance:g})"
+    return (apart.format(f"{gap:.3g}")
+            + f" ({shortfall:.3g} under the clearance {rep.clearance:g})")

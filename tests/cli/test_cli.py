@@ -223,6 +223,23 @@ def test_info_says_when_the_placements_changed_after_certification(packed, capsy
     assert main(["info", str(out)]) == 0  # the file as written
 
 
+def test_info_says_when_only_the_clearance_asked_changed(packed, capsys):
+    # it read "the placements were changed after certification"
+    d, out, *_ = packed
+    doc = json.loads(out.read_text())
+    doc["inputs"]["clearance"] = doc["certificate"]["clearance"] + 0.5
+    edited = d / "clearance.json"
+    edited.write_text(json.dumps(doc))
+    assert main(["info", str(edited)]) == 1
+    captured = capsys.readouterr()
+    text = " ".join(captured.out.replace("│", " ").split())  # the table wraps its cells
+    assert "no longer: the packing's inputs ask another clearance than the" in text
+    assert "placements were changed" not in text
+    err = " ".join(captured.err.split())
+    assert "clearance: the packing asks a clearance of" in err and "but was certified with" \
+        in err
+
+
 def test_info_says_when_a_certified_packing_records_no_digest(packed, capsys):
     # with its digest deleted, an edited packing read "certified: yes"
     d, out, *_ = packed

@@ -99,10 +99,17 @@ def test_a_failure_by_clearance_is_named_by_its_shortfall(packed):
                         bad_pairs=[(0, 1)], bad_wall=[2], pair_shortfall={(0, 1): 0.12},
                         wall_shortfall={2: 0.09})
     msg = _failures(p, rep)
-    assert "1 pair fails (worst: object 0 (014_lemon) and object 1 (014_lemon) are 0.12 " \
-           "closer than the clearance 0.5)" in msg
-    assert "1 object fails at the wall (worst: object 2 (014_lemon), 0.09 closer" in msg
+    assert "1 pair fails (worst: object 0 (014_lemon) and object 1 (014_lemon) are 0.38 " \
+           "apart (0.12 under the clearance 0.5))" in msg
+    assert "1 object fails at the wall (worst: object 2 (014_lemon) is 0.41 from the wall " \
+           "(0.09 under the clearance 0.5))" in msg
     assert "overlap" not in msg and "outside" not in msg
+    # a clearance written into a packing made without one: the pair touches ("are 0.5
+    # closer than the clearance 0.5")
+    rep.pair_shortfall, rep.wall_shortfall = {(0, 1): 0.5}, {2: 0.5}
+    msg = _failures(p, rep)
+    assert "object 0 (014_lemon) and object 1 (014_lemon) touch (the clearance is 0.5)" in msg
+    assert "object 2 (014_lemon) touches the wall (the clearance is 0.5)" in msg
 
 
 def test_an_edited_packing_being_certified_again_can_be_cancelled(packed, tmp_path):
