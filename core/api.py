@@ -45,6 +45,7 @@ from .room import (
     measured_depth,
     nothing_placed_message,
     refuse_no_room,
+    refuse_too_long,
     tight_fit_spacing,
 )
 from .rotations import matrix_to_quat, quat_to_matrix
@@ -362,6 +363,8 @@ def _approximate(scene: _Scene, q: np.ndarray, inputs: PackInputs,
             if depth + spacing < min(t.room for t in live_sizes) + clearance:
                 refuse_no_room(scene.label, scene.vertices, live_sizes, depth, spacing,
                                clearance)
+    # a thin-walled or slender type can have the depth it needs and still be too long
+    refuse_too_long(scene.label, scene.vertices, sizes, q, clearance)
     if inputs.fidelity == "auto":
         local = [(m.vertices - m.vertices.mean(axis=0)) * type_scale for m in scene.types]
         r_max = max(float(np.sqrt((v ** 2).sum(axis=1)).max()) for v in local)

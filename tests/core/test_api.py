@@ -491,3 +491,28 @@ def test_types_from_files_of_one_name_are_told_apart(tmp_path):
     trimesh.load(POLY[1]).export(paths[-1])
     p = pack(BOX, [str(q) for q in paths], seed=1, fidelity="low", time_budget=0.0)
     assert [t.name for t in p.types] == ["polytope", "polytope-2", "polytope-3"]
+
+
+@pytest.mark.parametrize("clearance", [0.0, 1.0])
+def test_a_thin_walled_object_longer_than_the_container_is_refused_as_too_long(clearance):
+    # a 108 mm vase shell in a 40 mm box has inner room for its 1 mm wall and read "no object
+    # could be placed ... Try --fidelity high"; with it or not, nothing placed
+    import trimesh
+
+    from jampacked.core.meshes import mesh_from_arrays
+
+    outer = trimesh.creation.cylinder(radius=30.0, height=108.0, sections=48)
+    inner = trimesh.creation.cylinder(radius=29.0, height=108.0, sections=48)
+    inner.apply_translation([0.0, 0.0, 2.0])  # open at the top: a cup with a 1 mm wall
+    shell = outer.difference(inner)
+    vase = mesh_from_arrays(shell.vertices, shell.faces, name="vase")
+    cube = mesh_from_arrays(*(lambda b: (b.vertices, b.faces))(
+        trimesh.creation.box(extents=(5.0, 5.0, 5.0))), name="cube")
+    with pytest.raises(PackingError, match=r"no object fits: .* at most 69\.28 across .* "
+                       r"type0: 60 x 60 x 108 units is longer than that") as err:
+        pack("box:40x40x40", [vase], fidelity="low", clearance=clearance)
+    text = str(err.value)
+    assert f"factor of at least {(108 + 2 * clearance) / 69.282:.3g}" in text
+    assert "remove the type" not in text
+    with pytest.raises(PackingError, match="or remove the type"):
+        pack("box:40x40x40", [vase, cube], fidelity="low", clearance=clearance)
