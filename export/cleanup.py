@@ -18,8 +18,9 @@ to float32: `collapse_needles` collapses the short edges of the needles among gi
 
 Where two surfaces touch along an edge or at a point (two objects that only kiss),
 manifold3d keeps them apart by index at one position; a file merges them there into a
-non-manifold edge or vertex. `separate_pinches` moves each such vertex into its own solid
-by a step far below any printer's resolution.
+non-manifold edge or vertex. `move_vertices` moves such vertices (`shared_vertices`) into
+their own solid, or out of it (`union._apart` chooses), by a step far below any printer's
+resolution.
 
 Positions are tested as given and as float32 (the coarsest format written); faces keep
 their winding.
@@ -71,13 +72,23 @@ def _zero_area(p: np.ndarray, f: np.ndarray) -> np.ndarray:
                              np.ascontiguousarray(f, np.int64), DEGENERATE_REL * diagonal)
 
 
-def degenerate_faces(v: np.ndarray, f: np.ndarray) -> np.ndarray:
-    """Indices of faces of zero area, with the positions as given (float64: 3MF, OBJ) or
-    rounded to float32 (STL, PLY)."""
+def _stored(v: np.ndarray, float32: bool) -> np.ndarray:
+    """The positions as a file stores them: rounded to float32 with ``float32`` (STL, PLY),
+    else as given (3MF, OBJ: float64)."""
+    return v.astype(np.float32).astype(np.float64) if float32 else v
+
+
+def degenerate_faces(v: np.ndarray, f: np.ndarray, float32: bool = True) -> np.ndarray:
+    """Indices of faces of zero area, with the positions as given (float64: 3MF, OBJ) or,
+    with ``float32``, also rounded to float32 (STL, PLY). Far from the origin float32's
+    step is coarse (8 micrometres at 1e5 mm): faces that only float32 flattens are sound in
+    a 3MF, and repairing them there folds the surface."""
     if len(f) == 0:
         return np.zeros(0, np.int64)
-    return np.flatnonzero(_zero_area(v, f)
-                          | _zero_area(v.astype(np.float32).astype(np.float64), f))
+    zero = _zero_area(v, f)
+    if float32:
+        zero |= _zero_area(_stored(v, True), f)
+    return np.flatnonzero(zero)
 
 
 def _faces_with_edge(f: np.ndarray, a: int, b: int) -> np.ndarray:
@@ -134,18 +145,19 @@ def _flip(f: np.ndarray, face: int, a: int, b: int, c: int) -> np.ndarray | None
     return out
 
 
-def remove_degenerate_faces(v: np.ndarray, f: np.ndarray, max_steps: int = 1000
-                            ) -> tuple[np.ndarray, np.ndarray, int]:
-    """Repair zero-area faces of a closed, consistently wound mesh.
+def remove_degenerate_faces(v: np.ndarray, f: np.ndarray, max_steps: int = 1000,
+                            float32: bool = True) -> tuple[np.ndarray, np.ndarray, int]:
+    """Repair zero-area faces of a closed, consistently wound mesh (zero area as given, and
+    with ``float32`` also once rounded to float32: see :func:`degenerate_faces`).
 
     Returns (vertices, faces, faces still degenerate). Vertices are unchanged (a collapsed
     vertex is simply no longer used); faces keep their winding.
     """
     f = np.array(f, dtype=np.int64, copy=True)
-    p32 = v.astype(np.float32).astype(np.float64)
+    p32 = _stored(v, float32)
     tried: set[tuple[int, ...]] = set()
     for _ in range(max_steps):
-        bad = [int(i) for i in degenerate_faces(v, f) if tuple(f[i]) not in tried]
+        bad = [int(i) for i in degenerate_faces(v, f, float32) if tuple(f[i]) not in tried]
         if not bad:
             break
         i = bad[0]
@@ -162,18 +174,19 @@ def remove_degenerate_faces(v: np.ndarray, f: np.ndarray, max_steps: int = 1000
             new = _flip(f, i, a, b, tri[(k + 2) % 3])
         if new is not None:
             f = new
-    return v, f, len(degenerate_faces(v, f))
+    return v, f, len(degenerate_faces(v, f, float32))
 
 
 def collapse_needles(v: np.ndarray, f: np.ndarray, faces: np.ndarray, *,
-                     rel: float = NEEDLE_REL, max_length: float = np.inf
-                     ) -> tuple[np.ndarray, int]:
+                     rel: float = NEEDLE_REL, max_length: float = np.inf,
+                     float32: bool = True) -> tuple[np.ndarray, int]:
     """Collapse the short edge of each needle among `faces` (indices into f): a face whose
-    shortest edge, with positions rounded to float32, is at most ``rel`` of its longest (and
-    at most ``max_length`` long), where the 2-manifold allows it (`_collapse`). Returns
-    (faces, edges collapsed); vertices are unchanged and faces keep their winding."""
+    shortest edge, with positions as stored (rounded to float32 with ``float32``), is at
+    most ``rel`` of its longest (and at most ``max_length`` long), where the 2-manifold
+    allows it (`_collapse`). Returns (faces, edges collapsed); vertices are unchanged and
+    faces keep their winding."""
     f = np.array(f, dtype=np.int64, copy=True)
-    p32 = v.astype(np.float32).astype(np.float64)
+    p32 = _stored(v, float32)
     edges = [_needle_edge(p32, [int(x) for x in f[i]], rel, max_length)
              for i in np.unique(np.asarray(faces, np.int64))]
     done = 0
@@ -186,23 +199,26 @@ def collapse_needles(v: np.ndarray, f: np.ndarray, faces: np.ndarray, *,
     return f, done
 
 
-def separate_pinches(v: np.ndarray, f: np.ndarray, remap: np.ndarray, step: float
-                     ) -> tuple[np.ndarray, int]:
-    """Vertices that share a position with another (remap: each vertex's merged index, from
-    `merge_identical` of the positions as a file stores them) moved by `step` against their
-    own area-weighted normal, into their solid, so that no two are merged when the file is
-    read. Returns (vertices, vertices moved); faces are unchanged."""
-    shared = np.flatnonzero(np.bincount(remap)[remap] > 1)
-    if len(shared) == 0:
-        return v, 0
-    near = f[np.isin(f, shared).any(axis=1)]
+def move_vertices(v: np.ndarray, f: np.ndarray, vertices: np.ndarray, step: float
+                  ) -> np.ndarray:
+    """The positions with ``vertices`` (indices into v) moved by ``step`` against their own
+    area-weighted normal, into their solid (a negative step moves them out of it); faces
+    are unchanged."""
+    vertices = np.asarray(vertices, np.int64)
+    near = f[np.isin(f, vertices).any(axis=1)]
     tri = v[near]
     normals = np.cross(tri[:, 1] - tri[:, 0], tri[:, 2] - tri[:, 0])
     vn = np.zeros_like(v)
     for k in range(3):
         np.add.at(vn, near[:, k], normals)
-    n = vn[shared]
+    n = vn[vertices]
     length = np.linalg.norm(n, axis=1, keepdims=True)
     v = v.copy()
-    v[shared] -= step * n / np.where(length > 0, length, 1.0)
-    return v, len(shared)
+    v[vertices] -= step * n / np.where(length > 0, length, 1.0)
+    return v
+
+
+def shared_vertices(remap: np.ndarray) -> np.ndarray:
+    """The vertices that share a position with another (remap: each vertex's merged index,
+    from `merge_identical`)."""
+    return np.flatnonzero(np.bincount(remap)[remap] > 1)

@@ -17,7 +17,14 @@ from scipy.sparse.csgraph import connected_components
 from jampacked.core.errors import MeshError
 from jampacked.core.solids import solid_arrays
 
-from .cleanup import NEEDLE_REL, collapse_needles, remove_degenerate_faces, separate_pinches
+from .cleanup import (
+    NEEDLE_REL,
+    collapse_needles,
+    degenerate_faces,
+    move_vertices,
+    remove_degenerate_faces,
+    shared_vertices,
+)
 from .intersect import _morton_order, intersecting_pairs
 from .validate import merge_identical
 
@@ -41,7 +48,7 @@ CROSSING_SLIVER_REL = 0.12
 CROSSING_SLIVER_LEN_REL = 2e-4
 #: pieces united at a time, between which a cancel is noticed (`_chunked_union`)
 UNION_CHUNK = 500
-#: how far (of the mesh's diagonal) `separate_pinches` moves vertices that share a position:
+#: how far (of the mesh's diagonal) `_apart` moves vertices of surfaces that touch:
 #: about 16-26 float32 steps at the largest coordinates, 0.2 micrometre at 200 mm
 PINCH_STEP_REL = 1e-6
 
@@ -104,7 +111,7 @@ def clean_arrays(result: m3.Manifold, float32: bool = False,
                  check_cancel: Callable[[], None] | None = None
                  ) -> tuple[np.ndarray, np.ndarray, int]:
     """The result's arrays without zero-area faces (see export/cleanup.py), with the
-    vertices of surfaces that only touch moved apart (`separate_pinches`), and how many
+    vertices of surfaces that only touch moved apart (`_apart`), and how many
     faces are left bad. A face that crosses another at the positions as the file stores
     them (rounded to float32 with `float32`, for an STL or PLY) is bad too: slivers from the
     booleans, a thousandth of a millimetre wide, can fold over, and manifold3d's unions
@@ -115,7 +122,7 @@ def clean_arrays(result: m3.Manifold, float32: bool = False,
     check = check_cancel or (lambda: None)
 
     def cleaned(m: m3.Manifold) -> tuple[np.ndarray, np.ndarray, int]:
-        v, f, left = remove_degenerate_faces(*solid_arrays(m))
+        v, f, left = remove_degenerate_faces(*solid_arrays(m), float32=float32)
         check()
         if left > 0 or len(f) == 0:
             return v, f, left
@@ -124,19 +131,30 @@ def clean_arrays(result: m3.Manifold, float32: bool = False,
         stored = v.astype(np.float32).astype(np.float64) if float32 else v
         _, remap = merge_identical(stored)
         step = PINCH_STEP_REL * float(np.linalg.norm(np.ptp(v, axis=0)))
-        v, _ = separate_pinches(v, f, remap, step)
+        known = None  # the crossing pairs at v, f when already counted
+        shared = shared_vertices(remap)
+        if len(shared):
+            v, known = _apart(v, f, shared, step, float32, check)
         # needles first; then, among faces that still cross, slivers whose short edge is
         # far below a printer's resolution
         reach = CROSSING_SLIVER_LEN_REL * float(np.linalg.norm(np.ptp(v, axis=0)))
         for rel, length in ((NEEDLE_REL, np.inf), (CROSSING_SLIVER_REL, reach)):
             for _ in range(NEEDLE_ROUNDS):
-                pairs, left = crossing_pairs(v, f, float32, check)
+                pairs, left = known or crossing_pairs(v, f, float32, check)
+                known = None
                 if left == 0:
                     return v, f, 0
-                f, collapsed = collapse_needles(v, f, pairs, rel=rel, max_length=length)
+                f, collapsed = collapse_needles(v, f, pairs, rel=rel, max_length=length,
+                                                float32=float32)
                 if collapsed == 0:
+                    known = (pairs, left)  # f is as it was
                     break
-        _, left = crossing_pairs(v, f, float32, check)
+        pairs, left = known or crossing_pairs(v, f, float32, check)
+        if left > 0:
+            # surfaces that touch without sharing a vertex (an edge on a face: a cube turned
+            # 45 degrees against another): the faces' vertices moved apart as pinches are
+            v, (pairs, left) = _apart(v, f, np.unique(f[pairs]), step, float32, check,
+                                      before=(pairs, left))
         return v, f, left
 
     v, f, left = cleaned(result)
@@ -148,7 +166,46 @@ def clean_arrays(result: m3.Manifold, float32: bool = False,
         cv, cf, left_here = cleaned(result.simplify(rel * diagonal))
         if left_here == 0:
             return cv, cf, 0
+    if float32:
+        # far from the origin float32's step is coarse (8 micrometres at 1e5 mm), and the
+        # repairs judged at float32 can break the mesh at full precision too: the mesh
+        # cleaned at full precision instead, with its faces left bad once rounded, so that
+        # the caller can tell that float32 alone breaks it (`io.float32_breaks`)
+        v64, f64, left64 = clean_arrays(result, float32=False, check_cancel=check)
+        if left64 == 0:
+            check()
+            return v64, f64, (len(degenerate_faces(v64, f64, float32=True))
+                              + crossing_pairs(v64, f64, True, check)[1])
     return v, f, left
+
+
+def _apart(v: np.ndarray, f: np.ndarray, vertices: np.ndarray, step: float, float32: bool,
+           check: Callable[[], None], before: tuple[np.ndarray, int] | None = None
+           ) -> tuple[np.ndarray, tuple[np.ndarray, int]]:
+    """Surfaces that touch at ``vertices`` (shared positions, or the corners of faces that
+    touch) moved apart by ``step``: the positions and their crossing pairs
+    (:func:`crossing_pairs`).
+
+    Each vertex moves into its own solid (`move_vertices`), which parts two solids that
+    only touch. Where the booleans joined them through the contact (a neck of no width: two
+    cubes that share an edge, tied by a strut) the surfaces there bound the empty space
+    either side, and moving in makes them cross: those among the faces that then cross or
+    touch move out instead, which gives the neck a width, when that leaves fewer crossing
+    pairs. With ``before`` (the pairs at v) the positions are kept unless the move leaves
+    fewer crossing pairs than those."""
+    inward = move_vertices(v, f, vertices, step)
+    pairs, left = crossing_pairs(inward, f, float32, check)
+    best = (inward, (pairs, left))
+    flip = np.intersect1d(vertices, f[pairs]) if left else pairs[:0]
+    if len(flip):
+        out = inward.copy()
+        out[flip] = 2.0 * v[flip] - inward[flip]
+        pairs_out, left_out = crossing_pairs(out, f, float32, check)
+        if left_out < left:
+            best = (out, (pairs_out, left_out))
+    if before is not None and best[1][1] >= before[1]:
+        return v, before
+    return best
 
 
 def crossing_pairs(v: np.ndarray, f: np.ndarray, float32: bool,
@@ -183,7 +240,9 @@ def drop_specks(v: np.ndarray, f: np.ndarray, speck: float, fill_voids: bool = F
     graph = coo_matrix((np.ones(len(rows)), (rows, cols)), shape=(n, n))
     count, label = connected_components(graph, directed=False)
     face_label = label[f[:, 0]]
-    tri = v[f]
+    # about the box's centre: far from the origin the products about it cancel (1e-4 of
+    # the volume lost at 1e5 mm)
+    tri = v[f] - 0.5 * (v.min(axis=0) + v.max(axis=0))
     six = np.einsum("ij,ij->i", tri[:, 0], np.cross(tri[:, 1], tri[:, 2]))
     volumes = np.bincount(face_label, six, minlength=count) / 6.0
     used = np.zeros(count, bool)

@@ -861,7 +861,7 @@ def test_surfaces_that_kiss_along_an_edge_are_written_apart():
     connect mode: its 3MF and STL refused). The shared vertices now move into their own
     cube, a fraction of a micrometre, and the result validates in float64 and float32."""
     from jampacked.core.solids import solid_arrays
-    from jampacked.export.cleanup import separate_pinches
+    from jampacked.export.cleanup import move_vertices, shared_vertices
     from jampacked.export.union import PINCH_STEP_REL, clean_arrays
     from jampacked.export.validate import merge_identical, validate_arrays
 
@@ -873,8 +873,9 @@ def test_surfaces_that_kiss_along_an_edge_are_written_apart():
         assert left == 0 and validate_arrays(stored, f).passed
     raw_v, raw_f = solid_arrays(a + b)
     step = PINCH_STEP_REL * float(np.linalg.norm(np.ptp(raw_v, axis=0)))
-    moved_v, moved = separate_pinches(raw_v, raw_f, merge_identical(raw_v)[1], step)
-    assert moved == 4  # the edge's two ends, once per cube
+    shared = shared_vertices(merge_identical(raw_v)[1])
+    assert len(shared) == 4  # the edge's two ends, once per cube
+    moved_v = move_vertices(raw_v, raw_f, shared, step)
     shift = np.linalg.norm(moved_v - raw_v, axis=1)
     assert np.count_nonzero(shift) == 4 and np.allclose(shift[shift > 0], step)
     # off the edge (x = y = 10) diagonally, two into a (x, y < 10) and two into b
@@ -883,7 +884,103 @@ def test_surfaces_that_kiss_along_an_edge_are_written_apart():
     assert sorted(np.sign(off[:, 0])) == [-1.0, -1.0, 1.0, 1.0]
     # nothing shared: nothing moved
     cv, cf = solid_arrays(m3.Manifold.cube([1.0, 1.0, 1.0]))
-    assert separate_pinches(cv, cf, merge_identical(cv)[1], 0.1)[1] == 0
+    assert len(shared_vertices(merge_identical(cv)[1])) == 0
+
+
+def _cubes(tmp: Path, matrices: list[np.ndarray], *, offset: float = 0.0) -> Path:
+    """A hand-made packing of 5 mm cubes (placement matrices, local -> container frame) in
+    a 30 mm box, the whole scene moved by ``offset`` along every axis (the container
+    with it, through its frame_from_file)."""
+    from jampacked.core.rotations import matrix_to_quat
+
+    path = tmp / "cube5.stl"
+    trimesh.creation.box(extents=(5.0, 5.0, 5.0)).export(path)
+    m = load_mesh(path)
+    rec = TypeRecord(name="cube5", path=str(path), sha256=m.sha256, share=1.0,
+                     local_from_file=_shift(-m.centroid), volume=m.volume)
+    n = len(matrices)
+    p = Packing(container_path="box:30x30x30", container_sha256=None,
+                frame_from_file=_shift(np.full(3, offset)), container_volume=30.0 ** 3,
+                types=[rec], type_index=np.zeros(n, int),
+                rotations=matrix_to_quat(np.array([t[:3, :3] for t in matrices])),
+                translations=np.array([t[:3, 3] + offset for t in matrices]),
+                scales=np.ones(n), inputs=PackInputs(clearance=0.0))
+    save_packing(p, tmp / "cubes.json")
+    return tmp / "cubes.json"
+
+
+def _turned(angle: float, t: tuple[float, float, float]) -> np.ndarray:
+    """A placement turned by ``angle`` (radians) about z and moved to t."""
+    m = _shift(np.asarray(t, float))
+    c, s = np.cos(angle), np.sin(angle)
+    m[:2, :2] = [[c, -s], [s, c]]
+    return m
+
+
+@pytest.mark.parametrize("scene, mode", [("edge", "connect"), ("turned", "union"),
+                                         ("turned", "connect")])
+def test_cubes_that_touch_exactly_export(tmp_path, scene, mode):
+    """Certified packings whose objects touch exactly (an independent check): two cubes
+    that share an edge, tied by a strut, and a cube turned 45 degrees whose edge lies on
+    another's face. The shared edge's vertices moved into their own cube made the faces
+    beside the strut cross (moved out of it, the neck between the cubes gets a width), and
+    an edge on a face shares no vertex, so nothing moved it: "self-intersecting" or "bodies
+    intersect or touch", refused as a defect. Now both validate, as 3MF and STL."""
+    second = (_turned(0.0, (5.0, 5.0, 0.0)) if scene == "edge" else
+              _turned(np.pi / 4, (2.5 + 2.5 * np.sqrt(2.0), 0.0, 0.0)))
+    packing = _cubes(tmp_path, [np.eye(4), second])
+    outs = [tmp_path / "t.3mf", tmp_path / "t.stl"]
+    rep = export_packing(packing, outs, ExportOptions(mode=mode))
+    assert rep.passed and all(validate_file(p).passed for p in outs)
+    assert rep.bodies == (1 if mode == "connect" else 2)  # a union of cubes that only touch
+    if mode == "union":
+        assert rep.volume == pytest.approx(250.0, rel=1e-4)
+    else:
+        assert rep.connectors == 1 and rep.volume > 250.0 * (1 - 1e-4)
+
+
+def test_a_scene_far_from_the_origin_exports_as_3mf_and_stl_says_why_not(tmp_path):
+    """Cubes 1e5 mm from the origin export as they do at the origin: the same bodies and
+    volume (the bodies' volumes, summed about the origin, lost 1e-4 of themselves there).
+    An STL that float32 (steps of 8 micrometres there) breaks is refused with the reason,
+    naming the coordinates and the 3MF as the way out. The folded 3MF itself needs a larger
+    scene: the next test."""
+    turned = [_turned(a, t) for a, t in ((0.3, (0.0, 0.0, 0.0)), (1.1, (3.0, 1.5, 0.7)),
+                                         (2.0, (-2.0, 3.5, -1.2)), (0.7, (1.0, -3.0, 2.0)))]
+    # two cubes overlapping by 2 micrometres: faces that narrow, which float32 flattens
+    turned += [_shift((7.5, -6.0, -6.0)), _shift((12.498, -5.0, -5.5))]
+    near = export_packing(_cubes(tmp_path, turned), tmp_path / "near.3mf",
+                          ExportOptions(mode="union"))
+    (tmp_path / "far").mkdir()
+    far_json = _cubes(tmp_path / "far", turned, offset=1e5)
+    far = export_packing(far_json, tmp_path / "far.3mf", ExportOptions(mode="union"))
+    assert far.passed and validate_file(tmp_path / "far.3mf").passed
+    assert far.bodies == near.bodies == 2
+    assert far.volume == pytest.approx(near.volume, rel=1e-6)
+    # as an STL (float32: steps of 8 micrometres there) this scene holds; a cube 2
+    # micrometres from another does not, and the refusal says why
+    stl = export_packing(far_json, tmp_path / "far.stl", ExportOptions(mode="union"))
+    assert stl.passed and validate_file(tmp_path / "far.stl").passed
+    gap = _cubes(tmp_path / "far", turned + [_shift((7.5, 6.0, 6.0)),
+                                             _shift((12.502, 6.0, 6.0))], offset=1e5)
+    with pytest.raises(MeshError, match=r"32-bit floats.*1e\+05.*Write 3MF"):
+        export_packing(gap, tmp_path / "gap.stl", ExportOptions(mode="union"))
+    assert not (tmp_path / "gap.stl").exists()
+
+
+FAR = DATA / "far-from-origin" / "packing.json"
+
+
+@pytest.mark.parametrize("mode", ["union", "connect"])
+def test_a_packing_far_from_the_origin_exports_as_3mf(tmp_path, mode):
+    """484 cubes and beads packed in a 40 mm box 1e5 mm from the origin (an independent
+    check's scene): union and connect were refused even as 3MF, "self-intersecting", "this
+    is a defect". The union's repairs judged every face also at float32, whose step there
+    is 8 micrometres: faces sound in float64 were taken as zero area and flipped or
+    collapsed, which folded the surface. float32 is now judged only for an STL or PLY."""
+    rep = export_packing(FAR, tmp_path / "far.3mf", ExportOptions(mode=mode))
+    assert rep.passed and validate_file(tmp_path / "far.3mf").passed
+    assert rep.objects == 484
 
 
 # --------------------------------------------------------------------------- inputs refused
