@@ -73,32 +73,31 @@ def refuse_no_room(label: str, vertices: np.ndarray, sizes: list[TypeSize], dept
 
 def refuse_too_long(label: str, vertices: np.ndarray, sizes: Sequence[TypeSize],
                     shares: np.ndarray, clearance: float) -> None:
-    """Refuse a scene where an object type asked for is longer than the container could
+    """Refuse a scene where every object type asked for is longer than the container could
     hold in any direction: its extent along an axis of its file (a lower bound of its
     length) plus the clearance at both ends is more than the diagonal of the container's
     box (an upper bound of the container's). Such a type, thin-walled or slender, can have
-    little inner room and pass the depth checks, and then "no object could be placed".
+    little inner room and pass the depth checks, and then "no object could be placed";
+    where another type fits, the run goes on and warns that this one was not placed.
     vertices (V, 3): the container mesh's; sizes, shares: the types'."""
     c_ext = np.ptp(vertices, axis=0)
     reach = float(np.linalg.norm(c_ext))
-    long = [t for t, q in zip(sizes, shares, strict=True)
-            if q > 0 and float(t.extents.max()) + 2.0 * clearance > reach * (1 + 1e-9)]
-    if not long:
+    live = [t for t, q in zip(sizes, shares, strict=True) if q > 0]
+    if not live or any(float(t.extents.max()) + 2.0 * clearance <= reach * (1 + 1e-9)
+                       for t in live):
         return
     listed = "; ".join(f"{t.label}: {' x '.join(f'{x:.4g}' for x in t.extents)} units"
-                       for t in long[:5])
-    more = f"; and {len(long) - 5} more" if len(long) > 5 else ""
-    worst = max(float(t.extents.max()) for t in long) + 2.0 * clearance
-    others = sum(1 for q in shares if q > 0) > len(long)
+                       for t in live[:5])
+    more = f"; and {len(live) - 5} more" if len(live) > 5 else ""
+    least = min(float(t.extents.max()) for t in live) + 2.0 * clearance
     plus = f" (with the clearance {clearance:g} at both ends)" if clearance else ""
     raise PackingError(
         f"no object fits: the container {label} is {' x '.join(f'{x:.4g}' for x in c_ext)} "
         f"units, at most {reach:.4g} across (its box's diagonal), and the object type"
-        f"{'s' if len(long) > 1 else ''} {listed}{more} {'are' if len(long) > 1 else 'is'} "
+        f"{'s' if len(live) > 1 else ''} {listed}{more} {'are' if len(live) > 1 else 'is'} "
         f"longer than that{plus}. Scale the objects down (--type-scale / type_scale, by a "
-        f"factor of at least {worst / reach:.3g}) or the container up (--container-size / "
-        f"container_size){', or lower the clearance' if clearance else ''}"
-        f"{', or remove the type' + ('s' if len(long) > 1 else '') if others else ''}.")
+        f"factor of at least {least / reach:.3g}) or the container up (--container-size / "
+        f"container_size){', or lower the clearance' if clearance else ''}.")
 
 
 def tight_fit_spacing(vertices: np.ndarray, faces: np.ndarray, volume: float,
