@@ -23,7 +23,7 @@ import bpy
 import numpy as np
 from mathutils import Matrix
 
-from . import instances, summary, units
+from . import instances, result_edits, summary, units
 from .engine import PackOutcome, Triangles, check_extent, is_inward
 
 
@@ -296,12 +296,12 @@ def _set_descriptions(coll: bpy.types.Collection) -> None:
                 pass
 
 
-def place_object(coll: bpy.types.Collection, name: str, t: int, rotation: Any,
+def place_object(coll: bpy.types.Collection, name: str, t: int, index: int, rotation: Any,
                  translation: Any, scale: float, mesh: bpy.types.Mesh,
                  colour: tuple[float, float, float, float]) -> bpy.types.Object:
-    """An object of type ``t`` sharing the type's ``mesh``, at the packing's matrix: the
-    rotation quaternion (w x y z), location and uniform scale set exactly; linked to
-    ``coll``."""
+    """An object of type ``t`` sharing the type's ``mesh``, at the packing's matrix of
+    placement ``index``: the rotation quaternion (w x y z), location and uniform scale set
+    exactly; linked to ``coll``."""
     obj = bpy.data.objects.new(name, mesh)
     obj.rotation_mode = 'QUATERNION'
     obj.rotation_quaternion = [float(x) for x in rotation]
@@ -309,6 +309,7 @@ def place_object(coll: bpy.types.Collection, name: str, t: int, rotation: Any,
     obj.scale = [float(scale)] * 3
     obj.color = colour
     obj["jampacked_type"] = t
+    obj["jampacked_index"] = index  # `result_edits.INDEX_KEY`
     coll.objects.link(obj)
     return obj
 
@@ -330,6 +331,7 @@ def build_result(context: bpy.types.Context, request: PackRequest,
         created.append(coll)
         depsgraph = context.evaluated_depsgraph_get()
         meshes = []
+        signatures = []  # each type mesh's, as Export reads it
         for t, (obj_name, rec) in enumerate(zip(request.type_names, packing.types,
                                                 strict=True)):
             source = bpy.data.objects[obj_name].evaluated_get(depsgraph)
@@ -350,6 +352,8 @@ def build_result(context: bpy.types.Context, request: PackRequest,
                 mesh.materials.append(mat)
             mesh.update()
             meshes.append((mesh, colour))
+            signatures.append(mesh_triangles(mesh, rec.name,
+                                             np.linalg.inv(rec.local_from_file)).signature())
         s = context.scene.jampacked
         if instances.use_instances(s.result_kind, s.instance_threshold, packing.n):
             instances.build(coll, request.container_name, packing, [m for m, _ in meshes],
@@ -358,7 +362,7 @@ def build_result(context: bpy.types.Context, request: PackRequest,
             for i in range(packing.n):
                 t = int(packing.type_index[i])
                 created.append(place_object(
-                    coll, f"{packing.types[t].name} {i + 1}", t, packing.rotations[i],
+                    coll, f"{packing.types[t].name} {i + 1}", t, i, packing.rotations[i],
                     packing.translations[i], packing.scales[i], *meshes[t]))
             coll[instances.KIND_KEY] = "objects"
         props = summary.collection_properties(packing)
@@ -369,6 +373,7 @@ def build_result(context: bpy.types.Context, request: PackRequest,
         coll[summary.PREFIX + "container_sha256"] = request.signatures[0]
         coll[summary.PREFIX + "type_objects"] = list(request.type_names)
         coll[summary.PREFIX + "type_meshes"] = [m.name for m, _ in meshes]
+        coll[summary.PREFIX + "type_sha256"] = signatures
         _set_descriptions(coll)
         context.scene.collection.children.link(coll)
         context.scene.jampacked.result = coll
@@ -431,8 +436,8 @@ def make_real(coll: bpy.types.Collection, which: str, type_index: int = -1
     for i in points["indices"][mask]:
         p = exact[int(i)]
         t = int(p[8])
-        made.append(place_object(coll, f"{names[t]} {int(i) + 1}", t, p[:4], p[4:7], p[7],
-                                 *meshes[t]))
+        made.append(place_object(coll, f"{names[t]} {int(i) + 1}", t, int(i), p[:4], p[4:7],
+                                 p[7], *meshes[t]))
     instances.drop_points(obj, mask)
     return made
 
@@ -450,6 +455,11 @@ class ExportRequest:
     out_path: str
     options: Any
     scale: float = 1.0  # millimetres per Blender unit (the scene's units)
+    #: the placements the result holds now where the artist changed them (deleted, moved,
+    #: made real and moved: `result_edits.current_placements`), else None
+    placements: Any = None
+    #: mesh objects in the result that are no placed objects, left out
+    left_out: list[str] = field(default_factory=list)
 
 
 FORMAT_EXTENSIONS = {'STL': ".stl", '3MF': ".3mf", 'OBJ': ".obj", 'PLY': ".ply"}
@@ -514,17 +524,26 @@ def gather_export(context: bpy.types.Context, options: Any) -> ExportRequest:
     mesh_names = list(coll.get(summary.PREFIX + "type_meshes", []))
     if len(mesh_names) != len(packing.types):
         raise _input_error(f"'{coll.name}' does not record its type meshes: pack again.")
-    types = []
-    for rec, mesh_name in zip(packing.types, mesh_names, strict=True):
+    signatures = list(coll.get(summary.PREFIX + "type_sha256", [None] * len(mesh_names)))
+    types, meshes = [], []
+    for rec, mesh_name, signature in zip(packing.types, mesh_names, signatures, strict=True):
         mesh = bpy.data.meshes.get(mesh_name)
         if mesh is None:
             raise _input_error(f"the mesh '{mesh_name}' of type '{rec.name}' is gone: undo "
                                "its removal or pack again.")
-        types.append(mesh_triangles(mesh, rec.name, np.linalg.inv(rec.local_from_file)))
+        tris = mesh_triangles(mesh, rec.name, np.linalg.inv(rec.local_from_file))
+        if signature is not None and tris.signature() != signature:
+            raise _input_error(f"the mesh '{mesh_name}' of type '{rec.name}' was edited after "
+                               f"packing '{coll.name}', which was certified with it as it "
+                               "was: undo the edit, or pack again.")
+        types.append(tris)
+        meshes.append(mesh)
+    placements, left_out = result_edits.current_placements(coll, packing, meshes)
     unit = context.scene.unit_settings
     return ExportRequest(packing_json=text, container=ctris, types=types,
                          out_path=output_path(s.filepath, s.file_format), options=options,
-                         scale=units.mm_per_unit(unit.system, unit.scale_length))
+                         scale=units.mm_per_unit(unit.system, unit.scale_length),
+                         placements=placements, left_out=left_out)
 
 
 # ------------------------------------------------------------------------------ validate

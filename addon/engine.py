@@ -28,6 +28,8 @@ if TYPE_CHECKING:
     from jampacked.export.options import ExportOptions
     from jampacked.export.validate import ValidationReport
 
+    from .result_edits import Placements
+
 Progress = Callable[[float, str], None]
 ShouldCancel = Callable[[], bool]
 
@@ -227,24 +229,34 @@ def scaled(packing: Packing, container: Triangles, types: Sequence[Triangles],
 
 def export_triangles(packing_json: str, container: Triangles, types: Sequence[Triangles],
                      out_path: str, options: ExportOptions, *, progress: Progress,
-                     should_cancel: ShouldCancel, scale: float = 1.0) -> ExportReport:
+                     should_cancel: ShouldCancel, scale: float = 1.0,
+                     placements: Placements | None = None) -> ExportReport:
     """Export a packing made in Blender; runs in the worker thread.
 
     container: world-space triangles of the container object; types: each type's triangles
     in its packing "file" frame (world space at packing time); lengths (these, the
     packing's and the options') in Blender units. scale: millimetres per Blender unit
-    (:func:`.units.mm_per_unit`): the file is written in millimetres. Raises
+    (:func:`.units.mm_per_unit`): the file is written in millimetres. placements: what the
+    result holds now where the artist changed it (`result_edits.current_placements`): the
+    export then certifies them again and names failures by their Blender names. Raises
     JampackedError subclasses (Cancelled when should_cancel() said so).
     """
     from jampacked.export.assemble import export_packing
 
     packing = packing_from_json(packing_json)
+    labels = None
+    if placements is not None:
+        packing.type_index = np.asarray(placements.type_index, np.int64)
+        packing.rotations = np.asarray(placements.rotations, np.float64)
+        packing.translations = np.asarray(placements.translations, np.float64)
+        packing.scales = np.asarray(placements.scales, np.float64)
+        labels = placements.labels
     if scale != 1.0:
         packing, container, types, options = scaled(packing, container, types, options,
                                                     scale)
     meshes = (container.mesh_data("container"), [t.mesh_data("object") for t in types])
     return export_packing(packing, out_path, options, meshes=meshes, progress=progress,
-                          should_cancel=should_cancel)
+                          should_cancel=should_cancel, labels=labels)
 
 
 def export_options(mode: str, shell: float, opening: str, axis: str, at: float, size: float,

@@ -322,10 +322,17 @@ class ExportRunner(JobRunner):
         request = bridge.gather_export(context, options)
 
         def run(progress: worker.Progress, should_cancel: worker.ShouldCancel) -> Any:
-            return engine.export_triangles(
+            result = engine.export_triangles(
                 request.packing_json, request.container, request.types, request.out_path,
                 request.options, progress=progress, should_cancel=should_cancel,
-                scale=request.scale)
+                scale=request.scale, placements=request.placements)
+            if request.left_out:
+                result.warnings.append(
+                    f"left out, as no objects of the packing (their mesh is none of its "
+                    f"types'): {', '.join(repr(n) for n in request.left_out[:5])}"
+                    + (f" and {len(request.left_out) - 5} more" if len(request.left_out) > 5
+                       else ""))
+            return result
 
         return worker.Job(self.job_title, run)
 

@@ -56,14 +56,16 @@ def export_packing(packing: Packing | str | os.PathLike,
                    options: ExportOptions | None = None, *,
                    meshes: tuple[MeshData, Sequence[MeshData]] | None = None,
                    progress: Progress | None = None,
-                   should_cancel: Callable[[], bool] | None = None) -> ExportReport:
+                   should_cancel: Callable[[], bool] | None = None,
+                   labels: Sequence[str] | None = None) -> ExportReport:
     """Export a packing as printable meshes and validate every file written.
 
     packing: a Packing or the path of its JSON file. out_paths: one or more output files
     (.3mf, .stl, .obj, .ply), all written with the same geometry. options: mode, shell,
     opening, drain, connector, resolution (see :class:`ExportOptions`). meshes: the container
     and type meshes in their file frames, to use instead of the files the packing names
-    (e.g. from Blender). Lengths in container units.
+    (e.g. from Blender). Lengths in container units. labels: what names each placement
+    where the caller has names (Blender's objects), for messages.
 
     Every output path is checked before any work (format, not an input or the packing
     file, folder there, none named twice); the files are written beside their targets,
@@ -121,7 +123,7 @@ def export_packing(packing: Packing | str | os.PathLike,
         report(0.01, f"the packing {why}: certifying it again")
         out.warnings.append(certify_edited(
             packing, scene, clearance, source, why,
-            lambda f, m: report(0.01 + 0.04 * f, m), check_cancel))
+            lambda f, m: report(0.01 + 0.04 * f, m), check_cancel, labels))
         check_cancel()
     check_scale(options, scene.hi - scene.lo, smallest_object(packing))
     out.warnings += print_size_warning(scene.hi - scene.lo)

@@ -10,7 +10,7 @@ Frames and units: the container frame, container units.
 from __future__ import annotations
 
 import math
-from collections.abc import Callable
+from collections.abc import Callable, Sequence
 
 import numpy as np
 
@@ -28,13 +28,15 @@ CELLS_PER_RADIUS = 4.0
 
 def certify_edited(packing: Packing, scene: PlacedScene, clearance: float,
                    source: str | None, why: str, progress: Callable[[float, str], None],
-                   check_cancel: Callable[[], None]) -> str:
+                   check_cancel: Callable[[], None],
+                   labels: Sequence[str] | None = None) -> str:
     """Certify the packing's placements as they now are, on the real meshes; returns the
     note an export gives, or raises InputError naming what fails (overlapping objects,
     objects through the wall, gaps below the clearance). source: the packing file, for
     messages; why: why its certificate does not vouch for it (`uncertified_since`);
     progress(fraction of the check, message); check_cancel() raises Cancelled when the
-    export is cancelled, between the checks."""
+    export is cancelled, between the checks; labels: each placement's name (Blender's
+    objects), else they are named by index and type."""
     progress(0.0, f"certifying the packing again: {packing.n:,} objects")
     volumes = np.array([t.volume for t in packing.types], np.float64)
     spacing = packing.report.container_grid_spacing
@@ -59,16 +61,19 @@ def certify_edited(packing: Packing, scene: PlacedScene, clearance: float,
     if not rep.certified:
         raise InputError(
             f"cannot export: {where} {why}, and certified again its placements fail: "
-            f"{_failures(packing, rep)}. Undo the edit, or pack again.")
+            f"{_failures(packing, rep, labels)}. Undo the edit, or pack again.")
     gaps = f", every gap at least the clearance {clearance:g}" if clearance > 0 else ""
     return (f"{where} {why}; its {packing.n} placements were certified again before "
             f"export: no overlap, nothing outside the container{gaps}.")
 
 
-def _failures(packing: Packing, rep: CertifyReport) -> str:
-    """What the certificate found, naming the worst objects: by overlap where objects
-    overlap, else by how far a gap falls short of the clearance."""
+def _failures(packing: Packing, rep: CertifyReport,
+              labels: Sequence[str] | None = None) -> str:
+    """What the certificate found, naming the worst objects (by ``labels`` where given):
+    by overlap where objects overlap, else by how far a gap falls short of the clearance."""
     def name(i: int) -> str:
+        if labels is not None:
+            return f"'{labels[i]}'"
         return f"object {i} ({packing.types[packing.type_index[i]].name})"
 
     def count(n: int, one: str, many: str) -> str:

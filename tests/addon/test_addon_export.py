@@ -123,3 +123,74 @@ def test_a_scene_in_metres_exports_in_millimetres(bpy, addon, scene, tmp_path):
     from test_addon_register import _draw_all, _labels
 
     assert "Units: 1 BU = 1 m, exported in mm" in _labels(_draw_all(bpy, addon))
+
+
+def _result_objects(bpy):
+    coll = bpy.context.scene.jampacked.result
+    return coll, sorted((o for o in coll.objects if "jampacked_index" in o.keys()),
+                        key=lambda o: o["jampacked_index"])
+
+
+def test_export_writes_the_result_as_the_scene_has_it(bpy, addon, packed, tmp_path):
+    # deleted objects were exported anyway, at the packing's places, as "PASS"
+    from jampacked.export.validate import validate_file
+
+    coll, objs = _result_objects(bpy)
+    n = len(objs)
+    assert n >= 4
+    for obj in objs[:2]:
+        bpy.data.objects.remove(obj)
+    s = packed.settings
+    s.export_mode = 'UNION'
+    s.file_format = '3MF'
+    s.filepath = str(tmp_path / "cut")
+    assert bpy.ops.jampacked.export() == {'FINISHED'}
+    report = validate_file(tmp_path / "cut.3mf")
+    assert report.passed
+    message = bpy.context.window_manager.jampacked_job.last_message
+    assert f"{n - 2} objects" in message or f"{n - 2} placements" in message, message
+    assert "certified again before export" in message, message
+
+
+def test_export_refuses_an_object_moved_onto_another_by_its_name(bpy, addon, packed,
+                                                                 tmp_path):
+    coll, objs = _result_objects(bpy)
+    objs[0].location = objs[1].location.copy()
+    objs[0].rotation_quaternion = objs[1].rotation_quaternion.copy()
+    packed.settings.filepath = str(tmp_path / "x.stl")
+    with pytest.raises(RuntimeError, match=r"certified again its placements fail: .*"
+                       r"overlap") as err:
+        bpy.ops.jampacked.export()
+    assert f"'{objs[0].name}'" in str(err.value) and f"'{objs[1].name}'" in str(err.value)
+    assert not (tmp_path / "x.stl").exists()
+
+
+def test_export_refuses_an_unevenly_scaled_object(bpy, addon, packed, tmp_path):
+    coll, objs = _result_objects(bpy)
+    objs[0].scale = (1.0, 1.0, 1.3)
+    packed.settings.filepath = str(tmp_path / "x.stl")
+    with pytest.raises(RuntimeError, match=rf"'{objs[0].name}' is scaled unevenly"):
+        bpy.ops.jampacked.export()
+
+
+def test_export_of_an_unchanged_result_certifies_nothing_again(bpy, addon, packed,
+                                                               tmp_path):
+    s = packed.settings
+    s.file_format = '3MF'
+    s.filepath = str(tmp_path / "same")
+    assert bpy.ops.jampacked.export() == {'FINISHED'}
+    message = bpy.context.window_manager.jampacked_job.last_message
+    assert "certified again" not in message and "left out" not in message, message
+
+
+def test_export_refuses_an_edited_type_mesh(bpy, addon, packed, tmp_path):
+    # a type's shared mesh scaled by 1.4 in Edit Mode: the union was written (427 pairs
+    # overlapping) and read "validation PASS"
+    coll, objs = _result_objects(bpy)
+    mesh = objs[0].data
+    mesh.transform(__import__("mathutils").Matrix.Scale(1.4, 4))
+    mesh.update()
+    packed.settings.filepath = str(tmp_path / "x.stl")
+    with pytest.raises(RuntimeError, match=rf"(?i)the mesh '{mesh.name}' of type .* was edited "
+                       r"after packing"):
+        bpy.ops.jampacked.export()

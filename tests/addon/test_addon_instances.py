@@ -317,3 +317,31 @@ def test_make_real_from_edit_mode(bpy, addon, scene):
     assert real == sorted(f"{packing.types[packing.type_index[i]].name} {i + 1}"
                           for i in (1, 2))
     _check_instances(bpy, packing, points, np.setdiff1d(np.arange(packing.n), [1, 2]))
+
+
+def test_export_writes_the_instances_and_real_objects_the_scene_has(bpy, addon, scene,
+                                                                     tmp_path):
+    # points removed from an instanced result were still exported; made real and
+    # unchanged, nothing is certified again
+    from jampacked.export.validate import validate_file
+
+    s = scene.settings
+    s.export_mode, s.file_format = 'UNION', '3MF'
+    coll = _pack(bpy, 'INSTANCES')
+    packing = _packing(addon, coll)
+    points = addon.instances.points_object(coll)
+    select = np.zeros(packing.n, bool)
+    select[[0, 3]] = True
+    points.data.vertices.foreach_set("select", select)
+    assert bpy.ops.jampacked.make_real(which='SELECTED') == {'FINISHED'}
+    s.filepath = str(tmp_path / "mixed")
+    assert bpy.ops.jampacked.export() == {'FINISHED'}
+    message = bpy.context.window_manager.jampacked_job.last_message
+    assert "certified again" not in message, message
+    # two instances dropped
+    addon.instances.drop_points(points, np.arange(packing.n - 2) < 2)
+    s.filepath = str(tmp_path / "fewer")
+    assert bpy.ops.jampacked.export() == {'FINISHED'}
+    message = bpy.context.window_manager.jampacked_job.last_message
+    assert f"its {packing.n - 2} placements were certified again" in message, message
+    assert validate_file(tmp_path / "fewer.3mf").passed
