@@ -281,15 +281,19 @@ class PackRunner(JobRunner):
         bridge.check_unchanged(context, self._request)
         coll = bridge.build_result(context, self._request, result)
         # an earlier result holding an input (a placed object picked as a type) is kept
+        kept = 0
         if not (context.scene.jampacked.keep_previous
                 or bridge.inputs_in_results(context.scene, self._request)):
-            results.replace_previous(context.scene, coll)
+            kept = results.replace_previous(context.scene, coll)
         p = result.packing
         m, cert = p.metrics, p.certificate
         nni = m.get("nni_mean")
         text = (f"Packed {p.n} objects into '{coll.name}': density {m.get('density', 0):.1%}, "
                 f"TVD {m.get('tvd', 0):.3f}, NNI {'-' if nni is None else f'{nni:.2f}'}, "
                 f"{'certified' if cert.get('certified') else 'NOT certified'}.")
+        if kept:
+            text += (f" Kept {kept} object(s) or collection(s) you had put in the previous "
+                     f"result, now in '{coll.name}'.")
         warned = summary.warnings(coll)
         for w in warned:  # each in the Info log; the panel's Result shows them all
             self.report({'WARNING'}, w)

@@ -23,17 +23,26 @@ def previous_results(scene: bpy.types.Scene, container_name: str
             if is_result(c) and c.get(summary.PREFIX + "container") == container_name]
 
 
-def remove_result(coll: bpy.types.Collection) -> None:
+def remove_result(coll: bpy.types.Collection, keep_in: bpy.types.Collection) -> int:
     """Remove a result: its placed objects and its instances (those in no other
     collection), then the type meshes and their materials once nothing else uses them,
-    then the collection."""
+    then the collection. What the artist put in it (other objects, child collections) is
+    linked to ``keep_in`` first, so that nothing leaves the scene; returns how many."""
+    points = instances.points_object(coll)
+    kept = [o for o in coll.objects if "jampacked_type" not in o.keys() and o != points]
+    for obj in kept:
+        if obj.name not in keep_in.objects:
+            keep_in.objects.link(obj)
+    for child in coll.children:
+        if child.name not in keep_in.children:
+            keep_in.children.link(child)
+    kept_count = len(kept) + len(coll.children)
     meshes = [bpy.data.meshes.get(str(name))
               for name in coll.get(summary.PREFIX + "type_meshes", [])]
     objects = [o for o in coll.objects
                if "jampacked_type" in o.keys() and len(o.users_collection) == 1]
     if objects:
         bpy.data.batch_remove(objects)
-    points = instances.points_object(coll)
     if points is not None and len(points.users_collection) == 1:
         instances.remove(points)  # with its prototypes, which use the type meshes
     for mesh in meshes:
@@ -45,16 +54,19 @@ def remove_result(coll: bpy.types.Collection) -> None:
             if not mat.users and mat.name.startswith("Jampacked "):
                 bpy.data.materials.remove(mat)
     bpy.data.collections.remove(coll)
+    return kept_count
 
 
 def replace_previous(scene: bpy.types.Scene, new: bpy.types.Collection) -> int:
     """Remove the other results of ``new``'s container in the scene, then give ``new`` and
     its type meshes and materials the names the removed ones had (no ".001" suffixes).
-    Returns the number of results removed."""
+    What the artist put in a removed result moves to ``new``. Returns the number of
+    objects and collections so moved."""
     container = str(new.get(summary.PREFIX + "container", ""))
     old = [c for c in previous_results(scene, container) if c != new]
+    kept = 0
     for coll in old:
-        remove_result(coll)
+        kept += remove_result(coll, new)
     new.name = f"Jampacked {container}"
     names = []
     for mesh_name, type_name in zip(new.get(summary.PREFIX + "type_meshes", []),
@@ -67,7 +79,12 @@ def replace_previous(scene: bpy.types.Scene, new: bpy.types.Collection) -> int:
                 mat.name = base
         names.append(mesh.name)
     new[summary.PREFIX + "type_meshes"] = names
+    type_names = [str(n) for n in new.get(summary.PREFIX + "type_names", [])]
+    for obj in new.objects:  # made beside the old ones: "P4 1.001"
+        t, i = obj.get("jampacked_type"), obj.get("jampacked_index")
+        if isinstance(t, int) and isinstance(i, int) and 0 <= t < len(type_names):
+            obj.name = f"{type_names[t]} {i + 1}"
     points = instances.points_object(new)
     if points is not None:
         instances.rename(points, container)
-    return len(old)
+    return kept

@@ -336,6 +336,33 @@ def test_a_second_pack_replaces_the_first(bpy, addon, scene):
     assert _packing(addon, bpy.context.scene.jampacked.result).seed == 1
 
 
+def test_a_second_pack_keeps_what_the_artist_put_in_the_result(bpy, addon, scene):
+    # a light, a mesh and a child collection put in "Jampacked Box" left the scene (no
+    # collection held them any more) when a second Pack replaced it
+    assert bpy.ops.jampacked.pack() == {'FINISHED'}
+    coll = scene.settings.result
+    light = bpy.data.objects.new("Key", bpy.data.lights.new("Key", 'POINT'))
+    plate = cube_object(bpy, "Label plate", location=(0.0, 80.0, 0.0))
+    for obj in (light, plate):
+        for c in list(obj.users_collection):
+            c.objects.unlink(obj)
+        coll.objects.link(obj)
+    child = bpy.data.collections.new("Highlights")
+    coll.children.link(child)
+    scene.settings.seed = 2
+    assert bpy.ops.jampacked.pack() == {'FINISHED'}
+    (new,) = _results(bpy)
+    assert new.name == "Jampacked Box" and _packing(addon, new).seed == 2
+    assert {"Key", "Label plate"} <= {o.name for o in new.objects}
+    assert "Highlights" in new.children
+    scene_objects = {o.name for o in bpy.context.scene.objects}
+    assert {"Key", "Label plate"} <= scene_objects
+    # the new result's objects take the names the old ones had ("P4 1", not "P4 1.001")
+    assert not any(o.name.endswith(".001") for o in new.objects)
+    message = bpy.context.window_manager.jampacked_job.last_message
+    assert "Kept 3 object(s) or collection(s)" in message, message
+
+
 def test_keep_previous_keeps_both(bpy, addon, scene):
     scene.settings.keep_previous = True
     assert bpy.ops.jampacked.pack() == {'FINISHED'}
