@@ -23,7 +23,7 @@ import bpy
 import numpy as np
 from mathutils import Matrix
 
-from . import instances, result_edits, summary, units
+from . import instances, result_edits, results, summary, units
 from .engine import PackOutcome, Triangles, check_extent, is_inward
 
 
@@ -265,10 +265,8 @@ def check_unchanged(context: bpy.types.Context, request: PackRequest) -> None:
 def inputs_in_results(scene: bpy.types.Scene, request: PackRequest) -> list[str]:
     """Names of the request's input objects that belong to an earlier result of its
     container: replacing that result would delete them (keep it instead)."""
-    from .results import previous_results
-
     names = {request.container_name, *request.type_names}
-    return sorted({o.name for c in previous_results(scene, request.container_name)
+    return sorted({o.name for c in results.previous_results(scene, request.container_name)
                    for o in c.objects if o.name in names})
 
 
@@ -370,6 +368,7 @@ def build_result(context: bpy.types.Context, request: PackRequest,
             coll[summary.PREFIX + key] = value
         coll[summary.PREFIX + "packing"] = outcome.json_text
         coll[summary.PREFIX + "container"] = request.container_name
+        coll[summary.PREFIX + "container_object"] = bpy.data.objects[request.container_name]
         coll[summary.PREFIX + "container_sha256"] = request.signatures[0]
         coll[summary.PREFIX + "type_objects"] = list(request.type_names)
         coll[summary.PREFIX + "type_meshes"] = [m.name for m, _ in meshes]
@@ -512,7 +511,9 @@ def gather_export(context: bpy.types.Context, options: Any) -> ExportRequest:
     text = str(coll[summary.PREFIX + "packing"])
     packing = packing_from_json(text)
     cname = str(coll.get(summary.PREFIX + "container", ""))
-    container = bpy.data.objects.get(cname)
+    container = results.container_of(coll)
+    if container is not None:
+        cname = container.name
     if container is None:
         raise _input_error(f"the container '{cname}' of '{coll.name}' is gone: restore it "
                            "(undo) or pack again.")

@@ -16,11 +16,24 @@ def is_result(coll: bpy.types.Collection) -> bool:
     return summary.PREFIX + "packing" in coll.keys()
 
 
+def container_of(coll: bpy.types.Collection) -> bpy.types.Object | None:
+    """The container object of a result: the one it points to (``jampacked_container_object``,
+    which follows a rename), else, for a result made before that was kept, the object of
+    the recorded name; None when it is gone."""
+    obj = coll.get(summary.PREFIX + "container_object")
+    if isinstance(obj, bpy.types.Object):
+        return obj
+    return bpy.data.objects.get(str(coll.get(summary.PREFIX + "container", "")))
+
+
 def previous_results(scene: bpy.types.Scene, container_name: str
                      ) -> list[bpy.types.Collection]:
-    """The results of ``container_name`` linked anywhere in the scene's collection tree."""
-    return [c for c in scene.collection.children_recursive
-            if is_result(c) and c.get(summary.PREFIX + "container") == container_name]
+    """The results of the container object ``container_name`` (renamed since or not)
+    linked anywhere in the scene's collection tree."""
+    target = bpy.data.objects.get(container_name)
+    return [c for c in scene.collection.children_recursive if is_result(c) and (
+        container_of(c) == target if target is not None
+        else c.get(summary.PREFIX + "container") == container_name)]
 
 
 def remove_result(coll: bpy.types.Collection, keep_in: bpy.types.Collection) -> int:

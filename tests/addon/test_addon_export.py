@@ -194,3 +194,18 @@ def test_export_refuses_an_edited_type_mesh(bpy, addon, packed, tmp_path):
     with pytest.raises(RuntimeError, match=rf"(?i)the mesh '{mesh.name}' of type .* was edited "
                        r"after packing"):
         bpy.ops.jampacked.export()
+
+
+def test_a_renamed_container_exports_and_packs_again_in_place(bpy, addon, packed,
+                                                              tmp_path):
+    # Export read "the container 'Box' ... is gone", and a second Pack left both results
+    packed.box.name = "Crate"
+    s = packed.settings
+    s.file_format = '3MF'
+    s.filepath = str(tmp_path / "renamed")
+    assert bpy.ops.jampacked.export() == {'FINISHED'}
+    assert (tmp_path / "renamed.3mf").is_file()
+    s.seed = 2
+    assert bpy.ops.jampacked.pack() == {'FINISHED'}
+    results = [c for c in bpy.data.collections if "jampacked_packing" in c.keys()]
+    assert [c.name for c in results] == ["Jampacked Crate"]
