@@ -32,6 +32,8 @@ RARE_FIT = 0.125
 #: the rotations and the most vertices that share is measured with
 _FIT_ROTATIONS = 64
 _FIT_VERTICES = 2000
+#: the turns that keep a box's axes (signs of its columns, right-handed)
+_FLIPS = np.array([[1, 1, 1], [-1, -1, 1], [-1, 1, -1], [1, -1, -1]], np.float64)
 #: directions the container's room at a point is probed along (one of each opposite pair)
 _PROBES = np.array([d for d in np.ndindex(3, 3, 3) if d > (1, 1, 1)], np.float64) - 1.0
 _PROBES /= np.linalg.norm(_PROBES, axis=1, keepdims=True)
@@ -58,18 +60,43 @@ def flat_only(half_extents: np.ndarray, depth: float) -> np.ndarray:
     return np.asarray(half_extents, np.float64)[:, 1] > depth
 
 
+def _deepest(grid: DistanceGrid) -> np.ndarray:
+    """(3,) the container's deepest point: of the nodes within half a cell of the greatest
+    depth (a tube's axis, a slab's middle), the one nearest their centroid, not an end."""
+    idx = np.argwhere(grid.values >= grid.values.max() - 0.5 * grid.spacing)
+    nodes = grid.origin + grid.spacing * idx.astype(np.float64)
+    return nodes[int(np.argmin(((nodes - nodes.mean(axis=0)) ** 2).sum(axis=1)))]
+
+
+def _inside(grid: DistanceGrid, p: np.ndarray, turns: np.ndarray,
+            vertices: np.ndarray) -> np.ndarray:
+    """(R,) whether the mesh (vertices in its local frame; up to 2,000 of them are read)
+    turned by each of ``turns`` (R, 3, 3) with its origin at p lies inside the container,
+    by the grid's interpolated depth at its vertices."""
+    v = np.asarray(vertices, np.float64)
+    v = v[:: max(1, len(v) // _FIT_VERTICES)]
+    pts = (p + np.einsum("rij,vj->rvi", turns, v)).reshape(-1, 3)
+    depth = sample_grid_many(grid.values, grid.origin, grid.spacing, pts)
+    return depth.reshape(len(turns), -1).min(axis=1) >= 0.0
+
+
 def fit_share(grid: DistanceGrid, vertices: np.ndarray) -> float:
     """The share of rotations (drawn from a fixed stream) at which a mesh (vertices in its
     local frame, about its origin) lies inside the container with its origin at the grid's
-    deepest node, by the grid's interpolated depth at (up to 2,000 of) its vertices."""
-    i = np.unravel_index(int(np.argmax(grid.values)), grid.values.shape)
-    p = grid.origin + grid.spacing * np.asarray(i, np.float64)
-    v = np.asarray(vertices, np.float64)
-    v = v[:: max(1, len(v) // _FIT_VERTICES)]
+    deepest node."""
     turns = quat_to_matrix(random_quaternions(np.random.default_rng(0), _FIT_ROTATIONS))
-    pts = (p + np.einsum("rij,vj->rvi", turns, v)).reshape(-1, 3)
-    depth = sample_grid_many(grid.values, grid.origin, grid.spacing, pts)
-    return float((depth.reshape(_FIT_ROTATIONS, -1).min(axis=1) >= 0.0).mean())
+    return float(_inside(grid, _deepest(grid), turns, vertices).mean())
+
+
+def fits_lying_down(grid: DistanceGrid, type_axes: np.ndarray, vertices: np.ndarray
+                    ) -> bool:
+    """Whether a mesh lies inside the container at its deepest node turned onto the room
+    frame there (`room_frame`) in one of the four turns that keep it: a type that fits
+    only across a box's diagonal does not, and is left to turn at random."""
+    p = _deepest(grid)
+    frame = room_frame(grid, p)
+    turns = np.array([frame @ np.diag(s) @ type_axes.T for s in _FLIPS])
+    return bool(_inside(grid, p, turns, vertices).any())
 
 
 def flat_types(types: Sequence, radius: np.ndarray, grid: DistanceGrid
@@ -79,8 +106,8 @@ def flat_types(types: Sequence, radius: np.ndarray, grid: DistanceGrid
     box axes and half extents: identity and zeros for a type that can turn anywhere its
     bounding ball fits (radius <= the container's depth), whose box is not measured (0.3 s
     for an 8,000-vertex scan). Lying down: wider than the container is deep (`flat_only`),
-    or longer than it is deep and fitting at its deepest point at fewer than RARE_FIT of
-    random rotations."""
+    or longer than it is deep, fitting at its deepest point at fewer than RARE_FIT of
+    random rotations and there lying down (`fits_lying_down`)."""
     n = len(types)
     depth = float(grid.values.max())
     axes = np.tile(np.eye(3), (n, 1, 1))
@@ -91,7 +118,8 @@ def flat_types(types: Sequence, radius: np.ndarray, grid: DistanceGrid
             axes[i], half[i] = principal_frame(t.vertices)
             # a type no longer than the container is deep fits turned (a cube in a slab a
             # little thicker than it is packed densest turned as the solver turns it)
-            rare[i] = half[i, 0] > depth and fit_share(grid, t.vertices) < RARE_FIT
+            rare[i] = (half[i, 0] > depth and fit_share(grid, t.vertices) < RARE_FIT
+                       and fits_lying_down(grid, axes[i], t.vertices))
     return flat_only(half, depth) | rare, axes, half
 
 
@@ -144,7 +172,6 @@ def flat_quaternion(type_axes: np.ndarray, p: np.ndarray, grid: DistanceGrid,
                     rng: np.random.Generator) -> np.ndarray:
     """(4,) rotation (w, x, y, z) taking a type's box axes (3, 3) onto the
     container's room frame at p, with one of the four turns that keep it (random)."""
-    flips = np.array([[1, 1, 1], [-1, -1, 1], [-1, 1, -1], [1, -1, -1]], np.float64)
-    s = flips[int(rng.integers(4))]
+    s = _FLIPS[int(rng.integers(4))]
     r = room_frame(grid, p) @ np.diag(s) @ type_axes.T
     return matrix_to_quat(r[None])[0]

@@ -11,6 +11,7 @@ from jampacked.core.container import build_container
 from jampacked.core.lie_flat import (
     RARE_FIT,
     fit_share,
+    fits_lying_down,
     flat_only,
     flat_quaternion,
     flat_types,
@@ -124,3 +125,22 @@ def test_the_passes_lattice_does_not_miss_a_thin_slabs_middle(tmp_path, seed):
     plate.export(tmp_path / "plate.stl")
     p = pack("box:45x45x1.1", [str(tmp_path / "plate.stl")], seed=seed, time_budget=3.0)
     assert p.n >= 3 and p.certificate["certified"]
+
+
+def test_a_type_that_fits_only_across_a_diagonal_is_left_to_turn():
+    # polytope1 (25 long) fits a 16 x 15 x 14 box only across it: laid along the room's
+    # axes it fitted nowhere, and the small scenes' packings changed
+    from testdata import mesh_path
+
+    box = trimesh.creation.box(extents=(16.0, 15.0, 14.0))
+    cont = build_container(box.vertices, box.faces, float(box.volume), 0.25)
+    mesh = trimesh.load(mesh_path("polyhedra/convex5/polytope1.obj"), force="mesh")
+
+    class Poly:
+        vertices = mesh.vertices - mesh.center_mass
+
+    axes, half = principal_frame(Poly.vertices)
+    assert half[0] > cont.grid.values.max() and fit_share(cont.grid, Poly.vertices) < RARE_FIT
+    assert not fits_lying_down(cont.grid, axes, Poly.vertices)
+    radius = float(np.linalg.norm(Poly.vertices, axis=1).max())
+    assert not flat_types([Poly()], np.array([radius]), cont.grid)[0][0]
