@@ -458,13 +458,25 @@ class JAMPACKED_OT_type_add(bpy.types.Operator):
     def execute(self, context: bpy.types.Context) -> set[str]:
         s = context.scene.jampacked
         listed = {item.object for item in s.types if item.object is not None}
-        added = 0
+        added, skipped = 0, []
         for obj in context.selected_objects:
-            if (obj.type in bridge.GEOMETRY_TYPES and obj not in listed
-                    and obj != s.container):
+            if obj in listed:
+                skipped.append(f"'{obj.name}' is listed already")
+            elif obj == s.container:
+                skipped.append(f"'{obj.name}' is the container")
+            elif obj.type not in bridge.GEOMETRY_TYPES:
+                what = ("a collection instance: make it real first (Object > Apply > Make "
+                        "Instances Real)" if obj.instance_type == 'COLLECTION'
+                        else f"a {obj.type.lower()}, which has no surface")
+                skipped.append(f"'{obj.name}' is {what}")
+            else:
                 s.types.add().object = obj
                 added += 1
-        if not added:
+        if skipped:
+            self.report({'WARNING'}, "Not added: " + "; ".join(skipped) + ".")
+            if not added:  # no empty row for a selection that gave nothing
+                return {'CANCELLED'}
+        if not added:  # nothing selected: an empty row to pick an object into
             s.types.add()
         s.active_type = len(s.types) - 1
         return {'FINISHED'}

@@ -625,3 +625,20 @@ def test_a_placed_object_picked_as_a_type_survives_the_next_pack(bpy, addon):
     assert bpy.ops.jampacked.pack() == {'FINISHED'}
     assert [c.name for c in bpy.context.scene.collection.children
             if "jampacked_packing" in c.keys()] == ["Jampacked Box"] == [s.result.name]
+
+
+def test_the_add_button_says_why_it_added_nothing(bpy, addon):
+    # an object already listed, or a collection-instance empty, gave a blank row and no word
+    ico = _ico(bpy, "Ico")
+    group = bpy.data.objects.new("Group", None)
+    group.instance_type = 'COLLECTION'
+    group.instance_collection = bpy.data.collections.new("Group source")
+    bpy.context.scene.collection.objects.link(group)
+    s = bpy.context.scene.jampacked
+    s.types.add().object = ico
+    with bpy.context.temp_override(selected_objects=[ico, group]):
+        assert bpy.ops.jampacked.type_add() == {'CANCELLED'}
+    assert [item.object for item in s.types] == [ico]  # no blank row
+    with bpy.context.temp_override(selected_objects=[]):
+        assert bpy.ops.jampacked.type_add() == {'FINISHED'}  # nothing selected: a row to fill
+    assert len(s.types) == 2 and s.types[1].object is None
