@@ -14,6 +14,7 @@ Frames (Blender units throughout):
 Everything here runs on Blender's main thread.
 """
 
+import math
 import os
 from collections.abc import Mapping
 from dataclasses import dataclass, field
@@ -533,7 +534,10 @@ def gather_export(context: bpy.types.Context, options: Any) -> ExportRequest:
             raise _input_error(f"the mesh '{mesh_name}' of type '{rec.name}' is gone: undo "
                                "its removal or pack again.")
         tris = mesh_triangles(mesh, rec.name, np.linalg.inv(rec.local_from_file))
-        if signature is not None and tris.signature() != signature:
+        # a result made before signatures were recorded: its volume, as the packing has it
+        edited = (tris.signature() != signature if signature is not None
+                  else not math.isclose(_volume(tris), rec.volume, rel_tol=1e-6))
+        if edited:
             raise _input_error(f"the mesh '{mesh_name}' of type '{rec.name}' was edited after "
                                f"packing '{coll.name}', which was certified with it as it "
                                "was: undo the edit, or pack again.")
@@ -545,6 +549,12 @@ def gather_export(context: bpy.types.Context, options: Any) -> ExportRequest:
                          out_path=output_path(s.filepath, s.file_format), options=options,
                          scale=units.mm_per_unit(unit.system, unit.scale_length),
                          placements=placements, left_out=left_out)
+
+
+def _volume(tris: Triangles) -> float:
+    """The enclosed volume of closed triangles (their winding's sign)."""
+    a, b, c = (tris.vertices[tris.faces[:, k]] for k in range(3))
+    return float(np.einsum("ij,ij->i", a, np.cross(b, c)).sum() / 6.0)
 
 
 # ------------------------------------------------------------------------------ validate

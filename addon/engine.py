@@ -241,9 +241,11 @@ def export_triangles(packing_json: str, container: Triangles, types: Sequence[Tr
     export then certifies them again and names failures by their Blender names. Raises
     JampackedError subclasses (Cancelled when should_cancel() said so).
     """
+    from jampacked.core.packing_digest import placements_status, record_digest
     from jampacked.export.assemble import export_packing
 
     packing = packing_from_json(packing_json)
+    as_certified = placements_status(packing) == "as certified"
     labels = None
     if placements is not None:
         packing.type_index = np.asarray(placements.type_index, np.int64)
@@ -251,6 +253,9 @@ def export_triangles(packing_json: str, container: Triangles, types: Sequence[Tr
         packing.translations = np.asarray(placements.translations, np.float64)
         packing.scales = np.asarray(placements.scales, np.float64)
         labels = placements.labels
+        if placements.removed_only and as_certified:
+            # what is left of a certified packing is certified: nothing to check again
+            record_digest(packing)
     if scale != 1.0:
         packing, container, types, options = scaled(packing, container, types, options,
                                                     scale)

@@ -323,6 +323,9 @@ class ExportRunner(JobRunner):
             s.export_mode, s.shell, s.opening, axis_name(s.opening_axis), s.opening_at,
             s.opening_size, s.drain, s.connector, s.resolution, s.split_files,
             s.fill_voids)
+        if context.object is not None and context.object.mode == 'EDIT':
+            # Edit Mode's points and meshes reach their data only in Object Mode
+            bpy.ops.object.mode_set(mode='OBJECT')
         request = bridge.gather_export(context, options)
 
         def run(progress: worker.Progress, should_cancel: worker.ShouldCancel) -> Any:
@@ -330,6 +333,10 @@ class ExportRunner(JobRunner):
                 request.packing_json, request.container, request.types, request.out_path,
                 request.options, progress=progress, should_cancel=should_cancel,
                 scale=request.scale, placements=request.placements)
+            if request.placements is not None and request.placements.removed_only:
+                result.warnings.append(
+                    f"exported the {len(request.placements.labels)} objects the result holds "
+                    "now; the others were removed since Pack, and the rest is as certified")
             if request.left_out:
                 result.warnings.append(
                     f"left out, as no objects of the packing (their mesh is none of its "

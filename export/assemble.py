@@ -117,7 +117,7 @@ def export_packing(packing: Packing | str | os.PathLike,
                          f"{len(packing.types)} types.")
     out = ExportReport(mode=options.mode, paths=paths, bodies=0, objects=packing.n,
                        triangles=0, clearance=clearance)
-    scene = place(packing, container, types, source)
+    scene = place(packing, container, types, source, labels)
     why = uncertified_since(packing)
     if why is not None:
         report(0.01, f"the packing {why}: certifying it again")

@@ -102,17 +102,26 @@ def packing_clearance(packing: Packing, source: str | None) -> float:
                      "or re-run the packing.")
 
 
-def _objects(packing: Packing, indices: np.ndarray) -> str:
+def _name(packing: Packing, i: int, labels: Sequence[str] | None = None) -> str:
+    """'object 3 (lemon)', or the caller's name for it ('lemon 4' in Blender)."""
+    if labels is not None:
+        return f"'{labels[i]}'"
+    return f"object {i} ({packing.types[packing.type_index[i]].name})"
+
+
+def _objects(packing: Packing, indices: np.ndarray, labels: Sequence[str] | None = None
+             ) -> str:
     """'object 3 (lemon), object 7 (lime) and 4 more' for an error message."""
-    named = [f"object {i} ({packing.types[packing.type_index[i]].name})"
-             for i in indices[:NAMED]]
+    named = [_name(packing, int(i), labels) for i in indices[:NAMED]]
     more = f" and {len(indices) - NAMED} more" if len(indices) > NAMED else ""
     return ", ".join(named) + more
 
 
 def check_placements(packing: Packing, type_radius: np.ndarray, lo: np.ndarray,
-                     hi: np.ndarray, source: str | None) -> None:
-    """Refuse placements that cannot be exported, naming the objects.
+                     hi: np.ndarray, source: str | None,
+                     labels: Sequence[str] | None = None) -> None:
+    """Refuse placements that cannot be exported, naming the objects (by ``labels`` where
+    the caller has names).
 
     type_radius: (T,) largest distance of each type's vertices from its local origin; lo, hi:
     the container's bounds, container frame and units. Singular transforms (a zero or
@@ -134,7 +143,7 @@ def check_placements(packing: Packing, type_radius: np.ndarray, lo: np.ndarray,
         (~np.all(np.isfinite(packing.translations), axis=1), "a non-finite translation"),
     ):
         if bad.any():
-            problems.append(f"{_objects(packing, np.flatnonzero(bad))}: {what}")
+            problems.append(f"{_objects(packing, np.flatnonzero(bad), labels)}: {what}")
     if problems:
         raise InputError(
             f"cannot export: {where} has singular placements, which would vanish from the "
@@ -148,8 +157,8 @@ def check_placements(packing: Packing, type_radius: np.ndarray, lo: np.ndarray,
     if far.size:
         i = int(far[0])
         raise InputError(
-            f"cannot export: {where} places {_objects(packing, far)} outside the container "
-            f"(object {i} is {size[i]:.4g} units across at "
+            f"cannot export: {where} places {_objects(packing, far, labels)} outside the "
+            f"container ({_name(packing, i, labels)} is {size[i]:.4g} units across at "
             f"({', '.join(f'{c:.4g}' for c in t[i])}); the container spans "
             f"({', '.join(f'{c:.4g}' for c in lo)}) to ({', '.join(f'{c:.4g}' for c in hi)})). "
             "Every object must sit within the container: re-run the packing, or fix these "
@@ -256,18 +265,20 @@ class PlacedScene:
 
 
 def place(packing: Packing, container: MeshData, types: Sequence[MeshData],
-          source: str | None = None) -> PlacedScene:
+          source: str | None = None, labels: Sequence[str] | None = None) -> PlacedScene:
     """The packing's container and types in the container frame, its placements checked.
 
-    container, types: the meshes in their file frames. source: the packing file, for
-    messages. Raises InputError for placements that cannot be exported (see
+    container, types: the meshes in their file frames. source: the packing file, labels:
+    each placement's name where the caller has names, for messages. Raises InputError for
+    placements that cannot be exported (see
     :func:`check_placements`); the solids come from :meth:`PlacedScene.make_solids`.
     """
     c_vertices = transform_points(packing.frame_from_file, container.vertices)
     local = [transform_points(t.local_from_file, m.vertices)
              for t, m in zip(packing.types, types, strict=True)]
     radius = np.array([float(np.sqrt((v * v).sum(axis=1)).max()) for v in local])
-    check_placements(packing, radius, c_vertices.min(axis=0), c_vertices.max(axis=0), source)
+    check_placements(packing, radius, c_vertices.min(axis=0), c_vertices.max(axis=0), source,
+                     labels)
     return PlacedScene(container_vertices=c_vertices, container_faces=container.faces,
                        type_index=packing.type_index, local=local,
                        type_faces=[m.faces for m in types], matrices=packing.matrices())

@@ -148,8 +148,17 @@ def test_export_writes_the_result_as_the_scene_has_it(bpy, addon, packed, tmp_pa
     report = validate_file(tmp_path / "cut.3mf")
     assert report.passed
     message = bpy.context.window_manager.jampacked_job.last_message
-    assert f"{n - 2} objects" in message or f"{n - 2} placements" in message, message
-    assert "certified again before export" in message, message
+    # what is left of a certified packing is certified: nothing to check again
+    assert f"union: {n - 2} objects" in message, message
+    assert f"Exported the {n - 2} objects the result holds now" in message, message
+    assert "certified again" not in message, message
+    # one moved (a little, into no other): the packing is certified again
+    objs = _result_objects(bpy)[1]
+    objs[0].location.x += 1e-3
+    s.filepath = str(tmp_path / "moved")
+    assert bpy.ops.jampacked.export() == {'FINISHED'}
+    message = bpy.context.window_manager.jampacked_job.last_message
+    assert f"its {n - 2} placements were certified again before export" in message, message
 
 
 def test_export_refuses_an_object_moved_onto_another_by_its_name(bpy, addon, packed,
@@ -209,3 +218,41 @@ def test_a_renamed_container_exports_and_packs_again_in_place(bpy, addon, packed
     assert bpy.ops.jampacked.pack() == {'FINISHED'}
     results = [c for c in bpy.data.collections if "jampacked_packing" in c.keys()]
     assert [c.name for c in results] == ["Jampacked Crate"]
+
+
+def test_a_result_made_before_objects_recorded_their_index_exports_as_it_was(
+        bpy, addon, packed, tmp_path):
+    # every object then read as moved: certified again from 32-bit matrices, "changed"
+    coll, objs = _result_objects(bpy)
+    for obj in objs:
+        del obj["jampacked_index"]
+    s = packed.settings
+    s.file_format = '3MF'
+    s.filepath = str(tmp_path / "old")
+    assert bpy.ops.jampacked.export() == {'FINISHED'}
+    message = bpy.context.window_manager.jampacked_job.last_message
+    assert "certified again" not in message and "holds now" not in message, message
+
+
+def test_an_edited_type_mesh_of_an_older_result_is_refused(bpy, addon, packed, tmp_path):
+    # a result made before type meshes' signatures were recorded: checked by its volume
+    coll, objs = _result_objects(bpy)
+    del coll["jampacked_type_sha256"]
+    mesh = objs[0].data
+    mesh.transform(__import__("mathutils").Matrix.Scale(1.4, 4))
+    mesh.update()
+    packed.settings.filepath = str(tmp_path / "x.stl")
+    with pytest.raises(RuntimeError, match=r"(?i)the mesh .* was edited after packing"):
+        bpy.ops.jampacked.export()
+
+
+def test_an_object_moved_out_is_named_by_its_blender_name(bpy, addon, packed, tmp_path):
+    # it read "places object 12 (P4) outside the container", an index of the re-sorted list
+    coll, objs = _result_objects(bpy)
+    handle = bpy.data.objects.new("Handle", None)
+    bpy.context.scene.collection.objects.link(handle)
+    objs[0].parent = handle
+    handle.location = (0.0, 0.0, 500.0)
+    packed.settings.filepath = str(tmp_path / "x.stl")
+    with pytest.raises(RuntimeError, match=rf"places '{objs[0].name}' outside the container"):
+        bpy.ops.jampacked.export()

@@ -338,10 +338,26 @@ def test_export_writes_the_instances_and_real_objects_the_scene_has(bpy, addon, 
     assert bpy.ops.jampacked.export() == {'FINISHED'}
     message = bpy.context.window_manager.jampacked_job.last_message
     assert "certified again" not in message, message
-    # two instances dropped
-    addon.instances.drop_points(points, np.arange(packing.n - 2) < 2)
+    # two instances deleted in Edit Mode (where Make Real's selection is made; the export
+    # read no attributes there and failed with a traceback)
+    import bmesh
+
+    bpy.context.view_layer.objects.active = points
+    points.select_set(True)
+    bpy.ops.object.mode_set(mode='EDIT')
+    bm = bmesh.from_edit_mesh(points.data)
+    bm.verts.ensure_lookup_table()
+    bmesh.ops.delete(bm, geom=[bm.verts[0], bm.verts[1]], context='VERTS')
+    bmesh.update_edit_mesh(points.data)
     s.filepath = str(tmp_path / "fewer")
     assert bpy.ops.jampacked.export() == {'FINISHED'}
     message = bpy.context.window_manager.jampacked_job.last_message
-    assert f"its {packing.n - 2} placements were certified again" in message, message
+    assert f"union: {packing.n - 2} objects" in message, message
+    assert f"Exported the {packing.n - 2} objects the result holds now" in message
     assert validate_file(tmp_path / "fewer.3mf").passed
+    # the points object moved: every instance with it, certified again
+    points.location.x += 1e-3
+    s.filepath = str(tmp_path / "moved")
+    assert bpy.ops.jampacked.export() == {'FINISHED'}
+    message = bpy.context.window_manager.jampacked_job.last_message
+    assert f"its {packing.n - 2} placements were certified again" in message, message
