@@ -11,9 +11,7 @@ from jampacked.cli.exits import EXIT_ERROR
 from jampacked.cli.reports import consoles, print_summary, warn
 from jampacked.core.packing import is_spec, load_packing, verify_sources
 from jampacked.core.packing_digest import (
-    DIGEST,
-    clearance_changed,
-    placements_digest,
+    only_clearance_changed,
     placements_status,
     uncertified_since,
 )
@@ -49,8 +47,7 @@ def cmd_info(args: argparse.Namespace) -> int:
     for w in packing.report.warnings:
         warn(err, w)
     problems = [f"[red]source:[/] {escape(p)}" for p in verify_sources(packing)]
-    if placements_status(packing) == "changed" and clearance_changed(packing) \
-            and packing.certificate.get(DIGEST) == placements_digest(packing):
+    if only_clearance_changed(packing):
         problems.insert(0, f"[red]clearance:[/] the packing {escape(uncertified_since(packing))}"
                         ": 'jampacked export' certifies it again with the clearance asked, "
                         "or pack again")

@@ -68,28 +68,43 @@ def placements_status(p: Packing) -> str:
 
 
 def clearance_changed(p: Packing) -> bool:
-    """Whether the clearance the packing's inputs ask (which an export keeps, and which the
-    digest does not cover) is not the one its certificate vouches for."""
+    """Whether the packing's inputs ask a larger clearance (which an export keeps, and which
+    the digest does not cover) than its certificate vouches for; a smaller one holds."""
     certified = p.certificate.get("clearance") if isinstance(p.certificate, dict) else None
     asked = p.inputs.clearance
     return isinstance(certified, int | float) and isinstance(asked, int | float) \
-        and float(certified) != float(asked)
+        and float(asked) > float(certified)
+
+
+def only_clearance_changed(p: Packing) -> bool:
+    """Whether the packing is as certified but for a larger clearance asked."""
+    return isinstance(p.certificate, dict) and clearance_changed(p) \
+        and p.certificate.get(DIGEST) == placements_digest(p)
+
+
+def claims_certified(p: Packing) -> bool:
+    """Whether the packing says it was certified (a digest, or "certified": true)."""
+    return isinstance(p.certificate, dict) and (
+        isinstance(p.certificate.get(DIGEST), str) or p.certificate.get("certified") is True)
 
 
 def uncertified_since(p: Packing) -> str | None:
-    """Why a packing's certificate no longer vouches for it, as a phrase after "the packing",
-    or None where it does or claims nothing: edited after it was certified, or claiming to be
-    certified without the digest of what was (written by a jampacked before digests were
-    recorded, or the digest was removed, which then hides any edit)."""
+    """Why a packing's certificate does not vouch for it, as a phrase after "the packing",
+    or None where it does: edited after it was certified, asking a larger clearance than
+    certified, claiming to be certified without the digest of what was (written by a
+    jampacked before digests were recorded, or the digest was removed, which then hides any
+    edit), or not certified at all (written by hand or by another tool, or with its
+    certificate removed)."""
     status = placements_status(p)
-    if status == "changed" and p.certificate.get(DIGEST) == placements_digest(p):
+    if status == "as certified":
+        return None
+    if only_clearance_changed(p):
         return (f"asks a clearance of {p.inputs.clearance:g}, but was certified with "
                 f"{p.certificate.get('clearance'):g}")
     if status == "changed":
         return ("was changed after it was certified (its certificate's digest no longer "
                 "matches its placements)")
-    if status == "unrecorded" and isinstance(p.certificate, dict) \
-            and p.certificate.get("certified") is True:
+    if claims_certified(p):
         return ("says it is certified but records no digest of what was certified (it was "
                 "written by an older jampacked, or the digest was removed)")
-    return None
+    return "is not certified (its certificate does not say so, or it has none)"

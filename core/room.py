@@ -89,15 +89,20 @@ def refuse_too_long(label: str, vertices: np.ndarray, sizes: Sequence[TypeSize],
     listed = "; ".join(f"{t.label}: {' x '.join(f'{x:.4g}' for x in t.extents)} units"
                        for t in live[:5])
     more = f"; and {len(live) - 5} more" if len(live) > 5 else ""
-    least = min(float(t.extents.max()) for t in live) + 2.0 * clearance
+    least = min(float(t.extents.max()) for t in live)
     plus = f" (with the clearance {clearance:g} at both ends)" if clearance else ""
+    # the clearance does not scale with the objects: they need the room it leaves
+    room = reach - 2.0 * clearance
+    objects = (f"by a factor of at least {least / room:.3g}" if room > 0
+               else "after lowering the clearance")
     raise PackingError(
         f"no object fits: the container {label} is {' x '.join(f'{x:.4g}' for x in c_ext)} "
         f"units, at most {reach:.4g} across (its box's diagonal), and the object type"
         f"{'s' if len(live) > 1 else ''} {listed}{more} {'are' if len(live) > 1 else 'is'} "
-        f"longer than that{plus}. Scale the objects down (--type-scale / type_scale, by a "
-        f"factor of at least {least / reach:.3g}) or the container up (--container-size / "
-        f"container_size){', or lower the clearance' if clearance else ''}.")
+        f"longer than that{plus}. Scale the objects down (--type-scale / type_scale, "
+        f"{objects}) or the container up (--container-size / container_size, by a factor "
+        f"of at least {(least + 2.0 * clearance) / reach:.3g})"
+        f"{', or lower the clearance' if clearance else ''}.")
 
 
 def tight_fit_spacing(vertices: np.ndarray, faces: np.ndarray, volume: float,

@@ -15,7 +15,7 @@ from typing import Any
 import numpy as np
 
 from .fidelity import Fidelity
-from .packing_digest import DIGEST, placements_digest, placements_status
+from .packing_digest import only_clearance_changed, placements_status
 from .packing_types import Packing
 from .report import AttemptSummary, RepairStats
 
@@ -133,8 +133,7 @@ def summarize(packing: Packing) -> PackingSummary:
         walls_checked=_count(cert.get("walls_checked")),
         repair=run.repair if repaired else None, attempts=attempts, kept_attempt=kept,
         phases=_phase_lines(m, timings, total), total_seconds=number(timings.get("total")),
-        placements=("clearance changed" if placements_status(packing) == "changed"
-                    and placements_digest(packing) == cert.get(DIGEST)
+        placements=("clearance changed" if only_clearance_changed(packing)
                     else placements_status(packing)))
 
 

@@ -29,7 +29,7 @@ import numpy as np
 from jampacked.core.errors import Cancelled, InputError, MeshError
 from jampacked.core.meshes import MeshData
 from jampacked.core.packing import Packing, is_spec
-from jampacked.core.packing_digest import uncertified_since
+from jampacked.core.packing_digest import claims_certified, uncertified_since
 from jampacked.core.packing_json import load_packing
 from jampacked.core.solids import solid_arrays
 
@@ -120,10 +120,12 @@ def export_packing(packing: Packing | str | os.PathLike,
     scene = place(packing, container, types, source, labels)
     why = uncertified_since(packing)
     if why is not None:
-        report(0.01, f"the packing {why}: certifying it again")
-        out.warnings.append(certify_edited(
-            packing, scene, clearance, source, why,
-            lambda f, m: report(0.01 + 0.04 * f, m), check_cancel, labels))
+        report(0.01, f"the packing {why}: certifying it")
+        note = certify_edited(packing, scene, clearance, source, why,
+                              lambda f, m: report(0.01 + 0.04 * f, m), check_cancel, labels,
+                              refuse=claims_certified(packing))
+        if note:
+            out.warnings.append(note)
         check_cancel()
     check_scale(options, scene.hi - scene.lo, smallest_object(packing))
     out.warnings += print_size_warning(scene.hi - scene.lo)

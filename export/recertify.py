@@ -29,14 +29,16 @@ CELLS_PER_RADIUS = 4.0
 def certify_edited(packing: Packing, scene: PlacedScene, clearance: float,
                    source: str | None, why: str, progress: Callable[[float, str], None],
                    check_cancel: Callable[[], None],
-                   labels: Sequence[str] | None = None) -> str:
+                   labels: Sequence[str] | None = None, refuse: bool = True) -> str:
     """Certify the packing's placements as they now are, on the real meshes; returns the
     note an export gives, or raises InputError naming what fails (overlapping objects,
     objects through the wall, gaps below the clearance). source: the packing file, for
     messages; why: why its certificate does not vouch for it (`uncertified_since`);
     progress(fraction of the check, message); check_cancel() raises Cancelled when the
     export is cancelled, between the checks; labels: each placement's name (Blender's
-    objects), else they are named by index and type."""
+    objects), else they are named by index and type. refuse: False for a packing that does
+    not say it is certified (written by hand or by another tool): what fails is named in
+    the note, and the export goes on; where nothing fails the note is empty."""
     progress(0.0, f"certifying the packing again: {packing.n:,} objects")
     volumes = np.array([t.volume for t in packing.types], np.float64)
     spacing = packing.report.container_grid_spacing
@@ -58,10 +60,16 @@ def certify_edited(packing: Packing, scene: PlacedScene, clearance: float,
         rep = certifier.certify(np.asarray(scene.type_index, np.int64), scene.matrices,
                                 clearance, progress=checked)
     where = f"the packing file {source}" if source else "the packing"
+    if not rep.certified and not refuse:
+        return (f"{where} {why}; certified now, its placements fail: "
+                f"{_failures(packing, rep, labels)}. It was exported as it is (a union "
+                "merges what overlaps); pack it to have it certified.")
     if not rep.certified:
         raise InputError(
             f"cannot export: {where} {why}, and certified again its placements fail: "
             f"{_failures(packing, rep, labels)}. Undo the edit, or pack again.")
+    if not refuse:  # a packing that claims nothing and holds: nothing to say
+        return ""
     gaps = f", every gap at least the clearance {clearance:g}" if clearance > 0 else ""
     return (f"{where} {why}; its {packing.n} placements were certified again before "
             f"export: no overlap, nothing outside the container{gaps}.")

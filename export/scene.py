@@ -18,7 +18,7 @@ import numpy as np
 from jampacked.core.errors import InputError
 from jampacked.core.meshes import MeshData, load_mesh
 from jampacked.core.packing import Packing, container_mesh, verify_sources
-from jampacked.core.packing_digest import placements_status
+from jampacked.core.packing_digest import only_clearance_changed, placements_status
 from jampacked.core.phases import equivalent_radius
 from jampacked.core.solids import to_solid
 
@@ -71,7 +71,8 @@ def load_sources(packing: Packing) -> tuple[MeshData, list[MeshData]]:
         if not math.isclose(volume, recorded, rel_tol=VOLUME_REL):
             cause = ("the packing file was edited after it was certified (its certificate's "
                      "digest no longer matches it): undo the edit, or re-run the packing"
-                     if placements_status(packing) == "changed" else
+                     if placements_status(packing) == "changed"
+                     and not only_clearance_changed(packing) else
                      "it was packed by a version that read the file differently, or the "
                      "file's volumes were edited. Re-run the packing")
             raise InputError(

@@ -537,7 +537,10 @@ def test_sealed_voids_are_filled_unless_kept(tmp_path, mode):
     rep = export_packing(packing, tmp_path / "f.stl", ExportOptions(mode=mode))
     assert rep.passed and rep.bodies == 1 and rep.voids_filled == 1
     assert rep.voids_filled_volume == pytest.approx(16.0 ** 3, rel=1e-6)
-    assert rep.volume == pytest.approx(20.0 ** 3, rel=1e-6) and not rep.warnings
+    assert rep.volume == pytest.approx(20.0 ** 3, rel=1e-6)
+    # its plates overlap at the edges, as made by hand: said, and exported as they are
+    (note,) = rep.warnings
+    assert "is not certified" in note and "overlap by 0.1 of the smaller" in note
     v = validate_file(tmp_path / "f.stl")
     assert v.passed and len(v.bodies) == 1
     assert _trimesh_bodies_volume(tmp_path / "f.stl") == (1, pytest.approx(8000.0, rel=1e-6))

@@ -158,3 +158,46 @@ def test_an_edited_volume_is_named_as_an_edit(packed, tmp_path):
     with pytest.raises(InputError, match=r"edited after it was certified") as err:
         export_packing(_edited(d, path, "volume", volume), tmp_path / "out.stl")
     assert "version" not in str(err.value)
+
+
+def test_a_packing_that_does_not_say_it_is_certified_is_checked_and_named(packed, tmp_path):
+    # with its digest removed and "certified" set to false, two lemons in one place were
+    # exported as a valid union with no word
+    d, path = packed
+
+    def uncertified(doc):
+        _no_digest(doc)
+        doc["certificate"]["certified"] = False
+        _onto_the_next(doc)
+
+    rep = export_packing(_edited(d, path, "uncertified", uncertified), tmp_path / "out.stl")
+    (note,) = rep.warnings
+    assert "is not certified" in note and "object 0 (014_lemon) and object 1 (014_lemon) " \
+        "overlap" in note and "exported as it is" in note
+
+    def sound(doc):
+        doc["certificate"] = {}
+
+    rep = export_packing(_edited(d, path, "no-certificate", sound), tmp_path / "sound.stl")
+    assert rep.passed and rep.warnings == []  # checked, and nothing to say
+
+
+def test_a_smaller_clearance_asked_keeps_the_packing_as_certified(tmp_path):
+    # a packing certified with 0.5 whose inputs ask 0 read "no longer certified" (info
+    # exited 1) and was certified again at export; a larger one is a change
+    p = pack("box:24x24x24", [str(LEMON)], type_scale=300.0, seed=1, clearance=0.5,
+             fidelity="low", time_budget=2.0)
+    assert p.certificate["certified"] and p.certificate["clearance"] == 0.5
+    path = tmp_path / "c.json"
+    save_packing(p, path)
+
+    def asked(value):
+        doc = json.loads(path.read_text())
+        doc["inputs"]["clearance"] = value
+        out = tmp_path / f"c{value}.json"
+        out.write_text(json.dumps(doc))
+        return load_packing(out)
+
+    assert placements_status(asked(0.0)) == "as certified"
+    assert placements_status(asked(0.3)) == "as certified"
+    assert placements_status(asked(0.7)) == "changed"
