@@ -454,6 +454,10 @@ class JAMPACKED_OT_make_real(bpy.types.Operator):
 # ------------------------------------------------------------------------------ type list
 
 
+def _article(word: str) -> str:
+    return "an" if word[:1] in "aeiou" else "a"
+
+
 class JAMPACKED_OT_type_add(bpy.types.Operator):
     """Add the selected mesh objects (or curves, text, surfaces, metaballs) as object types
     (or an empty row)"""
@@ -474,7 +478,8 @@ class JAMPACKED_OT_type_add(bpy.types.Operator):
             elif obj.type not in bridge.GEOMETRY_TYPES:
                 what = ("a collection instance: make it real first (Object > Apply > Make "
                         "Instances Real)" if obj.instance_type == 'COLLECTION'
-                        else f"a {obj.type.lower()}, which has no surface")
+                        else f"{_article(obj.type.lower())} {obj.type.lower()}, which has no "
+                        "surface")
                 skipped.append(f"'{obj.name}' is {what}")
             else:
                 s.types.add().object = obj

@@ -42,7 +42,11 @@ def remove_result(coll: bpy.types.Collection, keep_in: bpy.types.Collection) -> 
     then the collection. What the artist put in it (other objects, child collections) is
     linked to ``keep_in`` first, so that nothing leaves the scene; returns how many."""
     points = instances.points_object(coll)
-    kept = [o for o in coll.objects if "jampacked_type" not in o.keys() and o != points]
+    meshes = [bpy.data.meshes.get(str(name))
+              for name in coll.get(summary.PREFIX + "type_meshes", [])]
+    # placed: sharing a type mesh (a Shift+D copy has the custom properties, not the mesh)
+    placed = {o for o in coll.objects if o.type == 'MESH' and o.data in meshes}
+    kept = [o for o in coll.objects if o not in placed and o != points]
     for obj in kept:
         if obj.name not in keep_in.objects:
             keep_in.objects.link(obj)
@@ -50,10 +54,7 @@ def remove_result(coll: bpy.types.Collection, keep_in: bpy.types.Collection) -> 
         if child.name not in keep_in.children:
             keep_in.children.link(child)
     kept_count = len(kept) + len(coll.children)
-    meshes = [bpy.data.meshes.get(str(name))
-              for name in coll.get(summary.PREFIX + "type_meshes", [])]
-    objects = [o for o in coll.objects
-               if "jampacked_type" in o.keys() and len(o.users_collection) == 1]
+    objects = [o for o in placed if len(o.users_collection) == 1]
     if objects:
         bpy.data.batch_remove(objects)
     if points is not None and len(points.users_collection) == 1:
@@ -93,9 +94,11 @@ def replace_previous(scene: bpy.types.Scene, new: bpy.types.Collection) -> int:
         names.append(mesh.name)
     new[summary.PREFIX + "type_meshes"] = names
     type_names = [str(n) for n in new.get(summary.PREFIX + "type_names", [])]
+    meshes = [bpy.data.meshes[n] for n in names]
     for obj in new.objects:  # made beside the old ones: "P4 1.001"
         t, i = obj.get("jampacked_type"), obj.get("jampacked_index")
-        if isinstance(t, int) and isinstance(i, int) and 0 <= t < len(type_names):
+        if isinstance(t, int) and isinstance(i, int) and 0 <= t < len(type_names) \
+                and obj.type == 'MESH' and obj.data == meshes[t]:  # not an artist's copy
             obj.name = f"{type_names[t]} {i + 1}"
     points = instances.points_object(new)
     if points is not None:

@@ -1,13 +1,15 @@
-"""Types that fit the container only lying flat start lying flat.
+"""Types that fit only lying down start lying down: plates flat, rods along.
 
 A type whose middle half extent (along its bounding box's axes) exceeds the container's deepest
 interior distance fits nowhere across the container's thin direction: a 20 x 20 x 1 plate in
-a 2 mm slab, a tile in a thin frame. Drawn at a random rotation it almost never grows, and
-the solver's rotation does not turn it flat in time (such plates needed a slab 2.5 times
-their thickness: docs/notes-robustness.md). Such a type is inserted with its thinnest axis
-along the container's thinnest direction at the point and its longest along the roomiest,
-up to the frame's symmetries (drawn at random). Every other type keeps its random rotation,
-so scenes without such a type pack as before.
+a 2 mm slab, a tile in a thin frame. A rod longer than a tube is wide fits only along it: at
+the container's deepest point it fits at few rotations drawn at random, and lying down.
+Drawn at a random rotation such a type almost never grows, and the solver's rotation does
+not turn it in time (such plates needed a slab 2.5 times their thickness:
+docs/notes-robustness.md). Such a type is inserted with its thinnest axis along the
+container's thinnest direction at the point and its longest along the roomiest, up to the
+frame's symmetries (drawn at random). Every other type keeps its random rotation, so scenes
+without such a type pack as before; one that fits only across a box's diagonal too.
 
 Frames: a type's local frame; the container frame, container units.
 """
@@ -74,7 +76,7 @@ def _inside(grid: DistanceGrid, p: np.ndarray, turns: np.ndarray,
     turned by each of ``turns`` (R, 3, 3) with its origin at p lies inside the container,
     by the grid's interpolated depth at its vertices."""
     v = np.asarray(vertices, np.float64)
-    v = v[:: max(1, len(v) // _FIT_VERTICES)]
+    v = v[:: max(1, -(-len(v) // _FIT_VERTICES))]
     pts = (p + np.einsum("rij,vj->rvi", turns, v)).reshape(-1, 3)
     depth = sample_grid_many(grid.values, grid.origin, grid.spacing, pts)
     return depth.reshape(len(turns), -1).min(axis=1) >= 0.0

@@ -349,18 +349,24 @@ def test_a_second_pack_keeps_what_the_artist_put_in_the_result(bpy, addon, scene
         coll.objects.link(obj)
     child = bpy.data.collections.new("Highlights")
     coll.children.link(child)
+    # a Shift+D copy of a placed object: its custom properties, a mesh of its own
+    placed = next(o for o in coll.objects if "jampacked_index" in o.keys())
+    copy = placed.copy()
+    copy.data = placed.data.copy()
+    copy.name = "My copy"
+    coll.objects.link(copy)
     scene.settings.seed = 2
     assert bpy.ops.jampacked.pack() == {'FINISHED'}
     (new,) = _results(bpy)
     assert new.name == "Jampacked Box" and _packing(addon, new).seed == 2
-    assert {"Key", "Label plate"} <= {o.name for o in new.objects}
+    assert {"Key", "Label plate", "My copy"} <= {o.name for o in new.objects}
     assert "Highlights" in new.children
     scene_objects = {o.name for o in bpy.context.scene.objects}
     assert {"Key", "Label plate"} <= scene_objects
     # the new result's objects take the names the old ones had ("P4 1", not "P4 1.001")
     assert not any(o.name.endswith(".001") for o in new.objects)
     message = bpy.context.window_manager.jampacked_job.last_message
-    assert "Kept 3 object(s) or collection(s)" in message, message
+    assert "Kept 4 object(s) or collection(s)" in message, message
 
 
 def test_keep_previous_keeps_both(bpy, addon, scene):
