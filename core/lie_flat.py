@@ -82,20 +82,21 @@ def _inside(grid: DistanceGrid, p: np.ndarray, turns: np.ndarray,
     return depth.reshape(len(turns), -1).min(axis=1) >= 0.0
 
 
-def fit_share(grid: DistanceGrid, vertices: np.ndarray) -> float:
+def fit_share(grid: DistanceGrid, vertices: np.ndarray, p: np.ndarray | None = None
+              ) -> float:
     """The share of rotations (drawn from a fixed stream) at which a mesh (vertices in its
-    local frame, about its origin) lies inside the container with its origin at the grid's
-    deepest node."""
+    local frame, about its origin) lies inside the container with its origin at p (3,),
+    the grid's deepest node (`_deepest`) by default."""
     turns = quat_to_matrix(random_quaternions(np.random.default_rng(0), _FIT_ROTATIONS))
-    return float(_inside(grid, _deepest(grid), turns, vertices).mean())
+    return float(_inside(grid, _deepest(grid) if p is None else p, turns, vertices).mean())
 
 
-def fits_lying_down(grid: DistanceGrid, type_axes: np.ndarray, vertices: np.ndarray
-                    ) -> bool:
-    """Whether a mesh lies inside the container at its deepest node turned onto the room
-    frame there (`room_frame`) in one of the four turns that keep it: a type that fits
-    only across a box's diagonal does not, and is left to turn at random."""
-    p = _deepest(grid)
+def fits_lying_down(grid: DistanceGrid, type_axes: np.ndarray, vertices: np.ndarray,
+                    p: np.ndarray | None = None) -> bool:
+    """Whether a mesh lies inside the container at p (its deepest node by default) turned
+    onto the room frame there (`room_frame`) in one of the four turns that keep it: a type
+    that fits only across a box's diagonal does not, and is left to turn at random."""
+    p = _deepest(grid) if p is None else p
     frame = room_frame(grid, p)
     turns = np.array([frame @ np.diag(s) @ type_axes.T for s in _FLIPS])
     return bool(_inside(grid, p, turns, vertices).any())
@@ -115,13 +116,16 @@ def flat_types(types: Sequence, radius: np.ndarray, grid: DistanceGrid
     axes = np.tile(np.eye(3), (n, 1, 1))
     half = np.zeros((n, 3))
     rare = np.zeros(n, bool)
+    deepest = None
     for i, t in enumerate(types):
         if radius[i] > depth:
             axes[i], half[i] = principal_frame(t.vertices)
             # a type no longer than the container is deep fits turned (a cube in a slab a
             # little thicker than it is packed densest turned as the solver turns it)
-            rare[i] = (half[i, 0] > depth and fit_share(grid, t.vertices) < RARE_FIT
-                       and fits_lying_down(grid, axes[i], t.vertices))
+            if half[i, 0] > depth:
+                deepest = _deepest(grid) if deepest is None else deepest
+                rare[i] = (fit_share(grid, t.vertices, deepest) < RARE_FIT
+                           and fits_lying_down(grid, axes[i], t.vertices, deepest))
     return flat_only(half, depth) | rare, axes, half
 
 
