@@ -253,22 +253,24 @@ def _load_scene(container: MeshSource, types: Sequence[MeshSource],
         frame_from_file[:3, :3] *= container_size / float(cmesh.extents.max())
     s_c = frame_from_file[0, 0]
     meshes = [_load(t, "object") for t in types]
-    label = cmesh.path or ("(given as a mesh)" if isinstance(container, MeshData)
-                           else os.fspath(container))
+    label = cmesh.path or (
+        (f"'{cmesh.name}'" if cmesh.name else "(given as a mesh)")
+        if isinstance(container, MeshData) else os.fspath(container))
     with np.errstate(over="ignore", under="ignore"):  # check_sizes refuses what overflowed
         return _Scene(cmesh, label, frame_from_file, cmesh.vertices * s_c,
                       cmesh.volume * s_c ** 3, meshes)
 
 
 def _type_names(scene: _Scene, names: Sequence[str] | None) -> list[str]:
-    """`names`, or each type's file name without its extension ("type<i>" without a file),
+    """`names`, or each type's file name without its extension (a mesh given as arrays: its
+    name, or "type<i>"),
     a name that repeats an earlier one followed by "-2", "-3"...: types from a/fruit.obj and
     b/fruit.obj must be told apart in the summary, the packing file and the exports."""
     if names is not None:
         return list(names)
     out: list[str] = []
     for i, m in enumerate(scene.types):
-        stem = Path(m.path).stem if m.path else f"type{i}"
+        stem = Path(m.path).stem if m.path else (m.name or f"type{i}")
         name, k = stem, 1
         while name in out:
             k += 1

@@ -36,7 +36,7 @@ import hashlib
 import logging
 import os
 from collections.abc import Sequence
-from dataclasses import dataclass
+from dataclasses import dataclass, replace
 from functools import cached_property
 
 import numpy as np
@@ -89,6 +89,8 @@ class MeshData:
         volume: exact signed volume in file units cubed (> 0).
         warnings: repairs made while loading (and a 3MF unit converted), each a full
             sentence naming the file.
+        name: what messages call a mesh given as arrays (`mesh_from_arrays`); None for
+            a file's.
 
     Equality and hashing are by identity (arrays do not compare as booleans).
     """
@@ -99,6 +101,7 @@ class MeshData:
     sha256: str | None
     volume: float
     warnings: tuple[str, ...] = ()
+    name: str | None = None
 
     @property
     def extents(self) -> np.ndarray:
@@ -254,4 +257,6 @@ def mesh_from_arrays(vertices: np.ndarray, faces: np.ndarray, *, name: str,
                    or f.max() >= len(v)):
         raise InputError(f"{role} mesh '{name}': face indices must be integers in "
                          f"[0, {len(v) - 1}].")
-    return _checked(v, f.astype(np.int64), f"{role} mesh '{name}'", role, None, None, None)
+    return replace(
+        _checked(v, f.astype(np.int64), f"{role} mesh '{name}'", role, None, None, None),
+        name=name)

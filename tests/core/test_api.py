@@ -509,7 +509,7 @@ def test_a_thin_walled_object_longer_than_the_container_is_refused_as_too_long(c
     cube = mesh_from_arrays(*(lambda b: (b.vertices, b.faces))(
         trimesh.creation.box(extents=(5.0, 5.0, 5.0))), name="cube")
     with pytest.raises(PackingError, match=r"no object fits: .* at most 69\.28 across .* "
-                       r"type0: 60 x 60 x 108 units is longer than that") as err:
+                       r"vase: 60 x 60 x 108 units is longer than that") as err:
         pack("box:40x40x40", [vase], fidelity="low", clearance=clearance)
     # the objects' factor leaves the clearance as it is; the container's takes it along
     assert f"type_scale, by a factor of at least {108 / (69.282 - 2 * clearance):.3g}" \
@@ -520,4 +520,19 @@ def test_a_thin_walled_object_longer_than_the_container_is_refused_as_too_long(c
     p = pack("box:40x40x40", [vase, cube], [0.01, 0.99], fidelity="low",
              clearance=clearance, time_budget=1.0)
     assert p.n > 0 and not np.any(p.type_index == 0)
-    assert any("type0" in w and "not placed at all" in w for w in p.report.warnings)
+    assert any("vase" in w and "not placed at all" in w for w in p.report.warnings)
+
+
+def test_meshes_given_as_arrays_are_named_by_their_names():
+    # a Blender container read "the container (given as a mesh)", its types "type0", "type1"
+    import trimesh
+
+    from jampacked.core.meshes import mesh_from_arrays
+
+    box = trimesh.creation.box(extents=(10.0, 10.0, 10.0))
+    rod = trimesh.creation.box(extents=(40.0, 1.0, 1.0))
+    crate = mesh_from_arrays(box.vertices, box.faces, name="Crate", role="container")
+    stick = mesh_from_arrays(rod.vertices, rod.faces, name="Stick")
+    with pytest.raises(PackingError, match=r"the container 'Crate' is 10 x 10 x 10 units.*"
+                       r"the object type Stick: 40 x 1 x 1 units"):
+        pack(crate, [stick], fidelity="low")
