@@ -308,7 +308,7 @@ def place_object(coll: bpy.types.Collection, name: str, t: int, index: int, rota
     obj.scale = [float(scale)] * 3
     obj.color = colour
     obj["jampacked_type"] = t
-    obj["jampacked_index"] = index  # `result_edits.INDEX_KEY`
+    obj[result_edits.INDEX_KEY] = index
     coll.objects.link(obj)
     return obj
 
@@ -505,6 +505,8 @@ def gather_export(context: bpy.types.Context, options: Any) -> ExportRequest:
     The container is read again from its object and must be unchanged since packing; the
     types come from the result's shared meshes, moved back to their packing "file" frame.
     """
+    from jampacked.core.mesh_geometry import mesh_volume_centroid
+
     from .engine import packing_from_json
 
     s = context.scene.jampacked
@@ -536,7 +538,8 @@ def gather_export(context: bpy.types.Context, options: Any) -> ExportRequest:
         tris = mesh_triangles(mesh, rec.name, np.linalg.inv(rec.local_from_file))
         # a result made before signatures were recorded: its volume, as the packing has it
         edited = (tris.signature() != signature if signature is not None
-                  else not math.isclose(_volume(tris), rec.volume, rel_tol=1e-6))
+                  else not math.isclose(mesh_volume_centroid(tris.vertices, tris.faces)[0],
+                                        rec.volume, rel_tol=1e-6))
         if edited:
             raise _input_error(f"the mesh '{mesh_name}' of type '{rec.name}' was edited after "
                                f"packing '{coll.name}', which was certified with it as it "
@@ -549,12 +552,6 @@ def gather_export(context: bpy.types.Context, options: Any) -> ExportRequest:
                          out_path=output_path(s.filepath, s.file_format), options=options,
                          scale=units.mm_per_unit(unit.system, unit.scale_length),
                          placements=placements, left_out=left_out)
-
-
-def _volume(tris: Triangles) -> float:
-    """The enclosed volume of closed triangles (their winding's sign)."""
-    a, b, c = (tris.vertices[tris.faces[:, k]] for k in range(3))
-    return float(np.einsum("ij,ij->i", a, np.cross(b, c)).sum() / 6.0)
 
 
 # ------------------------------------------------------------------------------ validate

@@ -50,24 +50,12 @@ def _error(message: str) -> Exception:
     return InputError(message)
 
 
-def _matrices(q: np.ndarray, t: np.ndarray, s: np.ndarray) -> np.ndarray:
-    """(K, 4, 4) placement matrices [R(q) s | t] of rotations (K, 4) w x y z (normalised
-    here), translations (K, 3) and uniform scales (K,)."""
-    from jampacked.core.rotations import quat_to_matrix
-
-    q = np.asarray(q, np.float64)
-    q = q / np.maximum(np.linalg.norm(q, axis=1, keepdims=True), 1e-30)
-    m = np.zeros((len(q), 4, 4))
-    m[:, :3, :3] = quat_to_matrix(q) * np.asarray(s, np.float64)[:, None, None]
-    m[:, :3, 3] = t
-    m[:, 3, 3] = 1.0
-    return m
-
-
 def _same(m: np.ndarray, exact: np.ndarray) -> np.ndarray:
     """(K,) whether each matrix m (K, 4, 4) is its placement ``exact`` (K, 9: w x y z, t,
     s, type) up to single precision."""
-    want = _matrices(exact[:, :4], exact[:, 4:7], exact[:, 7])
+    from jampacked.core.rotations import placement_matrices
+
+    want = placement_matrices(exact[:, :4], exact[:, 4:7], exact[:, 7])
     scale = np.maximum(1.0, exact[:, 7])
     size = np.maximum(scale, np.abs(exact[:, 4:7]).max(axis=1))
     return ((np.abs(m[:, :3, :3] - want[:, :3, :3]).max(axis=(1, 2)) <= SAME_REL * scale)
@@ -144,7 +132,9 @@ def current_placements(coll: bpy.types.Collection, packing: Any,
             raise _error(f"point {k} of '{points.name}' has type {pt[k]}, which "
                          f"'{coll.name}' does not have: undo the edit of its points, or pack "
                          "again.")
-        local = _matrices(pts["rotations"], pts["translations"], pts["scales"])
+        from jampacked.core.rotations import placement_matrices
+
+        local = placement_matrices(pts["rotations"], pts["translations"], pts["scales"])
         m = np.concatenate([m, np.einsum("ij,kjl->kil", w, local)])
         types = np.concatenate([types, pt])
         index = np.concatenate([index, pts["indices"].astype(np.int64)])
