@@ -20,7 +20,7 @@ from jampacked.core.errors import InputError
 from jampacked.core.metrics import equivalent_radius
 from jampacked.core.packing_types import Packing
 
-from .scene import PlacedScene
+from .scene import PlacedScene, object_name
 
 #: container grid cells per smallest equivalent radius where the packing records no grid
 CELLS_PER_RADIUS = 4.0
@@ -80,9 +80,7 @@ def _failures(packing: Packing, rep: CertifyReport,
     """What the certificate found, naming the worst objects (by ``labels`` where given):
     by overlap where objects overlap, else by how far a gap falls short of the clearance."""
     def name(i: int) -> str:
-        if labels is not None:
-            return f"'{labels[i]}'"
-        return f"object {i} ({packing.types[packing.type_index[i]].name})"
+        return object_name(packing, i, labels)
 
     def count(n: int, one: str, many: str) -> str:
         return f"{n} {one if n == 1 else many}"

@@ -103,7 +103,7 @@ def packing_clearance(packing: Packing, source: str | None) -> float:
                      "or re-run the packing.")
 
 
-def _name(packing: Packing, i: int, labels: Sequence[str] | None = None) -> str:
+def object_name(packing: Packing, i: int, labels: Sequence[str] | None = None) -> str:
     """'object 3 (lemon)', or the caller's name for it ('lemon 4' in Blender)."""
     if labels is not None:
         return f"'{labels[i]}'"
@@ -113,7 +113,7 @@ def _name(packing: Packing, i: int, labels: Sequence[str] | None = None) -> str:
 def _objects(packing: Packing, indices: np.ndarray, labels: Sequence[str] | None = None
              ) -> str:
     """'object 3 (lemon), object 7 (lime) and 4 more' for an error message."""
-    named = [_name(packing, int(i), labels) for i in indices[:NAMED]]
+    named = [object_name(packing, int(i), labels) for i in indices[:NAMED]]
     more = f" and {len(indices) - NAMED} more" if len(indices) > NAMED else ""
     return ", ".join(named) + more
 
@@ -159,7 +159,7 @@ def check_placements(packing: Packing, type_radius: np.ndarray, lo: np.ndarray,
         i = int(far[0])
         raise InputError(
             f"cannot export: {where} places {_objects(packing, far, labels)} outside the "
-            f"container ({_name(packing, i, labels)} is {size[i]:.4g} units across at "
+            f"container ({object_name(packing, i, labels)} is {size[i]:.4g} units across at "
             f"({', '.join(f'{c:.4g}' for c in t[i])}); the container spans "
             f"({', '.join(f'{c:.4g}' for c in lo)}) to ({', '.join(f'{c:.4g}' for c in hi)})). "
             "Every object must sit within the container: re-run the packing, or fix these "
