@@ -852,6 +852,29 @@ def max_penetrations(state, table, cont, clearance, tol, wall_extra):
 
 
 @njit(cache=True)
+def wall_penetrations(state, table, cont, clearance, tol, wall_extra):
+    """Deepest object-wall penetration of every alive object (N,): `max_penetrations`'s
+    second column, in time linear in the objects. Arguments as `max_penetrations`'s."""
+    typ, pos, quat, scale, alive, margin, _ = state
+    (radius, sph_off, sph_c, sph_r, pc_off, pcl, pcl_off, box, pts, g_off, g_vals, g_shape,
+     g_origin, g_h) = table
+    c_vals, c_origin, c_h, c_pyr, c_poff, c_pshape = cont
+    n = typ.shape[0]
+    F = np.zeros((n, 4))
+    Tq = np.zeros((n, 3))
+    out = np.zeros(n)
+    c_shape = np.array(c_vals.shape, np.int64)
+    c_flat = c_vals.ravel()
+    for a in range(n):
+        if alive[a]:
+            out[a] = wall_contact(a, typ, pos, quat, scale, margin, clearance + wall_extra,
+                                  tol, radius, sph_off, sph_c, sph_r, pc_off, pcl, pcl_off,
+                                  pts, c_flat, c_shape, c_origin, c_h, c_pyr, c_poff,
+                                  c_pshape, F, Tq)
+    return out
+
+
+@njit(cache=True)
 def free_distance(px, py, pz, typ, pos, quat, scale, alive, radius, g_off, g_vals, g_shape,
                   g_origin, g_h, c_vals, c_origin, c_h):
     """Distance from a point to the nearest alive object's surface or the container wall.

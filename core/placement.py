@@ -23,9 +23,10 @@ import numpy as np
 
 from .metrics import compute_metrics
 from .options import PackOptions
-from .phases import Stop, phase1, phase2
+from .phases import Stop, phase1, phase2, stacked_phase1
 from .report import AttemptSummary, ExtraPassStats, PhaseStats
 from .solver import PackState, Solver
+from .stacking import stack_start
 
 #: attempts that ran to their end and repeated the best attempt's count and density (to
 #: SAME_DENSITY) after which no further attempt starts. Between random streams, densities of
@@ -68,17 +69,28 @@ def snapshot_metrics(state: PackState, volume: np.ndarray, q: np.ndarray,
 def place_once(solver: Solver, q: np.ndarray, s1: float, f_min: float,
                rng: np.random.Generator, stop: Stop, margin: np.ndarray, options: PackOptions,
                c_volume: float, budgeted: bool,
-               report: Callable[[float, str], None]) -> Attempt:
+               report: Callable[[float, str], None], index: int = 0) -> Attempt:
     """Phase 1, phase 2 and the extra cavity passes on `solver`'s (empty) state.
 
     q: (T,) target shares; s1: phase 1's lattice spacing; f_min: the smallest type's
     equivalent radius (container units); margin: (T,) contact margins. With `budgeted`,
-    the extra passes run again on new lattices while a round adds objects.
+    the extra passes run again on new lattices while a round adds objects. Attempt `index`
+    0 starts from the types stacked in rows where they fill the container so
+    (`stacking.stack_start`); the others, and every attempt elsewhere, from phase 1's
+    grown lattice.
     """
     vol = solver.t.volume
     ph, cav = options.phases, options.cavity
     t0 = time.perf_counter()
-    st1 = phase1(solver, q, s1, rng, stop, iters=ph.phase1_iterations, margin=margin,
+    stack = None
+    if index == 0:
+        stack = stack_start(solver.c, solver.t.types, vol, q, margin, solver.p.clearance,
+                            solver.p.wall_margin, rng)
+    if stack is not None:
+        report(0.05, f"stacked start: {len(stack.typ)} objects in rows")
+        st1 = stacked_phase1(solver, stack, margin, stop)
+    else:
+        st1 = phase1(solver, q, s1, rng, stop, iters=ph.phase1_iterations, margin=margin,
                  growth_steps=ph.phase1_growth_steps, spread_window=ph.spread_window,
                  lattice=ph.phase1_lattice, cubic_density=ph.phase1_density,
                  fcc_density=ph.phase1_fcc_density,
@@ -192,7 +204,7 @@ def place(new_solver: Callable[[], Solver], q: np.ndarray, s1: float, f_min: flo
         t0 = time.perf_counter()
         current = new_solver()
         att = place_once(current, q, s1, f_min, rng, stop, margin, options, c_volume,
-                         stop.deadline is not None, monotone)
+                         stop.deadline is not None, monotone, index=len(done))
         shortest = min(shortest, time.perf_counter() - t0)
         summary = att.summary(stop.reason or None)
         done.append(summary)

@@ -220,6 +220,13 @@ class Solver:
                                         self.container_arrays(),
                                         p.clearance, p.tol, p.wall_margin)
 
+    def wall_penetrations(self) -> np.ndarray:
+        """(n,) deepest wall penetration of each inserted object (0 if removed)."""
+        p = self.p
+        return kernels.wall_penetrations(self.s.view(), self.t.arrays(),
+                                         self.container_arrays(), p.clearance, p.tol,
+                                         p.wall_margin)
+
     def free_distances(self, points: np.ndarray, at_least: float = -np.inf) -> np.ndarray:
         """The room at each point (M,3): its distance to the nearest object or the wall,
         less the clearance (M,): an object there must keep the clearance from both, so it

@@ -786,7 +786,9 @@ def test_max_penetrations_matches_reference(table, container):
     state = make_state(typ, pos, quat, scale, margin)
     state.alive[5] = 0
     params = solver.SolverParams(clearance=0.02)
-    pen = solver.Solver(container, table, state, params).penetrations()
+    sv = solver.Solver(container, table, state, params)
+    pen = sv.penetrations()
+    wall = sv.wall_penetrations()  # the same column in time linear in the objects
     grids = type_grids(table)
     ref = np.zeros((n, 2))
     for a in range(n):
@@ -801,6 +803,7 @@ def test_max_penetrations_matches_reference(table, container):
                 ref[a, 0] = max(ref[a, 0], p)
                 ref[b, 0] = max(ref[b, 0], p)
     np.testing.assert_allclose(pen, ref, rtol=1e-12, atol=1e-12)
+    np.testing.assert_allclose(wall, ref[:, 1], rtol=1e-12, atol=1e-12)
     assert pen[0, 0] > 0 and pen[1, 0] > 0 and pen[2, 1] > 0
     assert (pen[5] == 0).all()
 

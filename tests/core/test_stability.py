@@ -328,10 +328,13 @@ def test_no_object_placed_names_the_depth_a_type_needs(tmp_path, monkeypatch):
     # the message compared the depth with the equivalent radius (5.58 for a 9 mm cube,
     # deeper than a 9.5 mm box) and only advised rescaling
     import jampacked.core.phases as phases
+    import jampacked.core.placement as placement
 
     path = tmp_path / "cube.stl"
     trimesh.creation.box([9.0, 9.0, 9.0]).export(path)
     monkeypatch.setattr(phases, "grow", lambda *args, **kwargs: False)
+    # the cubes would start stacked at full size, never grown (`core/stacking.py`)
+    monkeypatch.setattr(placement, "stack_start", lambda *args, **kwargs: None)
     with pytest.raises(PackingError, match=r"cube, the type needing the least depth, needs "
                        r"at least 4\.5 \(its inner room\).*--fidelity high"):
         pack("box:9.5x9.5x40", [str(path)], seed=1)
