@@ -406,7 +406,8 @@ def stacked_phase1(solver: Solver, stack: Stack, margin: np.ndarray, stop: Stop
     s.alive[bad] = 0
     st.failed = len(bad)
     st.grown = st.inserted - st.failed
-    st.extra = {"lattice": "stacked", "stack_density": stack.density}
+    st.extra = {"lattice": "stacked", "stack_density": stack.density,
+                "stack_filled": stack.filled}
     st.stopped = stop.reason
     st.seconds = time.perf_counter() - t0
     return st

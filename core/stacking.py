@@ -1,13 +1,13 @@
 """A stacked start: boxy types in rows along the container's axes, at full size.
 
-Plates, tiles, bricks and coins fill a box almost solid when stacked, and about a quarter
-when grown from random rotations, which the penalty pushes never turn into stacks
+Plates, tiles, bricks and coins fill a box almost solid when stacked, and a quarter to a
+half when grown from random rotations, which the penalty pushes never turn into stacks
 (docs/notes-core.md). Where a lattice of the types' boxes, turned onto the container's
 axes, holds at least STACKED of the container (by the types' volumes, each grown by its
-box's share of the clearance, which costs a stack and a random packing alike), the first attempt
-starts from that lattice at full size instead of phase 1's grown one; the cavity passes
-then fill what the rows leave. Round and irregular types (fruit, dice of many faces) never
-reach STACKED this way (a ball fills 52% of its box), so their packings are unchanged.
+box's share of the clearance, which costs a stack and a random packing alike), the first
+attempt starts from that lattice at full size instead of phase 1's grown one; the cavity
+passes then fill what the rows leave. Only types that fill BOXY of their boxes are
+stacked: round and irregular ones (fruit, dice of many faces) pack as before.
 
 Frames: a type's local frame; the container frame, container units.
 """
@@ -29,9 +29,15 @@ from .type_spread import TypeSpread
 #: the least share of the container's volume the stacked objects must hold for the first
 #: attempt to start from them: above what a random packing of such types reaches
 STACKED = 0.6
+#: the least share of their boxes the types (by the mix) must fill to be stacked: a
+#: cylinder fills 0.79 of its box; a ball 0.52 and the YCB apple scan 0.61, whose random
+#: packings fill more than rows of their boxes would
+BOXY = 0.7
 #: the most lattice sites (of one choice of axes and offsets) the search tests at once;
 #: beyond it only two offsets per axis are tried
 MANY_SITES = 20_000
+#: the most blocks of rows in the slabs the first block's rows leave
+LEFTOVER_BLOCKS = 6
 #: the sites ahead among which a type takes the one furthest from its others
 SPREAD_WINDOW = 16
 #: sample points per box side for the wall test, at most
@@ -41,13 +47,15 @@ _SIDE_SAMPLES = 5
 @dataclass(frozen=True)
 class Stack:
     """The objects of a stacked start: (N,) types, (N,3) positions and (N,4) rotations
-    (w, x, y, z) of each type's local frame (container frame, container units), and the
-    share of the container's volume they hold."""
+    (w, x, y, z) of each type's local frame (container frame, container units), the share
+    of the container's volume they hold, and the share their boxes grown by the clearance
+    hold of it (what `stack_start` judges them by)."""
 
     typ: np.ndarray
     pos: np.ndarray
     quat: np.ndarray
     density: float
+    filled: float
 
 
 def box_frame(vertices: np.ndarray, faces: np.ndarray
@@ -92,13 +100,15 @@ def _container_frames(container: Container) -> list[np.ndarray]:
     return frames
 
 
-def _offsets(lo: float, hi: float, cell: float, edge: float, few: bool) -> list[float]:
-    """A row's first site, for each offset tried along one axis: flush with the low wall,
-    with the high one, centred, and centred half a cell over (`few`: the first two)."""
-    first = lo + edge
-    high = hi - edge
+def _offsets(lo: float, hi: float, cell: float, low: float, high: float, few: bool
+             ) -> list[float]:
+    """A row's first site, for each offset tried along one axis from lo to hi, its sites
+    at least `low` from lo and `high` from hi: flush with the low end, with the high one,
+    centred, and centred half a cell over (`few`: the first two)."""
+    first = lo + low
+    last = hi - high
     centred = 0.5 * (lo + hi)
-    choices = [first, first + (high - first) % cell]
+    choices = [first, first + (last - first) % cell]
     if not few:
         choices += [first + (centred - first) % cell,
                     first + (centred + 0.5 * cell - first) % cell]
@@ -130,6 +140,85 @@ def _inside(container: Container, sites: np.ndarray, turn: np.ndarray,
     return ok
 
 
+@dataclass(frozen=True)
+class _Rows:
+    """One block of rows: its sites (M, 3, in the frame's coordinates), which box axis
+    each frame axis holds, and the block's bounds (2, 3) around the sites' boxes."""
+
+    sites: np.ndarray
+    perm: tuple[int, int, int]
+    bounds: np.ndarray
+
+
+class _Search:
+    """The rows of one frame: the container's bounds in it, the types' boxes, the gaps."""
+
+    def __init__(self, container: Container, frame: np.ndarray, halves: np.ndarray,
+                 gap: float, wall: float):
+        self.c = container
+        self.frame = frame
+        proj = container.vertices @ frame
+        self.lo, self.hi = proj.min(axis=0), proj.max(axis=0)
+        self.halves = halves
+        self.gap = gap
+        self.wall = wall
+        self.slack = 1e-9 * float(halves.max())
+        self.hair = 1e-6 * container.grid.spacing
+
+    def rows(self, lo: np.ndarray, hi: np.ndarray, taken: list[_Rows], perms, few: bool,
+             ) -> _Rows | None:
+        """The block of rows with the most sites inside the container, within the bounds
+        lo..hi (frame coordinates) and apart from the `taken` blocks, over `perms`."""
+        best = None
+        for perm in perms:
+            half = self.halves[:, perm].max(axis=0)  # frame axis j holds box axis perm[j]
+            cell = 2.0 * half + self.gap + self.slack
+            # from the container's sides the wall's distance, from a block's the gap
+            # already left
+            # (and a hair: a box flush with a wall samples its depth to the last bit)
+            low = np.where(lo <= self.lo, self.wall + self.hair, 0.0) + half
+            high = np.where(hi >= self.hi, self.wall + self.hair, 0.0) + half
+            samples = _box_samples(half, self.c.grid.spacing)
+            rows = [_offsets(lo[j], hi[j], cell[j], low[j], high[j], few) for j in range(3)]
+            for first in product(*rows):
+                axes = [np.arange(f, hi[j] - high[j] + 1e-9 * cell[j], cell[j])
+                        for j, f in enumerate(first)]
+                if any(len(a) == 0 for a in axes):
+                    continue
+                local = np.stack(np.meshgrid(*axes, indexing="ij"), axis=-1).reshape(-1, 3)
+                ok = _inside(self.c, local @ self.frame.T, self.frame, samples, self.wall)
+                for block in taken:  # boxes along the same axes: apart along one of them
+                    apart = ((local + half + self.gap <= block.bounds[0] + self.slack)
+                             | (local - half - self.gap >= block.bounds[1] - self.slack))
+                    ok &= apart.any(axis=1)
+                if best is None or ok.sum() > len(best.sites):
+                    sites = local[ok]
+                    if len(sites) == 0:
+                        continue
+                    bounds = np.stack([sites.min(axis=0) - half, sites.max(axis=0) + half])
+                    best = _Rows(sites, perm, bounds)
+        return best
+
+    def leftovers(self, taken: list[_Rows]) -> _Rows | None:
+        """The block of rows with the most sites in a slab the taken blocks leave between
+        the last one and the container's side, along each axis and on either side."""
+        block = taken[-1].bounds
+        best = None
+        for j in range(3):
+            for side in (0, 1):
+                lo, hi = self.lo.copy(), self.hi.copy()
+                if side == 0:
+                    hi[j] = block[0, j] - self.gap
+                else:
+                    lo[j] = block[1, j] + self.gap
+                if hi[j] - lo[j] < 2.0 * self.halves.min():
+                    continue
+                got = self.rows(lo, hi, taken, list(permutations(range(3))), few=True)
+                if got is not None and (best is None or len(got.sites) > len(best.sites)):
+                    best = got
+        return best
+
+
 def stack_start(container: Container, types: Sequence, volumes: np.ndarray,
                 shares: np.ndarray, margin: np.ndarray, clearance: float,
                 wall_margin: float, rng: np.random.Generator) -> Stack | None:
@@ -143,6 +232,8 @@ def stack_start(container: Container, types: Sequence, volumes: np.ndarray,
     clearance and wall_margin (container units) as the solver keeps them. Every site takes
     the largest box of the types along each axis, the types' longest sides along the same
     axis; the sites are typed in random order (rng), each the type furthest below its share.
+    The slabs the rows leave beside them (a 4 mm strip beside rows of 12 mm tiles) take
+    rows of their own, turned as fits them best, up to LEFTOVER_BLOCKS of them.
     """
     live = np.flatnonzero(np.asarray(shares) > 0)
     if len(live) == 0:
@@ -157,67 +248,66 @@ def stack_start(container: Container, types: Sequence, volumes: np.ndarray,
     grown = np.prod(2.0 * halves + clearance, axis=1) / np.prod(2.0 * halves, axis=1)
     q = shares[live] / np.sum(shares[live])
     mean_volume = float(np.sum(q * volumes[live] * grown))
-    slack = 1e-9 * float(halves.max())
-    best = None  # (count, frame, perm, sites)
+    best: tuple[_Search, _Rows] | None = None
     for frame in _container_frames(container):
-        proj = container.vertices @ frame
-        lo, hi = proj.min(axis=0), proj.max(axis=0)
+        search = _Search(container, frame, halves, gap, wall)
         for perm in permutations(range(3)):
-            half = halves[:, perm].max(axis=0)  # frame axis j holds box axis perm[j]
-            cell = 2.0 * half + gap + slack
-            if mean_volume < STACKED * float(np.prod(2.0 * half + clearance)):
-                continue  # no stack of these boxes fills STACKED (a ball fills 52%)
-            edge = wall + half
-            n = np.floor((hi - lo - 2.0 * edge) / cell + 1e-9).astype(np.int64) + 1
-            if np.any(n < 1):
-                continue
-            if float(np.prod(n)) * mean_volume < STACKED * container.volume:
+            half = halves[:, perm].max(axis=0)
+            if mean_volume < BOXY * float(np.prod(2.0 * half + clearance)):
+                continue  # round and irregular types: a random packing fills more
+            cell = 2.0 * half + gap
+            n = np.floor((search.hi - search.lo - 2.0 * (wall + half)) / cell + 1e-9) + 1
+            if np.any(n < 1) or float(np.prod(n)) * mean_volume < STACKED * container.volume:
                 continue  # not even the container's box holds enough
-            few = float(np.prod(n)) > MANY_SITES
-            rows = [_offsets(lo[j], hi[j], cell[j], edge[j], few) for j in range(3)]
-            samples = _box_samples(half, container.grid.spacing)
-            for first in product(*rows):
-                axes = [np.arange(f, hi[j] - edge[j] + 1e-9 * cell[j], cell[j])
-                        for j, f in enumerate(first)]
-                if any(len(a) == 0 for a in axes):
-                    continue
-                local = np.stack(np.meshgrid(*axes, indexing="ij"), axis=-1).reshape(-1, 3)
-                sites = local @ frame.T
-                ok = _inside(container, sites, frame, samples, wall)
-                count = int(ok.sum())
-                if best is None or count > best[0]:
-                    best = (count, frame, perm, sites[ok])
-    if best is None or best[0] * mean_volume < STACKED * container.volume:
+            got = search.rows(search.lo, search.hi, [], [perm], few=float(np.prod(n)) > MANY_SITES)
+            if got is not None and (best is None or len(got.sites) > len(best[1].sites)):
+                best = (search, got)
+    if best is None or len(best[1].sites) * mean_volume < STACKED * container.volume:
         return None
-    _, frame, perm, sites = best
-    typ, sites = _mix(sites[rng.permutation(len(sites))], live,
-                      np.asarray(shares, np.float64), volumes)
-    swap = np.zeros((3, 3))
-    swap[np.arange(3), perm] = 1.0  # frame axis j <- box axis perm[j]
+    search, first = best
+    blocks = [first]
+    for _ in range(LEFTOVER_BLOCKS):
+        more = search.leftovers(blocks)
+        if more is None:
+            break
+        blocks.append(more)
+    frame = search.frame
+    sites = np.concatenate([b.sites for b in blocks]) @ frame.T
+    block_of = np.concatenate([np.full(len(b.sites), i) for i, b in enumerate(blocks)])
+    order = rng.permutation(len(sites))
+    typ, sites, block_of = _mix(sites[order], block_of[order], live,
+                                np.asarray(shares, np.float64), volumes)
     pos = np.empty_like(sites)
     quat = np.empty((len(sites), 4))
-    for t in live:
-        axes, _, centre = boxes[int(t)]
-        turn = frame @ swap @ axes.T
-        if np.linalg.det(turn) < 0:  # a box is the same with one axis reversed
-            turn = frame @ swap @ np.diag([1.0, 1.0, -1.0]) @ axes.T
-        here = typ == t
-        pos[here] = sites[here] - turn @ centre
-        quat[here] = matrix_to_quat(turn[None])[0]
-    return Stack(typ, pos, quat, float(volumes[typ].sum() / container.volume))
+    for i, block in enumerate(blocks):
+        swap = np.zeros((3, 3))
+        swap[np.arange(3), block.perm] = 1.0  # frame axis j <- box axis perm[j]
+        for t in live:
+            axes, _, centre = boxes[int(t)]
+            turn = frame @ swap @ axes.T
+            if np.linalg.det(turn) < 0:  # a box is the same with one axis reversed
+                turn = frame @ swap @ np.diag([1.0, 1.0, -1.0]) @ axes.T
+            here = (typ == t) & (block_of == i)
+            pos[here] = sites[here] - turn @ centre
+            quat[here] = matrix_to_quat(turn[None])[0]
+    grown_volume = np.zeros(len(volumes))
+    grown_volume[live] = volumes[live] * grown
+    return Stack(typ, pos, quat, float(volumes[typ].sum() / container.volume),
+                 float(grown_volume[typ].sum() / container.volume))
 
 
-def _mix(sites: np.ndarray, live: np.ndarray, shares: np.ndarray,
-         volumes: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
-    """Types for the sites (M, 3, in random order) and the sites reordered to match: each
+def _mix(sites: np.ndarray, block_of: np.ndarray, live: np.ndarray, shares: np.ndarray,
+         volumes: np.ndarray) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+    """Types for the sites (M, 3, in random order) and the sites and their blocks (M,)
+    reordered to match: each
     in turn the largest type below its share of those typed so far, or the one furthest
     below it (phase 1's rule), at the one of the next few sites furthest from that type's
     (`type_spread`), so that no type clumps in the rows."""
     n = len(sites)
-    sites = sites.copy()
+    sites, block_of = sites.copy(), block_of.copy()
     typ = np.full(n, int(live[0]), np.int64)
     if len(live) == 1:
-        return typ, sites
+        return typ, sites, block_of
     counts = np.zeros(len(shares))
     by_volume = live[np.argsort(-volumes[live], kind="stable")]
     spread = TypeSpread(len(shares))
@@ -229,7 +319,8 @@ def _mix(sites: np.ndarray, live: np.ndarray, shares: np.ndarray,
         ahead = sites[i: i + window]
         far = i + int(np.argmax(spread.nearest(t, ahead)))
         sites[[i, far]] = sites[[far, i]]
+        block_of[[i, far]] = block_of[[far, i]]
         typ[i] = t
         counts[t] += 1
         spread.add(t, sites[i])
-    return typ, sites
+    return typ, sites, block_of

@@ -63,6 +63,8 @@ PHASE_LABELS = {"load": "load meshes", "approximate": "approximate",
                 "compile": "compile kernels", "phase1": "1 place & grow",
                 "phase2": "2 fill cavities", "extra": "more cavity passes",
                 "other_attempts": "attempts not kept", "certify": "certify & repair"}
+#: phase 1's label where the kept attempt started from the types stacked in rows
+STACKED_LABEL = "1 stacked in rows"
 
 
 @dataclass(frozen=True)
@@ -132,14 +134,17 @@ def summarize(packing: Packing) -> PackingSummary:
         pairs_checked=_count(cert.get("pairs_checked")),
         walls_checked=_count(cert.get("walls_checked")),
         repair=run.repair if repaired else None, attempts=attempts, kept_attempt=kept,
-        phases=_phase_lines(m, timings, total), total_seconds=number(timings.get("total")),
+        phases=_phase_lines(m, timings, total, isinstance(run.phase1.extra, dict)
+                            and run.phase1.extra.get("lattice") == "stacked"),
+        total_seconds=number(timings.get("total")),
         placements=("clearance changed" if only_clearance_changed(packing)
                     else placements_status(packing)))
 
 
-def _phase_lines(m: dict, timings: dict, total: int) -> list[PhaseLine]:
+def _phase_lines(m: dict, timings: dict, total: int, stacked: bool = False
+                 ) -> list[PhaseLine]:
     """Each stage's time with the objects and density after it, in run order; other
-    timings after them; the total last."""
+    timings after them; the total last. stacked: phase 1 started from stacked rows."""
     def after(key: str) -> tuple[int | None, float | None]:
         snap = m.get(f"after_{key}") if key != "certify" else {
             "count": total, "density": m.get("density")}
@@ -147,8 +152,9 @@ def _phase_lines(m: dict, timings: dict, total: int) -> list[PhaseLine]:
             return None, None
         return _count(snap.get("count")), number(snap.get("density"))
 
+    labels = {**PHASE_LABELS, **({"phase1": STACKED_LABEL} if stacked else {})}
     lines = [PhaseLine(k, label, number(timings[k]), *after(k))
-             for k, label in PHASE_LABELS.items() if k in timings]
+             for k, label in labels.items() if k in timings]
     lines += [PhaseLine(str(k), str(k), number(v), None, None) for k, v in timings.items()
               if k not in PHASE_LABELS and k != "total"]
     if "total" in timings:

@@ -8,8 +8,12 @@ import trimesh
 
 from jampacked.core.api import pack
 from jampacked.core.container import build_container
+from jampacked.core.options import AttemptOptions, PackOptions
+from jampacked.core.packing_json import load_packing, save_packing
+from jampacked.core.placement import STACK_FULL, STACK_KEPT
 from jampacked.core.rotations import quat_to_matrix
-from jampacked.core.stacking import STACKED, box_frame, stack_start
+from jampacked.core.stacking import BOXY, STACKED, box_frame, stack_start
+from jampacked.core.summary import STACKED_LABEL, summarize
 
 
 class _Type:
@@ -69,6 +73,47 @@ def test_plates_stack_in_rows_inside_the_box_and_apart():
     assert sep.min() >= 2 * margin[0] - 1e-9
 
 
+def _apart(stack, types) -> float:
+    """The least gap between the objects' boxes (each turned onto the frame's axes)."""
+    corners = _placed_boxes(stack, types, None)
+    lo = np.array([c.min(axis=0) for c in corners])
+    hi = np.array([c.max(axis=0) for c in corners])
+    sep = np.maximum(lo[:, None] - hi[None], lo[None] - hi[:, None]).max(axis=2)
+    np.fill_diagonal(sep, np.inf)
+    return float(sep.min())
+
+
+def test_the_strip_beside_the_rows_takes_rows_of_its_own():
+    # rows of 12 x 8 x 1 tiles three to 40 mm leave 4 mm beside them: tiles standing on
+    # edge fill it (435 in the rows alone)
+    tile = trimesh.creation.box(extents=(12.0, 8.0, 1.0))
+    cont = _box_container((42.0, 40.0, 30.0))
+    types = [_Type(tile)]
+    st = stack_start(cont, types, np.array([tile.volume]), np.array([1.0]),
+                     np.array([0.01]), 0.0, 0.0, np.random.default_rng(0))
+    assert st is not None and len(st.typ) > 435
+    turns = quat_to_matrix(st.quat)
+    thin = np.abs(turns[:, :, 2]).argmax(axis=1)  # the axis each tile's thin side lies on
+    assert len(np.unique(thin)) >= 2  # some stand on edge
+    assert _apart(st, types) >= 0.02 - 1e-9
+    corners = np.concatenate(_placed_boxes(st, types, None))
+    assert np.all(np.abs(corners) <= np.array([21.0, 20.0, 15.0]) - 0.01 + 1e-9)
+
+
+def test_no_pass_starts_an_object_in_the_slivers_between_rows(tmp_path):
+    # 9 x 6 tiles in 12 x 8 sites leave slivers 1-2 mm wide: the passes started tiles
+    # there at a tenth of their size, each pushing whole rows, for 130 s without a
+    # success before the stacked start set them a least start scale
+    paths = []
+    for name, ext in (("big", (12.0, 8.0, 1.0)), ("small", (9.0, 6.0, 1.0))):
+        trimesh.creation.box(extents=ext).export(tmp_path / f"{name}.stl")
+        paths.append(str(tmp_path / f"{name}.stl"))
+    p = pack("box:42x40x30", paths, seed=1)
+    assert p.report.phase1.extra["lattice"] == "stacked"
+    assert sum(e.inserted for e in p.report.extra_passes) == 0
+    assert p.certificate["certified"] and p.metrics["density"] > 0.65
+
+
 def test_plates_stack_with_a_printing_clearance_between_them():
     # 0.3 mm costs a 0.5 mm plate 40% of its room in any packing: judged by the plates'
     # volume alone the stack (36 rows, 53%) would not start
@@ -87,7 +132,14 @@ def test_a_ball_or_a_clearance_too_wide_gives_no_stack():
     # a ball fills 52% of its box: fruit and dice of many faces keep phase 1's start
     assert stack_start(cont, [_Type(ball)], np.array([ball.volume]), np.array([1.0]),
                        np.array([0.01]), 0.0, 0.0, np.random.default_rng(0)) is None
-    assert ball.volume / 1000.0 < STACKED
+    assert ball.volume / 1000.0 < BOXY
+    # a capsule fills 65% of its box (the YCB apple scan 61%): rows of them would fill
+    # over STACKED of a large box, less than their random packings do
+    capsule = trimesh.creation.capsule(height=6.0, radius=3.0)
+    assert STACKED < capsule.volume / np.prod(capsule.extents) < BOXY
+    assert stack_start(_box_container((120.5, 120.5, 120.5)), [_Type(capsule)],
+                       np.array([capsule.volume]), np.array([1.0]), np.array([0.01]), 0.0,
+                       0.0, np.random.default_rng(0)) is None
     cube = trimesh.creation.box(extents=(10.0, 10.0, 10.0))
     args = ([_Type(cube)], np.array([cube.volume]), np.array([1.0]), np.array([0.01]))
     assert stack_start(cont, *args, 0.0, 0.0, np.random.default_rng(0)) is not None
@@ -133,3 +185,43 @@ def test_a_turned_tile_stacks_in_a_box_drawn_at_an_angle(tmp_path):
     assert p.certificate["certified"]
     assert p.metrics["density"] > 0.75
     assert p.report.phase1.extra["lattice"] == "stacked"
+
+
+def test_a_stack_that_fills_the_crate_ends_the_budget_early(tmp_path):
+    # the attempts after a stacked start start at random rotations and jam far below it:
+    # the bricks' 60 s went to attempts that could not beat the first
+    brick = trimesh.creation.box(extents=(20.0, 10.0, 5.0))
+    brick.export(tmp_path / "brick.stl")
+    p = pack("box:103x62x52", [str(tmp_path / "brick.stl")], seed=1, time_budget=30.0)
+    attempts = p.report.attempts
+    assert len(attempts) == 1 and attempts[0].stopped == STACK_FULL
+    assert p.report.stopped is None and p.certificate["certified"]
+    assert p.metrics["count"] == 300 and attempts[0].seconds < 15.0
+    # the summary says how phase 1 started, also as read back from the file
+    save_packing(p, tmp_path / "bricks.json")
+    for packing in (p, load_packing(tmp_path / "bricks.json")):
+        labels = [line.label for line in summarize(packing).phases]
+        assert STACKED_LABEL in labels and "1 place & grow" not in labels
+
+
+def test_a_fixed_count_of_attempts_runs_them_all_after_a_full_stack(tmp_path):
+    # attempts side by side on a cluster must give what they give one after another
+    brick = trimesh.creation.box(extents=(20.0, 10.0, 5.0))
+    brick.export(tmp_path / "brick.stl")
+    opts = PackOptions(attempts=AttemptOptions(count=2))
+    p = pack("box:63x42x32", [str(tmp_path / "brick.stl")], seed=1, time_budget=60.0,
+             options=opts)
+    assert [a.stopped for a in p.report.attempts] == [None, None]
+    assert p.report.attempts[0].density > p.report.attempts[1].density
+
+
+def test_a_stack_that_leaves_room_does_not_end_the_budget(tmp_path):
+    # 9 x 6 tiles in 12 x 8 sites: the stack holds about 64%, which a random start may beat
+    paths = []
+    for name, ext in (("big", (12.0, 8.0, 1.0)), ("small", (9.0, 6.0, 1.0))):
+        trimesh.creation.box(extents=ext).export(tmp_path / f"{name}.stl")
+        paths.append(str(tmp_path / f"{name}.stl"))
+    p = pack("box:42x40x30", paths, seed=1, time_budget=3.0)
+    assert p.report.phase1.extra["lattice"] == "stacked"
+    assert p.report.phase1.extra["stack_filled"] < STACK_KEPT
+    assert all(a.stopped != STACK_FULL for a in p.report.attempts)
