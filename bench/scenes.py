@@ -38,6 +38,9 @@ FRUIT = [f"fruit/ycb_lowpoly/{n}.obj" for n in
 FRUIT_SCANS = [f"fruit/ycb/{n}.ply" for n in
                ("011_banana", "012_strawberry", "014_lemon", "015_peach", "017_orange")]
 ARMADILLO = {"container_size": 200.0, "type_scale": 250.0}
+#: boxy types a maker stacks (plates, bricks, tiles), kept beside the bench: an absolute
+#: path stays itself when joined to the meshes folder
+BOXY = ROOT / "bench" / "meshes"
 
 #: name -> container, types, pack() keyword arguments, bars, what the numbers compare with.
 #: Budgets bound placement (pack's time_budget); loading, compiling and certifying come on top.
@@ -106,6 +109,24 @@ SCENES: dict[str, dict] = {
         "without": "polyhedra-80",
         "reference": "polyhedra-80 with a 0.5 mm clearance: low-poly objects with large "
                      "flat faces",
+    },
+    # boxy types, where rows of them fill a box (`core/stacking.py`); the boxes are not
+    # multiples of the types, as a maker's crate rarely is
+    "plates-in-box": {
+        "container": "box:31x31x30", "types": [str(BOXY / "plate_10x10x0.5.stl")],
+        "kwargs": {"time_budget": 40.0},
+        "reference": "10 x 10 x 0.5 mm plates; a stack of 3 x 3 x 57 holds 89%",
+    },
+    "bricks-in-crate": {
+        "container": "box:103x62x52", "types": [str(BOXY / "brick_20x10x5.stl")],
+        "kwargs": {"time_budget": 60.0},
+        "reference": "20 x 10 x 5 mm bricks; a stack of 5 x 6 x 10 holds 90%",
+    },
+    "two-tiles": {
+        "container": "box:42x40x30",
+        "types": [str(BOXY / "tile_12x8x1.stl"), str(BOXY / "tile_9x6x1.stl")],
+        "kwargs": {"time_budget": 40.0},
+        "reference": "12 x 8 x 1 and 9 x 6 x 1 mm tiles, equal shares",
     },
     "large-2000": {
         "container": "containers/bunny.obj", "types": FRUIT,
