@@ -33,6 +33,9 @@ STACKED = 0.6
 #: cylinder fills 0.79 of its box; a ball 0.52 and the YCB apple scan 0.61, whose random
 #: packings fill more than rows of their boxes would
 BOXY = 0.7
+#: a type is round about a box axis where the cylinder about it that holds its vertices is
+#: at most this much wider than the box's sides across it (a 48-sided coin: 0.2%)
+ROUND = 1.01
 #: the most lattice sites (of one choice of axes and offsets) the search tests at once;
 #: beyond it only two offsets per axis are tried
 MANY_SITES = 20_000
@@ -40,6 +43,8 @@ MANY_SITES = 20_000
 LEFTOVER_BLOCKS = 6
 #: the sites ahead among which a type takes the one furthest from its others
 SPREAD_WINDOW = 16
+#: points on a ring of a round type's cylinder for the wall test
+_RING = 24
 #: sample points per box side for the wall test, at most
 _SIDE_SAMPLES = 5
 
@@ -123,6 +128,24 @@ def _box_samples(half: np.ndarray, spacing: float) -> np.ndarray:
     return np.stack(np.meshgrid(*axes, indexing="ij"), axis=-1).reshape(-1, 3)
 
 
+def _cylinder_samples(radius: float, half: np.ndarray, axis: int, spacing: float
+                      ) -> np.ndarray:
+    """(S, 3) points on a cylinder of `radius` about frame axis `axis` through the origin,
+    as long as the box of half extents `half` along it: rings of _RING points at up to
+    _SIDE_SAMPLES heights about `spacing` apart, and the axis's two ends."""
+    across = [j for j in range(3) if j != axis]
+    h = float(half[axis])
+    heights = np.linspace(-h, h, int(np.clip(np.ceil(2 * h / spacing) + 1, 2, _SIDE_SAMPLES)))
+    angles = np.arange(_RING) * (2.0 * np.pi / _RING)
+    ring = radius * np.stack([np.cos(angles), np.sin(angles)], axis=1)
+    out = np.zeros((len(heights) * _RING + 2, 3))
+    out[: len(heights) * _RING, across[0]] = np.tile(ring[:, 0], len(heights))
+    out[: len(heights) * _RING, across[1]] = np.tile(ring[:, 1], len(heights))
+    out[: len(heights) * _RING, axis] = np.repeat(heights, _RING)
+    out[-2:, axis] = (-h, h)
+    return out
+
+
 def _inside(container: Container, sites: np.ndarray, turn: np.ndarray,
             samples: np.ndarray, depth: float) -> np.ndarray:
     """(M,) whether the box sampled by `samples` (its frame), turned by `turn` (3, 3) and
@@ -140,6 +163,42 @@ def _inside(container: Container, sites: np.ndarray, turn: np.ndarray,
     return ok
 
 
+def round_about(vertices: np.ndarray, axes: np.ndarray, half: np.ndarray,
+                centre: np.ndarray) -> tuple[int, float] | None:
+    """The box axis (0-2, of `box_frame`'s) a mesh is round about, and the radius of the
+    cylinder about it through the box's centre that holds its vertices (local frame): a
+    coin, a can or a rod of round section. None where that cylinder is wider than
+    ROUND of the box's sides across it (a box's is 41% wider)."""
+    proj = (np.asarray(vertices, np.float64) - centre) @ axes
+    for k in range(3):
+        across = [i for i in range(3) if i != k]
+        radius = float(np.linalg.norm(proj[:, across], axis=1).max())
+        if radius <= ROUND * float(half[across].min()):
+            return k, radius
+    return None
+
+
+def _staggered(first: np.ndarray, end: np.ndarray, step: np.ndarray,
+               layout: tuple[int, int, int]) -> np.ndarray:
+    """(M, 3) sites from `first` up to `end` (frame coordinates), `step` apart along each
+    axis: the rows along layout[1], step apart along layout[0], those whose index is odd
+    (layout[2] 1) or even (0) shifted half a step (disks of diameter step[layout[1]] in
+    rows step * sqrt(3) / 2 apart each touch six)."""
+    a, b, shifted = layout
+    c = 3 - a - b
+    cols = [(x, y) for i, x in enumerate(np.arange(first[a], end[a], step[a]))
+            for y in np.arange(first[b] + (0.5 * step[b] if i % 2 == shifted else 0.0),
+                               end[b], step[b])]
+    zs = np.arange(first[c], end[c], step[c])
+    if not cols or len(zs) == 0:
+        return np.zeros((0, 3))
+    xy = np.repeat(np.array(cols), len(zs), axis=0)
+    out = np.empty((len(xy), 3))
+    out[:, a], out[:, b] = xy[:, 0], xy[:, 1]
+    out[:, c] = np.tile(zs, len(cols))
+    return out
+
+
 @dataclass(frozen=True)
 class _Rows:
     """One block of rows: its sites (M, 3, in the frame's coordinates), which box axis
@@ -154,8 +213,10 @@ class _Search:
     """The rows of one frame: the container's bounds in it, the types' boxes, the gaps."""
 
     def __init__(self, container: Container, frame: np.ndarray, halves: np.ndarray,
-                 gap: float, wall: float):
+                 gap: float, wall: float, round_about: tuple[int, float] | None = None):
         self.c = container
+        # (box axis, radius): every type lies within a cylinder of that radius about it
+        self.round = round_about
         self.frame = frame
         proj = container.vertices @ frame
         self.lo, self.hi = proj.min(axis=0), proj.max(axis=0)
@@ -168,7 +229,9 @@ class _Search:
     def rows(self, lo: np.ndarray, hi: np.ndarray, taken: list[_Rows], perms, few: bool,
              ) -> _Rows | None:
         """The block of rows with the most sites inside the container, within the bounds
-        lo..hi (frame coordinates) and apart from the `taken` blocks, over `perms`."""
+        lo..hi (frame coordinates) and apart from the `taken` blocks, over `perms`; where
+        the types are round about one box axis (`self.round`), also with the rows across
+        it staggered (each column's neighbours at the disks' diameter)."""
         best = None
         for perm in perms:
             half = self.halves[:, perm].max(axis=0)  # frame axis j holds box axis perm[j]
@@ -179,24 +242,45 @@ class _Search:
             low = np.where(lo <= self.lo, self.wall + self.hair, 0.0) + half
             high = np.where(hi >= self.hi, self.wall + self.hair, 0.0) + half
             samples = _box_samples(half, self.c.grid.spacing)
-            rows = [_offsets(lo[j], hi[j], cell[j], low[j], high[j], few) for j in range(3)]
-            for first in product(*rows):
-                axes = [np.arange(f, hi[j] - high[j] + 1e-9 * cell[j], cell[j])
-                        for j, f in enumerate(first)]
-                if any(len(a) == 0 for a in axes):
-                    continue
-                local = np.stack(np.meshgrid(*axes, indexing="ij"), axis=-1).reshape(-1, 3)
-                ok = _inside(self.c, local @ self.frame.T, self.frame, samples, self.wall)
-                for block in taken:  # boxes along the same axes: apart along one of them
-                    apart = ((local + half + self.gap <= block.bounds[0] + self.slack)
-                             | (local - half - self.gap >= block.bounds[1] - self.slack))
-                    ok &= apart.any(axis=1)
-                if best is None or ok.sum() > len(best.sites):
-                    sites = local[ok]
-                    if len(sites) == 0:
-                        continue
-                    bounds = np.stack([sites.min(axis=0) - half, sites.max(axis=0) + half])
-                    best = _Rows(sites, perm, bounds)
+            if self.round is not None:  # the cylinder that holds them, not the box
+                samples = _cylinder_samples(self.round[1], half, perm.index(self.round[0]),
+                                            self.c.grid.spacing)
+            layouts: list[tuple[tuple[int, int, int] | None, np.ndarray]] = [(None, cell)]
+            if self.round is not None:
+                plane = [j for j in range(3) if perm[j] != self.round[0]]
+                spacing = 2.0 * self.round[1] + self.gap + self.slack
+                for (a, b), shifted in product((plane, plane[::-1]), (1, 0)):
+                    step = cell.copy()
+                    step[a], step[b] = spacing * np.sqrt(3.0) / 2.0, spacing
+                    layouts.append(((a, b, shifted), step))
+            end = hi - high + 1e-9 * cell
+            for layout, step in layouts:
+                rows = [_offsets(lo[j], hi[j], step[j], low[j], high[j], few)
+                        for j in range(3)]
+                for first in product(*rows):
+                    if layout is None:
+                        axes = [np.arange(f, end[j], cell[j]) for j, f in enumerate(first)]
+                        if any(len(a) == 0 for a in axes):
+                            continue
+                        local = np.stack(np.meshgrid(*axes, indexing="ij"),
+                                         axis=-1).reshape(-1, 3)
+                    else:
+                        local = _staggered(np.array(first), end, step, layout)
+                        if len(local) == 0:
+                            continue
+                    ok = _inside(self.c, local @ self.frame.T, self.frame, samples,
+                                 self.wall)
+                    for block in taken:  # boxes along the same axes: apart along one
+                        apart = ((local + half + self.gap <= block.bounds[0] + self.slack)
+                                 | (local - half - self.gap >= block.bounds[1] - self.slack))
+                        ok &= apart.any(axis=1)
+                    if best is None or ok.sum() > len(best.sites):
+                        sites = local[ok]
+                        if len(sites) == 0:
+                            continue
+                        bounds = np.stack([sites.min(axis=0) - half,
+                                           sites.max(axis=0) + half])
+                        best = _Rows(sites, perm, bounds)
         return best
 
     def leftovers(self, taken: list[_Rows]) -> _Rows | None:
@@ -248,9 +332,13 @@ def stack_start(container: Container, types: Sequence, volumes: np.ndarray,
     grown = np.prod(2.0 * halves + clearance, axis=1) / np.prod(2.0 * halves, axis=1)
     q = shares[live] / np.sum(shares[live])
     mean_volume = float(np.sum(q * volumes[live] * grown))
+    rounds = [round_about(types[t].vertices, *boxes[int(t)]) for t in live]
+    roundness = None  # coins or cans stand staggered where all are round about one axis
+    if all(r is not None for r in rounds) and len({r[0] for r in rounds}) == 1:
+        roundness = (rounds[0][0], max(r[1] for r in rounds))
     best: tuple[_Search, _Rows] | None = None
     for frame in _container_frames(container):
-        search = _Search(container, frame, halves, gap, wall)
+        search = _Search(container, frame, halves, gap, wall, roundness)
         for perm in permutations(range(3)):
             half = halves[:, perm].max(axis=0)
             if mean_volume < BOXY * float(np.prod(2.0 * half + clearance)):

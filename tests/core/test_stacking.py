@@ -12,7 +12,7 @@ from jampacked.core.options import AttemptOptions, PackOptions
 from jampacked.core.packing_json import load_packing, save_packing
 from jampacked.core.placement import STACK_FULL, STACK_KEPT
 from jampacked.core.rotations import quat_to_matrix
-from jampacked.core.stacking import BOXY, STACKED, box_frame, stack_start
+from jampacked.core.stacking import BOXY, STACKED, box_frame, round_about, stack_start
 from jampacked.core.summary import STACKED_LABEL, summarize
 
 
@@ -225,3 +225,42 @@ def test_a_stack_that_leaves_room_does_not_end_the_budget(tmp_path):
     assert p.report.phase1.extra["lattice"] == "stacked"
     assert p.report.phase1.extra["stack_filled"] < STACK_KEPT
     assert all(a.stopped != STACK_FULL for a in p.report.attempts)
+
+
+def test_cans_stand_staggered_where_that_holds_more():
+    # cans 6 mm across in rows of squares: 360 in a 61 x 61 x 40 box; staggered, each
+    # touching six, 402
+    can = trimesh.creation.cylinder(radius=3.0, height=10.0, sections=48)
+    axes, half, centre = box_frame(can.vertices, can.faces)
+    k, radius = round_about(can.vertices, axes, half, centre)
+    assert radius == pytest.approx(3.0) and half[k] == pytest.approx(5.0)
+    assert round_about(*(lambda b: (b.vertices, *box_frame(b.vertices, b.faces)))(
+        trimesh.creation.box(extents=(6.0, 6.0, 10.0)))) is None
+    cont = _box_container((61.0, 61.0, 40.0))
+    st = stack_start(cont, [_Type(can)], np.array([can.volume]), np.array([1.0]),
+                     np.array([0.01]), 0.0, 0.0, np.random.default_rng(0))
+    assert st is not None and len(st.typ) > 360
+    # the cans' axes (world) are parallel; across them no two are nearer than 6.02
+    up = quat_to_matrix(st.quat)[:, :, 0]  # box axis 0 (the can's length) in the world
+    assert np.allclose(np.abs(up @ up[0]), 1.0)
+    flat = st.pos - np.outer(st.pos @ up[0], up[0])
+    layers = np.round(st.pos @ up[0], 6)
+    for z in np.unique(layers):
+        pts = flat[layers == z]
+        d = np.linalg.norm(pts[:, None] - pts[None], axis=2)
+        np.fill_diagonal(d, np.inf)
+        assert d.min() >= 6.02 - 1e-9
+    corners = np.concatenate(_placed_boxes(st, [_Type(can)], None))
+    assert np.all(np.abs(corners) <= np.array([30.5, 30.5, 20.0]) - 0.01 + 1e-9)
+
+
+def test_coins_stand_in_columns_in_a_jar(tmp_path):
+    # rows of squares cannot follow a round wall; seven staggered columns of 25 mm coins
+    # fill a jar 80 mm across to 67%
+    trimesh.creation.cylinder(radius=12.5, height=2.0, sections=48).export(
+        tmp_path / "coin.stl")
+    trimesh.creation.cylinder(radius=40.0, height=60.0, sections=96).export(
+        tmp_path / "jar.stl")
+    p = pack(str(tmp_path / "jar.stl"), [str(tmp_path / "coin.stl")], seed=1)
+    assert p.report.phase1.extra["lattice"] == "stacked"
+    assert p.certificate["certified"] and p.metrics["density"] > 0.6
