@@ -814,25 +814,42 @@ def resolve_scratch(n: int) -> tuple:
 
 
 @njit(cache=True)
-def max_penetrations(state, table, cont, clearance, tol, wall_extra):
-    """Deepest object-object and object-wall penetration of every alive object, (N,2).
-    state, table and cont as `resolve` takes them (vel unused)."""
+def wall_penetrations(state, table, cont, clearance, tol, wall_extra):
+    """Deepest object-wall penetration of every alive object, (N,), in time linear in the
+    objects. state, table and cont as `resolve` takes them (vel unused)."""
     typ, pos, quat, scale, alive, margin, _ = state
-    (radius, sph_off, sph_c, sph_r, pc_off, pcl, pcl_off, box, pts, g_off, g_vals, g_shape,
-     g_origin, g_h) = table
+    radius, sph_off, sph_c, sph_r, pc_off, pcl, pcl_off, _, pts = table[:9]
     c_vals, c_origin, c_h, c_pyr, c_poff, c_pshape = cont
     n = typ.shape[0]
     F = np.zeros((n, 4))
     Tq = np.zeros((n, 3))
-    out = np.zeros((n, 2))
+    out = np.zeros(n)
     c_shape = np.array(c_vals.shape, np.int64)
     c_flat = c_vals.ravel()
     for a in range(n):
+        if alive[a]:
+            out[a] = wall_contact(a, typ, pos, quat, scale, margin, clearance + wall_extra,
+                                  tol, radius, sph_off, sph_c, sph_r, pc_off, pcl, pcl_off,
+                                  pts, c_flat, c_shape, c_origin, c_h, c_pyr, c_poff,
+                                  c_pshape, F, Tq)
+    return out
+
+
+@njit(cache=True)
+def max_penetrations(state, table, cont, clearance, tol, wall_extra):
+    """Deepest object-object and object-wall penetration (`wall_penetrations`) of every
+    alive object, (N,2). state, table and cont as `resolve` takes them (vel unused)."""
+    typ, pos, quat, scale, alive, margin, _ = state
+    (radius, sph_off, sph_c, sph_r, pc_off, pcl, pcl_off, box, pts, g_off, g_vals, g_shape,
+     g_origin, g_h) = table
+    n = typ.shape[0]
+    F = np.zeros((n, 4))
+    Tq = np.zeros((n, 3))
+    out = np.zeros((n, 2))
+    out[:, 1] = wall_penetrations(state, table, cont, clearance, tol, wall_extra)
+    for a in range(n):
         if not alive[a]:
             continue
-        out[a, 1] = wall_contact(a, typ, pos, quat, scale, margin, clearance + wall_extra, tol,
-                                 radius, sph_off, sph_c, sph_r, pc_off, pcl, pcl_off, pts,
-                                 c_flat, c_shape, c_origin, c_h, c_pyr, c_poff, c_pshape, F, Tq)
         ra = radius[typ[a]] * scale[a]
         for b in range(a + 1, n):
             if not alive[b]:
@@ -848,29 +865,6 @@ def max_penetrations(state, table, cont, clearance, tol, wall_extra):
                              g_vals, g_shape, g_origin, g_h, F, Tq)
             out[a, 0] = max(out[a, 0], p)
             out[b, 0] = max(out[b, 0], p)
-    return out
-
-
-@njit(cache=True)
-def wall_penetrations(state, table, cont, clearance, tol, wall_extra):
-    """Deepest object-wall penetration of every alive object (N,): `max_penetrations`'s
-    second column, in time linear in the objects. Arguments as `max_penetrations`'s."""
-    typ, pos, quat, scale, alive, margin, _ = state
-    (radius, sph_off, sph_c, sph_r, pc_off, pcl, pcl_off, box, pts, g_off, g_vals, g_shape,
-     g_origin, g_h) = table
-    c_vals, c_origin, c_h, c_pyr, c_poff, c_pshape = cont
-    n = typ.shape[0]
-    F = np.zeros((n, 4))
-    Tq = np.zeros((n, 3))
-    out = np.zeros(n)
-    c_shape = np.array(c_vals.shape, np.int64)
-    c_flat = c_vals.ravel()
-    for a in range(n):
-        if alive[a]:
-            out[a] = wall_contact(a, typ, pos, quat, scale, margin, clearance + wall_extra,
-                                  tol, radius, sph_off, sph_c, sph_r, pc_off, pcl, pcl_off,
-                                  pts, c_flat, c_shape, c_origin, c_h, c_pyr, c_poff,
-                                  c_pshape, F, Tq)
     return out
 
 
