@@ -128,6 +128,17 @@ SCENES: dict[str, dict] = {
         "kwargs": {"time_budget": 40.0},
         "reference": "12 x 8 x 1 and 9 x 6 x 1 mm tiles, equal shares",
     },
+    "coins-in-jar": {
+        "container": str(BOXY / "jar_80x60.stl"), "types": [str(BOXY / "coin_25x2.stl")],
+        "kwargs": {"time_budget": 30.0},
+        "reference": "25 x 2 mm coins in a jar 80 mm across and 60 high: seven staggered "
+                     "columns",
+    },
+    "cans-in-box": {
+        "container": "box:61x61x40", "types": [str(BOXY / "can_6x10.stl")],
+        "kwargs": {"time_budget": 30.0},
+        "reference": "cans 6 mm across and 10 high standing staggered",
+    },
     "large-2000": {
         "container": "containers/bunny.obj", "types": FRUIT,
         "kwargs": {"container_size": 200.0, "type_scale": 140.0, "time_budget": 420.0},
