@@ -389,8 +389,7 @@ def phase2(solver: Solver, shares: np.ndarray, spacing: float, rng: np.random.Ge
     return st
 
 
-def stacked_phase1(solver: Solver, stack: Stack, margin: np.ndarray, stop: Stop
-                   ) -> PhaseStats:
+def stacked_phase1(solver: Solver, stack: Stack, margin: np.ndarray) -> PhaseStats:
     """Phase 1 from a stacked start (`stacking.stack_start`): its objects at full size,
     less any the solver finds overlapping or through the wall (its wall samples are finer
     than the stack's). margin: (T,) contact margins (container units)."""
@@ -406,8 +405,10 @@ def stacked_phase1(solver: Solver, stack: Stack, margin: np.ndarray, stop: Stop
     s.alive[bad] = 0
     st.failed = len(bad)
     st.grown = st.inserted - st.failed
-    st.extra = {"lattice": "stacked", "stack_density": stack.density,
-                "stack_filled": stack.filled}
-    st.stopped = stop.reason
+    kept = stack.typ[s.alive[first: s.n] == 1]
+    st.extra = {"lattice": "stacked",
+                "stack_density": float(solver.t.volume[kept].sum() / solver.c.volume),
+                "stack_filled": float(stack.room[kept].sum() / solver.c.volume)}
+    st.stopped = ""  # nothing is left growing, whenever the deadline passed
     st.seconds = time.perf_counter() - t0
     return st

@@ -78,7 +78,7 @@ def snapshot_metrics(state: PackState, volume: np.ndarray, q: np.ndarray,
 def place_once(solver: Solver, q: np.ndarray, s1: float, f_min: float,
                rng: np.random.Generator, stop: Stop, margin: np.ndarray, options: PackOptions,
                c_volume: float, budgeted: bool,
-               report: Callable[[float, str], None], index: int = 0) -> Attempt:
+               report: Callable[[float, str], None], *, index: int) -> Attempt:
     """Phase 1, phase 2 and the extra cavity passes on `solver`'s (empty) state.
 
     q: (T,) target shares; s1: phase 1's lattice spacing; f_min: the smallest type's
@@ -93,11 +93,13 @@ def place_once(solver: Solver, q: np.ndarray, s1: float, f_min: float,
     t0 = time.perf_counter()
     stack = None
     if index == 0:
+        # a search of seconds: cancel ends it; the deadline leaves its stack to keep
         stack = stack_start(solver.c, solver.t.types, vol, q, margin, solver.p.clearance,
-                            solver.p.wall_margin, rng)
+                            solver.p.wall_margin, rng,
+                            lambda: stop.should_cancel is not None and stop.should_cancel())
     if stack is not None:
         report(0.05, f"stacked start: {len(stack.typ)} objects in rows")
-        st1 = stacked_phase1(solver, stack, margin, stop)
+        st1 = stacked_phase1(solver, stack, margin)
     else:
         st1 = phase1(solver, q, s1, rng, stop, iters=ph.phase1_iterations, margin=margin,
                  growth_steps=ph.phase1_growth_steps, spread_window=ph.spread_window,
@@ -106,9 +108,12 @@ def place_once(solver: Solver, q: np.ndarray, s1: float, f_min: float,
                  progress=lambda f, m: report(0.05 + 0.55 * f, m))
     after1 = snapshot_metrics(solver.s, vol, q, c_volume)
     t1 = time.perf_counter()
+    # between stacked rows the holes are slivers: an object started there at a small
+    # fraction of its size pushes whole rows and fails (docs/notes-core.md)
+    min_start = max(cav.min_start, STACK_MIN_START) if stack is not None else cav.min_start
     st2 = phase2(solver, q, s1 * ph.phase2_spacing, rng, stop,
                  iters=ph.phase2_iterations, margin=margin, retries=ph.phase2_retries,
-                 max_tvd=cav.max_tvd,
+                 max_tvd=cav.max_tvd, min_start=min_start if stack is not None else 0.0,
                  progress=lambda f, m: report(0.6 + 0.2 * f, m))
     after2 = snapshot_metrics(solver.s, vol, q, c_volume)
     t2 = time.perf_counter()
@@ -121,9 +126,6 @@ def place_once(solver: Solver, q: np.ndarray, s1: float, f_min: float,
     if solver.flat.any():  # their holes are as deep as they are thick (`lie_flat`)
         f_min = min(f_min, float(solver.flat_half[solver.flat, 2].min()))
     rounds = cav.rounds if budgeted else 1
-    # between stacked rows the holes are slivers: an object started there at a small
-    # fraction of its size pushes whole rows and fails (docs/notes-core.md)
-    min_start = max(cav.min_start, STACK_MIN_START) if stack is not None else cav.min_start
     for rnd in range(rounds):
         grown = 0
         for i, factor in enumerate(cav.factors):
@@ -190,7 +192,8 @@ def place(new_solver: Callable[[], Solver], q: np.ndarray, s1: float, f_min: flo
           watch: Callable[[PackState], None] | None = None
           ) -> tuple[Attempt, list[AttemptSummary]]:
     """Attempts of `place_once`, each on a fresh solver from `new_solver()`; returns the
-    densest and a summary of every attempt. Without a deadline there is one attempt. The
+    densest and a summary of every attempt. Without a deadline there is one attempt, or
+    two where the first started stacked and filled less than STACK_KEPT. The
     first uses the random stream of `seed` itself, attempt a > 0 that of (seed, a). The
     attempts end early, the last one's summary saying REPEATED, once REPEATS_TO_STOP
     attempts in a row ran to their end with the best attempt's count and density, or
@@ -234,11 +237,16 @@ def place(new_solver: Callable[[], Solver], q: np.ndarray, s1: float, f_min: flo
         if repeats >= REPEATS_TO_STOP and stop.deadline is not None:
             summary.stopped = REPEATED
             return best, done
-        if (stop.deadline is not None and not stop.reason
-                and att.phase1.extra.get("stack_filled", 0.0) >= STACK_KEPT):
+        stacked = att.phase1.extra.get("stack_filled")
+        if stacked is not None and stacked >= STACK_KEPT and not stop.reason:
             summary.stopped = STACK_FULL
             return best, done
-        if (stop.deadline is None or stop() or len(done) >= options.attempts.max_attempts
+        if stop.deadline is None:
+            # a stack that leaves room is a candidate: one attempt from phase 1 follows
+            if stacked is None or stop():
+                return best, done
+            continue
+        if (stop() or len(done) >= options.attempts.max_attempts
                 or stop.deadline - time.perf_counter() < shortest):
             return best, done
 

@@ -14,7 +14,7 @@ Frames: a type's local frame; the container frame, container units.
 
 from __future__ import annotations
 
-from collections.abc import Sequence
+from collections.abc import Callable, Sequence
 from dataclasses import dataclass
 from itertools import permutations, product
 
@@ -27,8 +27,10 @@ from .rotations import matrix_to_quat
 from .type_spread import TypeSpread
 
 #: the least share of the container's volume the stacked objects must hold for the first
-#: attempt to start from them: above what a random packing of such types reaches
-STACKED = 0.6
+#: attempt to start from them. Below STACK_KEPT (`placement`) an attempt from phase 1
+#: follows, also without a budget, and the denser is kept: a stack is a candidate, and
+#: one of plates with a clearance (41%, two to a row) beat their random packing (24%)
+STACKED = 0.3
 #: the least share of their boxes the types (by the mix) must fill to be stacked: a
 #: cylinder fills 0.79 of its box; a ball 0.52 and the YCB apple scan 0.61, whose random
 #: packings fill more than rows of their boxes would
@@ -36,13 +38,20 @@ BOXY = 0.7
 #: a type is round about a box axis where the cylinder about it that holds its vertices is
 #: at most this much wider than the box's sides across it (a 48-sided coin: 0.2%)
 ROUND = 1.01
+#: moments of inertia within this share of the largest are taken as equal (the body has
+#: no axes of its own across them)
+EQUAL_MOMENTS = 0.02
+#: the steps a box is turned in about a mesh's one distinct axis of inertia (degrees)
+SWEEP_DEGREES = 1.0
 #: the most lattice sites (of one choice of axes and offsets) the search tests at once;
 #: beyond it only two offsets per axis are tried
 MANY_SITES = 20_000
 #: the most blocks of rows in the slabs the first block's rows leave
 LEFTOVER_BLOCKS = 6
-#: the sites ahead among which a type takes the one furthest from its others
+#: the sites ahead among which a type takes the one furthest from its others, and the
+#: most sites spread so
 SPREAD_WINDOW = 16
+SPREAD_SITES = 20_000
 #: points on a ring of a round type's cylinder for the wall test
 _RING = 24
 #: sample points per box side for the wall test, at most
@@ -52,38 +61,86 @@ _SIDE_SAMPLES = 5
 @dataclass(frozen=True)
 class Stack:
     """The objects of a stacked start: (N,) types, (N,3) positions and (N,4) rotations
-    (w, x, y, z) of each type's local frame (container frame, container units), the share
-    of the container's volume they hold, and the share their boxes grown by the clearance
-    hold of it (what `stack_start` judges them by)."""
+    (w, x, y, z) of each type's local frame (container frame, container units), and
+    (T,) each type's volume grown by its box's share of the clearance (what `stack_start`
+    judges a stack by, over the container's volume)."""
 
     typ: np.ndarray
     pos: np.ndarray
     quat: np.ndarray
-    density: float
-    filled: float
+    room: np.ndarray
+
+
+def _candidate_axes(mesh: trimesh.Trimesh) -> list[np.ndarray]:
+    """Frames (3, 3, columns) a mesh's box may follow: the mesh frame's axes, its principal
+    axes of inertia, and where two of its moments are equal (a square tile, a square box
+    turned in its file) those turned about the third to the smallest box (`_swept`), where
+    all three are (a cube), the minimal box's (trimesh's, of the hull)."""
+    frames = [np.eye(3)]
+    inertia = np.asarray(mesh.principal_inertia_vectors, np.float64).T
+    moments = np.asarray(mesh.principal_inertia_components, np.float64)
+    if not (np.all(np.isfinite(inertia)) and abs(abs(np.linalg.det(inertia)) - 1.0) < 1e-6):
+        return frames
+    frames.append(inertia)
+    scale = max(float(np.abs(moments).max()), 1e-300)
+    same = [abs(moments[i] - moments[j]) <= EQUAL_MOMENTS * scale
+            for i, j in ((1, 2), (0, 2), (0, 1))]  # pair without axis k, for k = 0, 1, 2
+    if all(same):
+        to_box, _ = trimesh.bounds.oriented_bounds(mesh.convex_hull.vertices)
+        frames.append(np.asarray(to_box, np.float64)[:3, :3].T.copy())
+    elif any(same):
+        frames.append(_swept(np.asarray(mesh.vertices, np.float64), inertia,
+                             int(np.argmax(same))))
+    return frames
+
+
+def _swept(vertices: np.ndarray, inertia: np.ndarray, k: int) -> np.ndarray:
+    """The inertia axes (3, 3, columns) turned about axis k to the smallest box: in steps
+    of SWEEP_DEGREES, then of a hundredth of that about the best."""
+    u, w = inertia[:, (k + 1) % 3], inertia[:, (k + 2) % 3]
+    across = np.stack([vertices @ u, vertices @ w], axis=1)
+
+    def area(angles: np.ndarray) -> np.ndarray:
+        c, s = np.cos(angles), np.sin(angles)
+        x = across[:, :1] * c + across[:, 1:] * s
+        y = -across[:, :1] * s + across[:, 1:] * c
+        return np.ptp(x, axis=0) * np.ptp(y, axis=0)
+
+    step = np.radians(SWEEP_DEGREES)
+    coarse = np.arange(0.0, 0.5 * np.pi, step)
+    best = coarse[int(np.argmin(area(coarse)))]
+    fine = best + np.linspace(-step, step, 201)
+    angle = fine[int(np.argmin(area(fine)))]
+    turned = inertia.copy()
+    turned[:, (k + 1) % 3] = np.cos(angle) * u + np.sin(angle) * w
+    turned[:, (k + 2) % 3] = -np.sin(angle) * u + np.cos(angle) * w
+    return turned
+
+
+def _smallest_box(vertices: np.ndarray, frames: list[np.ndarray]
+                  ) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+    """Of the boxes along `frames`, the smallest (the earliest of equal ones): its axes,
+    low and high corners in them."""
+    best = None
+    for axes in frames:
+        proj = vertices @ axes
+        lo, hi = proj.min(axis=0), proj.max(axis=0)
+        size = float(np.prod(hi - lo))
+        if best is None or size < best[0] * (1.0 - 1e-9):
+            best = (size, axes, lo, hi)
+    return best[1], best[2], best[3]
 
 
 def box_frame(vertices: np.ndarray, faces: np.ndarray
               ) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
     """A mesh's box: axes (3, 3, columns, longest first, right-handed), half extents (3,)
-    and centre (3,), all in its own frame. Of the box along the frame's axes and the one
-    along the principal axes of inertia, the smaller: a plate or a rod drawn at any
-    angle is measured along its own sides, a cube along the file's (its inertia has no
-    axes of its own). Linear in the mesh's size, unlike a minimal box."""
+    and centre (3,), all in its own frame: the smallest along the frames of
+    `_candidate_axes`. A plate or a rod drawn at any angle is measured along its own
+    sides; linear in the mesh's size but for a mesh whose three moments of inertia are
+    equal (a cube, a ball)."""
     v = np.asarray(vertices, np.float64)
-    frames = [np.eye(3)]
     mesh = trimesh.Trimesh(v, np.asarray(faces, np.int64), process=False)
-    inertia = np.asarray(mesh.principal_inertia_vectors, np.float64).T
-    if np.all(np.isfinite(inertia)) and abs(abs(np.linalg.det(inertia)) - 1.0) < 1e-6:
-        frames.append(inertia)
-    best = None
-    for axes in frames:
-        proj = v @ axes
-        lo, hi = proj.min(axis=0), proj.max(axis=0)
-        size = float(np.prod(hi - lo))
-        if best is None or size < best[0] * (1.0 - 1e-9):
-            best = (size, axes, lo, hi)
-    _, axes, lo, hi = best
+    axes, lo, hi = _smallest_box(v, _candidate_axes(mesh))
     half = 0.5 * (hi - lo)
     centre = axes @ (0.5 * (lo + hi))
     order = np.argsort(-half, kind="stable")
@@ -94,15 +151,12 @@ def box_frame(vertices: np.ndarray, faces: np.ndarray
 
 
 def _container_frames(container: Container) -> list[np.ndarray]:
-    """The frames a stack's rows may follow: the container frame's axes, and its
-    principal axes of inertia (a box drawn at an angle)."""
-    frames = [np.eye(3)]
+    """The frames a stack's rows may follow: the container frame's axes, and those of the
+    container's smallest box of `_candidate_axes` (a box drawn at an angle)."""
     mesh = trimesh.Trimesh(container.vertices, container.faces, process=False)
-    inertia = np.asarray(mesh.principal_inertia_vectors, np.float64).T
-    if np.all(np.isfinite(inertia)) and abs(abs(np.linalg.det(inertia)) - 1.0) < 1e-6:
-        if np.abs(np.abs(inertia).max(axis=0) - 1.0).max() > 1e-6:  # not the same axes
-            frames.append(inertia)
-    return frames
+    axes, _, _ = _smallest_box(container.vertices, _candidate_axes(mesh))
+    same = np.abs(np.abs(axes).max(axis=0) - 1.0).max() <= 1e-6
+    return [np.eye(3)] if same else [np.eye(3), axes]
 
 
 def _offsets(lo: float, hi: float, cell: float, low: float, high: float, few: bool
@@ -213,8 +267,10 @@ class _Search:
     """The rows of one frame: the container's bounds in it, the types' boxes, the gaps."""
 
     def __init__(self, container: Container, frame: np.ndarray, halves: np.ndarray,
-                 gap: float, wall: float, round_about: tuple[int, float] | None = None):
+                 gap: float, wall: float, round_about: tuple[int, float] | None,
+                 stop: Callable[[], bool]):
         self.c = container
+        self.stop = stop
         # (box axis, radius): every type lies within a cylinder of that radius about it
         self.round = round_about
         self.frame = frame
@@ -258,6 +314,8 @@ class _Search:
                 rows = [_offsets(lo[j], hi[j], step[j], low[j], high[j], few)
                         for j in range(3)]
                 for first in product(*rows):
+                    if self.stop():
+                        return None
                     if layout is None:
                         axes = [np.arange(f, end[j], cell[j]) for j, f in enumerate(first)]
                         if any(len(a) == 0 for a in axes):
@@ -305,7 +363,8 @@ class _Search:
 
 def stack_start(container: Container, types: Sequence, volumes: np.ndarray,
                 shares: np.ndarray, margin: np.ndarray, clearance: float,
-                wall_margin: float, rng: np.random.Generator) -> Stack | None:
+                wall_margin: float, rng: np.random.Generator,
+                stop: Callable[[], bool] = lambda: False) -> Stack | None:
     """The densest stack of the types' boxes in rows along the container's axes, or None
     where it holds less than STACKED of the container's volume (each type's volume taken
     with its box grown by the clearance: 0.3 mm costs a 0.5 mm plate 40% of its room in
@@ -338,7 +397,7 @@ def stack_start(container: Container, types: Sequence, volumes: np.ndarray,
         roundness = (rounds[0][0], max(r[1] for r in rounds))
     best: tuple[_Search, _Rows] | None = None
     for frame in _container_frames(container):
-        search = _Search(container, frame, halves, gap, wall, roundness)
+        search = _Search(container, frame, halves, gap, wall, roundness, stop)
         for perm in permutations(range(3)):
             half = halves[:, perm].max(axis=0)
             if mean_volume < BOXY * float(np.prod(2.0 * half + clearance)):
@@ -350,12 +409,15 @@ def stack_start(container: Container, types: Sequence, volumes: np.ndarray,
             got = search.rows(search.lo, search.hi, [], [perm], few=float(np.prod(n)) > MANY_SITES)
             if got is not None and (best is None or len(got.sites) > len(best[1].sites)):
                 best = (search, got)
-    if best is None or len(best[1].sites) * mean_volume < STACKED * container.volume:
+    if (stop() or best is None
+            or len(best[1].sites) * mean_volume < STACKED * container.volume):
         return None
     search, first = best
     blocks = [first]
     for _ in range(LEFTOVER_BLOCKS):
         more = search.leftovers(blocks)
+        if stop():
+            return None
         if more is None:
             break
         blocks.append(more)
@@ -378,10 +440,9 @@ def stack_start(container: Container, types: Sequence, volumes: np.ndarray,
             here = (typ == t) & (block_of == i)
             pos[here] = sites[here] - turn @ centre
             quat[here] = matrix_to_quat(turn[None])[0]
-    grown_volume = np.zeros(len(volumes))
-    grown_volume[live] = volumes[live] * grown
-    return Stack(typ, pos, quat, float(volumes[typ].sum() / container.volume),
-                 float(grown_volume[typ].sum() / container.volume))
+    room = np.zeros(len(volumes))
+    room[live] = volumes[live] * grown
+    return Stack(typ, pos, quat, room)
 
 
 def _mix(sites: np.ndarray, block_of: np.ndarray, live: np.ndarray, shares: np.ndarray,
@@ -396,19 +457,21 @@ def _mix(sites: np.ndarray, block_of: np.ndarray, live: np.ndarray, shares: np.n
     typ = np.full(n, int(live[0]), np.int64)
     if len(live) == 1:
         return typ, sites, block_of
+    # beyond SPREAD_SITES the random order alone spreads them (a k-d tree query a site
+    # took a minute for 137,000)
+    window = max(1, min(SPREAD_WINDOW, n // 8)) if n <= SPREAD_SITES else 1
     counts = np.zeros(len(shares))
     by_volume = live[np.argsort(-volumes[live], kind="stable")]
     spread = TypeSpread(len(shares))
-    window = max(1, min(SPREAD_WINDOW, n // 8))
     for i in range(n):
         g = max(counts.sum(), 1.0)
         below = [int(t) for t in by_volume if counts[t] < shares[t] * g]
         t = below[0] if below else int(live[np.argmin(counts[live] / shares[live])])
-        ahead = sites[i: i + window]
-        far = i + int(np.argmax(spread.nearest(t, ahead)))
-        sites[[i, far]] = sites[[far, i]]
-        block_of[[i, far]] = block_of[[far, i]]
+        if window > 1:
+            far = i + int(np.argmax(spread.nearest(t, sites[i: i + window])))
+            sites[[i, far]] = sites[[far, i]]
+            block_of[[i, far]] = block_of[[far, i]]
+            spread.add(t, sites[i])
         typ[i] = t
         counts[t] += 1
-        spread.add(t, sites[i])
     return typ, sites, block_of

@@ -45,6 +45,27 @@ def test_a_turned_plate_is_measured_along_its_own_sides():
     np.testing.assert_allclose(np.abs(proj).max(axis=0), half, atol=1e-9)
 
 
+def test_a_square_tile_or_a_cube_turned_in_its_file_is_measured_along_its_sides():
+    # their inertia has no axes of its own across the square (or at all): the box along
+    # the inertia axes was the file's, 5.9 wide for a 10 mm tile turned 30 degrees
+    tile = trimesh.creation.box(extents=(10.0, 10.0, 1.0))
+    tile.apply_transform(trimesh.transformations.rotation_matrix(0.52, [0, 0, 1]))
+    np.testing.assert_allclose(box_frame(tile.vertices, tile.faces)[1], [5.0, 5.0, 0.5],
+                               atol=1e-3)
+    cube = _turned(trimesh.creation.box(extents=(8.0, 8.0, 8.0)))
+    np.testing.assert_allclose(box_frame(cube.vertices, cube.faces)[1], 4.0, atol=1e-6)
+
+
+def test_bricks_stack_in_a_square_crate_turned_in_its_file():
+    crate = trimesh.creation.box(extents=(63.0, 63.0, 40.0))
+    crate.apply_transform(trimesh.transformations.rotation_matrix(0.52, [0, 0, 1]))
+    cont = build_container(crate.vertices, crate.faces, float(crate.volume), 0.5)
+    brick = trimesh.creation.box(extents=(20.0, 10.0, 5.0))
+    st = stack_start(cont, [_Type(brick)], np.array([brick.volume]), np.array([1.0]),
+                     np.array([0.01]), 0.0, 0.0, np.random.default_rng(0))
+    assert st is not None and len(st.typ) >= 3 * 6 * 7
+
+
 def _placed_boxes(stack, types, volumes):
     """World-frame corners of each stacked object's box, and its volume."""
     corners = []
@@ -62,7 +83,7 @@ def test_plates_stack_in_rows_inside_the_box_and_apart():
     st = stack_start(cont, types, np.array([plate.volume]), np.array([1.0]), margin, 0.0,
                      0.0, np.random.default_rng(0))
     assert st is not None and len(st.typ) == 3 * 3 * 57  # 0.52 mm a row across 30 mm
-    assert st.density == pytest.approx(len(st.typ) * 50.0 / cont.volume)
+    assert st.room[0] == pytest.approx(50.0)
     corners = _placed_boxes(st, types, None)
     lo = np.array([c.min(axis=0) for c in corners])
     hi = np.array([c.max(axis=0) for c in corners])
@@ -114,14 +135,30 @@ def test_no_pass_starts_an_object_in_the_slivers_between_rows(tmp_path):
     assert p.certificate["certified"] and p.metrics["density"] > 0.65
 
 
+def test_phase_2_starts_nothing_in_the_corners_rows_leave(tmp_path):
+    # plates stacked in an octagonal prism: phase 2 started plates at a third of their
+    # size in its corners, each pushing whole rows, and none grew (25 s of a 20 s budget)
+    prism = trimesh.creation.cylinder(radius=20.5 / np.cos(np.pi / 8), height=30.0,
+                                      sections=8)
+    prism.apply_transform(trimesh.transformations.rotation_matrix(np.pi / 8, [0, 0, 1]))
+    prism.export(tmp_path / "prism.stl")
+    trimesh.creation.box(extents=(10.0, 10.0, 0.5)).export(tmp_path / "plate.stl")
+    p = pack(str(tmp_path / "prism.stl"), [str(tmp_path / "plate.stl")], seed=1,
+             time_budget=5.0)
+    assert p.report.phase1.extra["lattice"] == "stacked"
+    assert p.report.phase2.inserted == 0 and p.certificate["certified"]
+
+
 def test_plates_stack_with_a_printing_clearance_between_them():
-    # 0.3 mm costs a 0.5 mm plate 40% of its room in any packing: judged by the plates'
-    # volume alone the stack (36 rows, 53%) would not start
+    # 0.3 mm costs a 0.5 mm plate 40% of its room in any packing: the stack is judged by
+    # the plates grown by it
     plate = trimesh.creation.box(extents=(10.0, 10.0, 0.5))
     cont = _box_container((32.0, 32.0, 30.0))
     st = stack_start(cont, [_Type(plate)], np.array([plate.volume]), np.array([1.0]),
                      np.array([0.01]), 0.3, 0.0, np.random.default_rng(0))
-    assert st is not None and len(st.typ) == 3 * 3 * 36 and st.density < STACKED
+    assert st is not None and len(st.typ) == 3 * 3 * 36
+    grown = 10.3 * 10.3 * 0.8 / (10.0 * 10.0 * 0.5)
+    assert st.room[0] == pytest.approx(plate.volume * grown)
     z = np.unique(np.round(st.pos[:, 2], 9))
     assert np.diff(z).min() >= 0.5 + 0.3 + 0.02 - 1e-9
 
@@ -264,3 +301,54 @@ def test_coins_stand_in_columns_in_a_jar(tmp_path):
     p = pack(str(tmp_path / "jar.stl"), [str(tmp_path / "coin.stl")], seed=1)
     assert p.report.phase1.extra["lattice"] == "stacked"
     assert p.certificate["certified"] and p.metrics["density"] > 0.6
+
+
+def test_without_a_budget_a_stack_that_leaves_room_competes_with_phase_1(tmp_path):
+    # in a small box two tile sizes share the larger one's rows; an attempt from phase 1
+    # follows the stack and the denser is kept
+    paths = []
+    for name, ext in (("big", (12.0, 8.0, 1.0)), ("small", (9.0, 6.0, 1.0))):
+        trimesh.creation.box(extents=ext).export(tmp_path / f"{name}.stl")
+        paths.append(str(tmp_path / f"{name}.stl"))
+    p = pack("box:30x26x12", paths, seed=1)
+    attempts = p.report.attempts
+    assert len(attempts) == 2
+    kept = max(attempts, key=lambda a: a.density)
+    assert p.metrics["count"] <= kept.count and p.certificate["certified"]
+
+
+def test_a_type_whose_box_is_off_its_origin_stays_inside():
+    # a T-shaped plate drawn off its origin: its box's centre is not its origin, so each
+    # site's position is the site less the turned centre
+    a = trimesh.creation.box(extents=(10.0, 7.0, 0.5))
+    b = trimesh.creation.box(extents=(4.0, 10.0, 0.5))
+    b.apply_translation([-3.0, 0.0, 0.0])
+    plate = trimesh.boolean.union([a, b], engine="manifold")
+    plate.apply_translation([4.0, -2.0, 1.0])
+    cont = _box_container((31.0, 31.0, 30.0))
+    st = stack_start(cont, [_Type(plate)], np.array([plate.volume]), np.array([1.0]),
+                     np.array([0.01]), 0.0, 0.0, np.random.default_rng(0))
+    assert st is not None
+    corners = np.concatenate(_placed_boxes(st, [_Type(plate)], None))
+    assert np.all(np.abs(corners) <= np.array([15.5, 15.5, 15.0]) - 0.01 + 1e-9)
+
+
+def test_the_search_stops_when_asked():
+    plate = trimesh.creation.box(extents=(10.0, 10.0, 0.5))
+    args = (_box_container((31.0, 31.0, 30.0)), [_Type(plate)], np.array([plate.volume]),
+            np.array([1.0]), np.array([0.01]), 0.0, 0.0, np.random.default_rng(0))
+    assert stack_start(*args, lambda: True) is None
+    assert stack_start(*args, lambda: False) is not None
+
+
+def test_a_budget_shorter_than_the_search_keeps_the_stack_and_says_nothing_wrong(tmp_path):
+    # the search of the staggered columns takes seconds: a budget spent during it kept
+    # no stack, and the warnings spoke of objects still growing and holes left unfilled
+    trimesh.creation.cylinder(radius=12.5, height=2.0, sections=48).export(
+        tmp_path / "coin.stl")
+    trimesh.creation.cylinder(radius=40.0, height=60.0, sections=96).export(
+        tmp_path / "jar.stl")
+    p = pack(str(tmp_path / "jar.stl"), [str(tmp_path / "coin.stl")], seed=1,
+             time_budget=0.01)
+    assert p.report.phase1.extra["lattice"] == "stacked" and p.metrics["count"] >= 200
+    assert not any("growing" in w or "unfilled" in w for w in p.report.warnings)
