@@ -102,18 +102,18 @@ def place_once(solver: Solver, q: np.ndarray, s1: float, f_min: float,
         st1 = stacked_phase1(solver, stack, margin)
     else:
         st1 = phase1(solver, q, s1, rng, stop, iters=ph.phase1_iterations, margin=margin,
-                 growth_steps=ph.phase1_growth_steps, spread_window=ph.spread_window,
-                 lattice=ph.phase1_lattice, cubic_density=ph.phase1_density,
-                 fcc_density=ph.phase1_fcc_density,
-                 progress=lambda f, m: report(0.05 + 0.55 * f, m))
+                     growth_steps=ph.phase1_growth_steps, spread_window=ph.spread_window,
+                     lattice=ph.phase1_lattice, cubic_density=ph.phase1_density,
+                     fcc_density=ph.phase1_fcc_density,
+                     progress=lambda f, m: report(0.05 + 0.55 * f, m))
     after1 = snapshot_metrics(solver.s, vol, q, c_volume)
     t1 = time.perf_counter()
     # between stacked rows the holes are slivers: an object started there at a small
     # fraction of its size pushes whole rows and fails (docs/notes-core.md)
-    min_start = max(cav.min_start, STACK_MIN_START) if stack is not None else cav.min_start
+    floor = STACK_MIN_START if stack is not None else 0.0
     st2 = phase2(solver, q, s1 * ph.phase2_spacing, rng, stop,
                  iters=ph.phase2_iterations, margin=margin, retries=ph.phase2_retries,
-                 max_tvd=cav.max_tvd, min_start=min_start if stack is not None else 0.0,
+                 max_tvd=cav.max_tvd, min_start=floor,
                  progress=lambda f, m: report(0.6 + 0.2 * f, m))
     after2 = snapshot_metrics(solver.s, vol, q, c_volume)
     t2 = time.perf_counter()
@@ -135,7 +135,7 @@ def place_once(solver: Solver, q: np.ndarray, s1: float, f_min: float,
             st = phase2(
                 solver, q, s1 * ph.phase2_spacing * factor, rng, stop,
                 iters=cav.iterations, margin=margin, retries=cav.retries,
-                growth_steps=cav.growth_steps, min_start=min_start,
+                growth_steps=cav.growth_steps, min_start=max(cav.min_start, floor),
                 threshold=factor * f_min, fit_factor=factor, patience=cav.patience,
                 flat_lattice=True,
                 max_tvd=cav.max_tvd,

@@ -66,8 +66,17 @@ def test_bricks_stack_in_a_square_crate_turned_in_its_file():
     assert st is not None and len(st.typ) >= 3 * 6 * 7
 
 
-def _placed_boxes(stack, types, volumes):
-    """World-frame corners of each stacked object's box, and its volume."""
+def _two_tiles(tmp_path) -> list[str]:
+    """Files of a 12 x 8 x 1 and a 9 x 6 x 1 tile."""
+    paths = []
+    for name, ext in (("big", (12.0, 8.0, 1.0)), ("small", (9.0, 6.0, 1.0))):
+        trimesh.creation.box(extents=ext).export(tmp_path / f"{name}.stl")
+        paths.append(str(tmp_path / f"{name}.stl"))
+    return paths
+
+
+def _placed_boxes(stack, types):
+    """Each stacked object's vertices in the container frame."""
     corners = []
     for t, p, q in zip(stack.typ, stack.pos, stack.quat, strict=True):
         r = quat_to_matrix(q[None])[0]
@@ -84,7 +93,7 @@ def test_plates_stack_in_rows_inside_the_box_and_apart():
                      0.0, np.random.default_rng(0))
     assert st is not None and len(st.typ) == 3 * 3 * 57  # 0.52 mm a row across 30 mm
     assert st.room[0] == pytest.approx(50.0)
-    corners = _placed_boxes(st, types, None)
+    corners = _placed_boxes(st, types)
     lo = np.array([c.min(axis=0) for c in corners])
     hi = np.array([c.max(axis=0) for c in corners])
     assert lo.min() >= -15.5 + 0.01 - 1e-9 and hi.max() <= 15.5 - 0.01 + 1e-9
@@ -96,7 +105,7 @@ def test_plates_stack_in_rows_inside_the_box_and_apart():
 
 def _apart(stack, types) -> float:
     """The least gap between the objects' boxes (each turned onto the frame's axes)."""
-    corners = _placed_boxes(stack, types, None)
+    corners = _placed_boxes(stack, types)
     lo = np.array([c.min(axis=0) for c in corners])
     hi = np.array([c.max(axis=0) for c in corners])
     sep = np.maximum(lo[:, None] - hi[None], lo[None] - hi[:, None]).max(axis=2)
@@ -117,7 +126,7 @@ def test_the_strip_beside_the_rows_takes_rows_of_its_own():
     thin = np.abs(turns[:, :, 2]).argmax(axis=1)  # the axis each tile's thin side lies on
     assert len(np.unique(thin)) >= 2  # some stand on edge
     assert _apart(st, types) >= 0.02 - 1e-9
-    corners = np.concatenate(_placed_boxes(st, types, None))
+    corners = np.concatenate(_placed_boxes(st, types))
     assert np.all(np.abs(corners) <= np.array([21.0, 20.0, 15.0]) - 0.01 + 1e-9)
 
 
@@ -125,10 +134,7 @@ def test_no_pass_starts_an_object_in_the_slivers_between_rows(tmp_path):
     # 9 x 6 tiles in 12 x 8 sites leave slivers 1-2 mm wide: the passes started tiles
     # there at a tenth of their size, each pushing whole rows, for 130 s without a
     # success before the stacked start set them a least start scale
-    paths = []
-    for name, ext in (("big", (12.0, 8.0, 1.0)), ("small", (9.0, 6.0, 1.0))):
-        trimesh.creation.box(extents=ext).export(tmp_path / f"{name}.stl")
-        paths.append(str(tmp_path / f"{name}.stl"))
+    paths = _two_tiles(tmp_path)
     p = pack("box:42x40x30", paths, seed=1)
     assert p.report.phase1.extra["lattice"] == "stacked"
     assert sum(e.inserted for e in p.report.extra_passes) == 0
@@ -254,10 +260,7 @@ def test_a_fixed_count_of_attempts_runs_them_all_after_a_full_stack(tmp_path):
 
 def test_a_stack_that_leaves_room_does_not_end_the_budget(tmp_path):
     # 9 x 6 tiles in 12 x 8 sites: the stack holds about 64%, which a random start may beat
-    paths = []
-    for name, ext in (("big", (12.0, 8.0, 1.0)), ("small", (9.0, 6.0, 1.0))):
-        trimesh.creation.box(extents=ext).export(tmp_path / f"{name}.stl")
-        paths.append(str(tmp_path / f"{name}.stl"))
+    paths = _two_tiles(tmp_path)
     p = pack("box:42x40x30", paths, seed=1, time_budget=3.0)
     assert p.report.phase1.extra["lattice"] == "stacked"
     assert p.report.phase1.extra["stack_filled"] < STACK_KEPT
@@ -287,7 +290,7 @@ def test_cans_stand_staggered_where_that_holds_more():
         d = np.linalg.norm(pts[:, None] - pts[None], axis=2)
         np.fill_diagonal(d, np.inf)
         assert d.min() >= 6.02 - 1e-9
-    corners = np.concatenate(_placed_boxes(st, [_Type(can)], None))
+    corners = np.concatenate(_placed_boxes(st, [_Type(can)]))
     assert np.all(np.abs(corners) <= np.array([30.5, 30.5, 20.0]) - 0.01 + 1e-9)
 
 
@@ -306,10 +309,7 @@ def test_coins_stand_in_columns_in_a_jar(tmp_path):
 def test_without_a_budget_a_stack_that_leaves_room_competes_with_phase_1(tmp_path):
     # in a small box two tile sizes share the larger one's rows; an attempt from phase 1
     # follows the stack and the denser is kept
-    paths = []
-    for name, ext in (("big", (12.0, 8.0, 1.0)), ("small", (9.0, 6.0, 1.0))):
-        trimesh.creation.box(extents=ext).export(tmp_path / f"{name}.stl")
-        paths.append(str(tmp_path / f"{name}.stl"))
+    paths = _two_tiles(tmp_path)
     p = pack("box:30x26x12", paths, seed=1)
     attempts = p.report.attempts
     assert len(attempts) == 2
@@ -329,7 +329,7 @@ def test_a_type_whose_box_is_off_its_origin_stays_inside():
     st = stack_start(cont, [_Type(plate)], np.array([plate.volume]), np.array([1.0]),
                      np.array([0.01]), 0.0, 0.0, np.random.default_rng(0))
     assert st is not None
-    corners = np.concatenate(_placed_boxes(st, [_Type(plate)], None))
+    corners = np.concatenate(_placed_boxes(st, [_Type(plate)]))
     assert np.all(np.abs(corners) <= np.array([15.5, 15.5, 15.0]) - 0.01 + 1e-9)
 
 
