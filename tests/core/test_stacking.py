@@ -135,7 +135,7 @@ def test_no_pass_starts_an_object_in_the_slivers_between_rows(tmp_path):
     # there at a tenth of their size, each pushing whole rows, for 130 s without a
     # success before the stacked start set them a least start scale
     paths = _two_tiles(tmp_path)
-    p = pack("box:42x40x30", paths, seed=1)
+    p = pack("box:42x40x30", paths, seed=1, time_budget=5.0)
     assert p.report.phase1.extra["lattice"] == "stacked"
     assert sum(e.inserted for e in p.report.extra_passes) == 0
     assert p.certificate["certified"] and p.metrics["density"] > 0.65
@@ -301,7 +301,8 @@ def test_coins_stand_in_columns_in_a_jar(tmp_path):
         tmp_path / "coin.stl")
     trimesh.creation.cylinder(radius=40.0, height=60.0, sections=96).export(
         tmp_path / "jar.stl")
-    p = pack(str(tmp_path / "jar.stl"), [str(tmp_path / "coin.stl")], seed=1)
+    p = pack(str(tmp_path / "jar.stl"), [str(tmp_path / "coin.stl")], seed=1,
+             time_budget=5.0)
     assert p.report.phase1.extra["lattice"] == "stacked"
     assert p.certificate["certified"] and p.metrics["density"] > 0.6
 
