@@ -294,15 +294,20 @@ def test_cans_stand_staggered_where_that_holds_more():
     assert np.all(np.abs(corners) <= np.array([30.5, 30.5, 20.0]) - 0.01 + 1e-9)
 
 
-def test_coins_stand_in_columns_in_a_jar(tmp_path):
-    # rows of squares cannot follow a round wall; seven staggered columns of 25 mm coins
-    # fill a jar 80 mm across to 67%
+def _coins_in_a_jar(tmp_path, time_budget: float):
+    """25 x 2 mm coins packed in a jar 80 mm across and 60 high, seed 1."""
     trimesh.creation.cylinder(radius=12.5, height=2.0, sections=48).export(
         tmp_path / "coin.stl")
     trimesh.creation.cylinder(radius=40.0, height=60.0, sections=96).export(
         tmp_path / "jar.stl")
-    p = pack(str(tmp_path / "jar.stl"), [str(tmp_path / "coin.stl")], seed=1,
-             time_budget=5.0)
+    return pack(str(tmp_path / "jar.stl"), [str(tmp_path / "coin.stl")], seed=1,
+                time_budget=time_budget)
+
+
+def test_coins_stand_in_columns_in_a_jar(tmp_path):
+    # rows of squares cannot follow a round wall; seven staggered columns of 25 mm coins
+    # fill a jar 80 mm across to 67%
+    p = _coins_in_a_jar(tmp_path, time_budget=5.0)
     assert p.report.phase1.extra["lattice"] == "stacked"
     assert p.certificate["certified"] and p.metrics["density"] > 0.6
 
@@ -345,11 +350,6 @@ def test_the_search_stops_when_asked():
 def test_a_budget_shorter_than_the_search_keeps_the_stack_and_says_nothing_wrong(tmp_path):
     # the search of the staggered columns takes seconds: a budget spent during it kept
     # no stack, and the warnings spoke of objects still growing and holes left unfilled
-    trimesh.creation.cylinder(radius=12.5, height=2.0, sections=48).export(
-        tmp_path / "coin.stl")
-    trimesh.creation.cylinder(radius=40.0, height=60.0, sections=96).export(
-        tmp_path / "jar.stl")
-    p = pack(str(tmp_path / "jar.stl"), [str(tmp_path / "coin.stl")], seed=1,
-             time_budget=0.01)
+    p = _coins_in_a_jar(tmp_path, time_budget=0.01)
     assert p.report.phase1.extra["lattice"] == "stacked" and p.metrics["count"] >= 200
     assert not any("growing" in w or "unfilled" in w for w in p.report.warnings)
