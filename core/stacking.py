@@ -27,9 +27,8 @@ from .rotations import matrix_to_quat
 from .type_spread import TypeSpread
 
 #: the least share of the container's volume the stacked objects must hold for the first
-#: attempt to start from them. Below STACK_KEPT (`placement`) an attempt from phase 1
-#: follows, also without a budget, and the denser is kept: a stack is a candidate, and
-#: one of plates with a clearance (41%, two to a row) beat their random packing (24%)
+#: attempt to start from them. A stack is a candidate: below STACK_KEPT (`placement`) an
+#: attempt from phase 1 follows, also without a budget, and the denser is kept
 STACKED = 0.3
 #: the least share of their boxes the types (by the mix) must fill to be stacked: a
 #: cylinder fills 0.79 of its box; a ball 0.52 and the YCB apple scan 0.61, whose random
