@@ -22,7 +22,7 @@ from .report import PhaseStats
 from .rotations import random_quaternions
 from .solver import Solver
 from .stacking import Stack
-from .type_spread import TypeSpread
+from .type_spread import TypeSpread, type_needed
 
 START_SCALE = 0.05
 GROWTH_STEPS = 30
@@ -233,14 +233,7 @@ def phase1(solver: Solver, shares: np.ndarray, spacing: float, rng: np.random.Ge
         k = queue[done - 1]
         if not solver.s.alive[k]:
             continue
-        g = max(counts.sum(), 1.0)
-        below = [int(t) for t in order_by_volume if counts[t] < shares[t] * g]
-        if below:
-            t = below[0]
-        else:
-            # a type with a zero target share is never placed
-            t = int(np.argmin(np.where(shares > 0, counts / np.maximum(shares, 1e-12),
-                                       np.inf)))
+        t = type_needed(counts, shares, order_by_volume)
         # an ungrown object takes the type the mix needs now (the paper draws types up
         # front; typing on demand keeps the mix when big types fail more often); the
         # queue is in random order, and of its next few the one furthest from its type

@@ -24,7 +24,7 @@ import trimesh
 from .container import Container
 from .kernels import sample_grid_many
 from .rotations import matrix_to_quat
-from .type_spread import TypeSpread
+from .type_spread import TypeSpread, type_needed
 
 #: the least share of the container's volume the stacked objects must hold for the first
 #: attempt to start from them. A stack is a candidate: below STACK_KEPT (`placement`) an
@@ -447,9 +447,8 @@ def stack_start(container: Container, types: Sequence, volumes: np.ndarray,
 def _mix(sites: np.ndarray, block_of: np.ndarray, live: np.ndarray, shares: np.ndarray,
          volumes: np.ndarray) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
     """Types for the sites (M, 3, in random order) and the sites and their blocks (M,)
-    reordered to match: each
-    in turn the largest type below its share of those typed so far, or the one furthest
-    below it (phase 1's rule), at the one of the next few sites furthest from that type's
+    reordered to match: each in turn the type the mix needs (`type_spread.type_needed`,
+    as in phase 1), at the one of the next few sites furthest from that type's
     (`type_spread`), so that no type clumps in the rows."""
     n = len(sites)
     sites, block_of = sites.copy(), block_of.copy()
@@ -463,9 +462,7 @@ def _mix(sites: np.ndarray, block_of: np.ndarray, live: np.ndarray, shares: np.n
     by_volume = live[np.argsort(-volumes[live], kind="stable")]
     spread = TypeSpread(len(shares))
     for i in range(n):
-        g = max(counts.sum(), 1.0)
-        below = [int(t) for t in by_volume if counts[t] < shares[t] * g]
-        t = below[0] if below else int(live[np.argmin(counts[live] / shares[live])])
+        t = type_needed(counts, shares, by_volume)
         if window > 1:
             far = i + int(np.argmax(spread.nearest(t, sites[i: i + window])))
             sites[[i, far]] = sites[[far, i]]

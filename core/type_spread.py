@@ -45,3 +45,14 @@ class TypeSpread:
             d = np.linalg.norm(query[:, None, :] - np.array(recent)[None], axis=2).min(axis=1)
             best = np.minimum(best, d)
         return best
+
+
+def type_needed(counts: np.ndarray, shares: np.ndarray, by_volume: np.ndarray) -> int:
+    """The type the mix needs next: of the types in `by_volume` (largest first) the first
+    below its share of the (T,) counts so far, or, when none is, the one furthest below
+    it; a type with a zero share (T,) never."""
+    g = max(float(counts.sum()), 1.0)
+    for t in by_volume:
+        if counts[t] < shares[t] * g:
+            return int(t)
+    return int(np.argmin(np.where(shares > 0, counts / np.maximum(shares, 1e-12), np.inf)))
