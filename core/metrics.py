@@ -228,3 +228,16 @@ def compute_metrics(
         "nni_mean": clump["mean"],
         "shares": [float(s) for s in type_shares(idx, n_types)],
     }
+
+
+def mix_cap(counts: np.ndarray, shares: np.ndarray, max_tvd: float) -> float:
+    """The largest TVD a cavity insertion may leave: max_tvd, or the current TVD (an
+    insertion may always improve the mix), or, with few objects, where one object moves
+    the TVD by about 1/n, anything within one object of the best mix the next count allows.
+    max_tvd 0 asks for the mix as close as the count allows: the best mix of the next
+    count, without that one object.
+    """
+    n_next = int(counts.sum()) + 1
+    slack = 1.0 / n_next if max_tvd > 0 else 1e-12
+    return max(max_tvd, tvd_of_counts(counts, shares) - 1e-12,
+               best_tvd(shares, n_next) + slack)

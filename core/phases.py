@@ -17,7 +17,7 @@ from .container import deepest_points, interior_points
 from .fidelity import MANY_OBJECTS
 from .kernels import sample_grid_many
 from .lie_flat import flat_quaternion, flat_spacing
-from .metrics import best_tvd, density, equivalent_radius, tvd_of_counts
+from .metrics import density, equivalent_radius, mix_cap, tvd_of_counts
 from .report import PhaseStats
 from .rotations import random_quaternions
 from .solver import Solver
@@ -60,19 +60,6 @@ def _counted_density(counts: np.ndarray, solver: Solver) -> float:
     """`_density` from the phase's (T,) counts of full-size objects per type: the progress
     messages' figure, at a cost that does not grow with the objects placed."""
     return float(counts @ solver.t.volume) / solver.c.volume
-
-
-def mix_cap(counts: np.ndarray, shares: np.ndarray, max_tvd: float) -> float:
-    """The largest TVD a cavity insertion may leave: max_tvd, or the current TVD (an
-    insertion may always improve the mix), or, with few objects, where one object moves
-    the TVD by about 1/n, anything within one object of the best mix the next count allows.
-    max_tvd 0 asks for the mix as close as the count allows: the best mix of the next
-    count, without that one object.
-    """
-    n_next = int(counts.sum()) + 1
-    slack = 1.0 / n_next if max_tvd > 0 else 1e-12
-    return max(max_tvd, tvd_of_counts(counts, shares) - 1e-12,
-               best_tvd(shares, n_next) + slack)
 
 
 class Stop:

@@ -96,7 +96,8 @@ def place_once(solver: Solver, q: np.ndarray, s1: float, f_min: float,
         # a search of seconds: cancel ends it; the deadline leaves its stack to keep
         stack = stack_start(solver.c, solver.t.types, vol, q, margin, solver.p.clearance,
                             solver.p.wall_margin, rng,
-                            lambda: stop.should_cancel is not None and stop.should_cancel())
+                            lambda: stop.should_cancel is not None and stop.should_cancel(),
+                            max_tvd=cav.max_tvd)
     if stack is not None:
         report(0.05, f"stacked start: {len(stack.typ)} objects in rows")
         st1 = stacked_phase1(solver, stack, margin)

@@ -7,7 +7,9 @@ axes, holds at least STACKED of the container (by the types' volumes, each grown
 box's share of the clearance, which costs a stack and a random packing alike), the first
 attempt starts from that lattice at full size instead of phase 1's grown one; the cavity
 passes then fill what the rows leave. Only types that fill BOXY of their boxes are
-stacked: round and irregular ones (fruit, dice of many faces) pack as before.
+stacked: round and irregular ones (fruit, dice of many faces) pack as before. Types of
+unlike length along one of their box's axes stand in rows whose sites are each as long as
+their type (`_Mixed`).
 
 Frames: a type's local frame; the container frame, container units.
 """
@@ -23,6 +25,8 @@ import trimesh
 
 from .container import Container
 from .kernels import sample_grid_many
+from .metrics import mix_cap, tvd_of_counts
+from .options import CavityPassOptions
 from .rotations import matrix_to_quat
 from .type_spread import TypeSpread, type_needed
 
@@ -51,6 +55,10 @@ LEFTOVER_BLOCKS = 6
 #: most sites spread so
 SPREAD_WINDOW = 16
 SPREAD_SITES = 20_000
+#: types of unlike length along one box axis stand in rows whose sites are each as long as
+#: their type (`_Mixed`) where that takes at most this share of the room the largest box
+#: along each axis takes
+MIXED = 0.95
 #: points on a ring of a round type's cylinder for the wall test
 _RING = 24
 #: sample points per box side for the wall test, at most
@@ -255,11 +263,168 @@ def _staggered(first: np.ndarray, end: np.ndarray, step: np.ndarray,
 @dataclass(frozen=True)
 class _Rows:
     """One block of rows: its sites (M, 3, in the frame's coordinates), which box axis
-    each frame axis holds, and the block's bounds (2, 3) around the sites' boxes."""
+    each frame axis holds, and the block's bounds (2, 3) around the sites' boxes; in rows
+    of types of unlike length (`_Mixed`) also each site's type (M,) and how they were
+    laid."""
 
     sites: np.ndarray
     perm: tuple[int, int, int]
     bounds: np.ndarray
+    typ: np.ndarray | None = None
+    # (geometry, lines, rows, share) the typed rows were laid by (`_RowGeometry.block`)
+    laid: tuple | None = None
+
+
+@dataclass
+class _Mixed:
+    """Rows along box axis `axis` whose sites are each as long as their type there: each
+    row's types in turn the one the mix needs (of those the row still has room for),
+    none that would take the mix's TVD beyond max_tvd (`metrics.mix_cap`: a slab beside
+    the rows may fit one type only). live (L,): the type of each of the search's boxes;
+    shares (T,); by_volume: the live types, largest first; counts (T,): the objects of
+    the blocks taken so far."""
+
+    axis: int
+    live: np.ndarray
+    shares: np.ndarray
+    by_volume: np.ndarray
+    counts: np.ndarray
+    max_tvd: float
+
+    def row(self, room: float, length: np.ndarray, counts: np.ndarray) -> np.ndarray:
+        """(K,) indices into `live` of a row's types, whose lengths (L,) sum to at most
+        `room`; adds them to `counts` (T,)."""
+        at = {int(t): i for i, t in enumerate(self.live)}
+        out: list[int] = []
+        used = 0.0
+        one_more = np.eye(len(counts))
+        while True:
+            fits = [t for t in self.by_volume if used + length[at[int(t)]] <= room]
+            if not fits:
+                break
+            t = type_needed(counts, self.shares, fits, within=True)
+            if counts[t] >= self.shares[t] * max(float(counts.sum()), 1.0):  # not needed
+                after = tvd_of_counts(counts + one_more[t], self.shares)
+                if (after > self.max_tvd
+                        and after > mix_cap(counts, self.shares, self.max_tvd)):
+                    break
+            counts[t] += 1
+            used += length[at[t]]
+            out.append(at[t])
+        return np.array(out, np.int64)
+
+
+def _row_axis(halves: np.ndarray, q: np.ndarray, gap: float) -> int | None:
+    """The box axis along which sites as long as their types (`_Mixed`) save the most room
+    against sites as large as the largest box along every axis, where they take at most
+    MIXED of it; None elsewhere (types of one size). halves (L, 3), q (L,) their shares."""
+    cells = 2.0 * halves + gap
+    top = cells.max(axis=0)
+    best: tuple[float, int] | None = None
+    for k in range(3):
+        v = float(np.prod(np.delete(top, k))) * float(q @ cells[:, k])
+        if v <= MIXED * float(np.prod(top)) and (best is None or v < best[0]):
+            best = (v, k)
+    return None if best is None else best[1]
+
+
+class _RowGeometry:
+    """Rows of types of unlike length (`_Mixed`) within lo..hi (frame coordinates), with
+    frame axis j holding box axis perm[j]: where their sites lie, and which lie inside."""
+
+    def __init__(self, search: _Search, lo: np.ndarray, hi: np.ndarray,
+                 perm: tuple[int, int, int]):
+        self.search = search
+        self.perm = perm
+        self.half = search.halves[:, perm]  # (L, 3) each type's half extents, frame axes
+        top = self.half.max(axis=0)
+        self.jr = perm.index(search.mixed.axis)
+        self.cross = [j for j in range(3) if j != self.jr]
+        self.cell = 2.0 * top + search.gap + search.slack
+        self.low = np.where(lo <= search.lo, search.wall + search.hair, 0.0) + top
+        self.high = np.where(hi >= search.hi, search.wall + search.hair, 0.0) + top
+        self.end = hi - self.high + 1e-9 * self.cell
+        self.length = 2.0 * self.half[:, self.jr] + search.gap + search.slack
+        # a row's boxes from edge to edge, less the gap after its last
+        self.edge = lo[self.jr] + self.low[self.jr] - top[self.jr]
+        self.room = (hi[self.jr] - self.high[self.jr] + top[self.jr] - self.edge
+                     + search.gap + search.slack)
+        self.samples = [_box_samples(h, search.c.grid.spacing) for h in self.half]
+
+    def sites(self, lines: np.ndarray, rows: list[np.ndarray], share: float
+              ) -> tuple[np.ndarray, np.ndarray]:
+        """(M, 3) the sites of `rows` (indices into live, one row per line (K, 2) across
+        the rows) and (M,) their types' indices: each row `share` of its room's slack from
+        its low end."""
+        kinds = np.concatenate(rows) if rows else np.zeros(0, np.int64)
+        local = np.empty((len(kinds), 3))
+        if len(kinds) == 0:
+            return local, kinds
+        line_of = np.repeat(np.arange(len(rows)), [len(r) for r in rows])
+        used = np.array([self.length[r].sum() for r in rows])
+        before = np.concatenate([np.cumsum(self.length[r]) - self.length[r] for r in rows])
+        local[:, self.cross] = lines[line_of]
+        local[:, self.jr] = (self.edge + share * (self.room - used)[line_of] + before
+                             + self.half[kinds, self.jr])
+        return local, kinds
+
+    def fits(self, local: np.ndarray, kinds: np.ndarray, taken: list[_Rows]) -> np.ndarray:
+        """(M,) whether each site's box lies inside the container and apart from the
+        `taken` blocks."""
+        s = self.search
+        ok = np.zeros(len(kinds), bool)
+        for i in range(len(self.half)):
+            here = kinds == i
+            if here.any():
+                ok[here] = _inside(s.c, local[here] @ s.frame.T, s.frame, self.samples[i],
+                                   s.wall)
+        h = self.half[kinds]
+        for block in taken:
+            apart = ((local + h + s.gap <= block.bounds[0] + s.slack)
+                     | (local - h - s.gap >= block.bounds[1] - s.slack))
+            ok &= apart.any(axis=1)
+        return ok
+
+    def block(self, lines: np.ndarray, rows: list[np.ndarray], share: float,
+              taken: list[_Rows]) -> _Rows | None:
+        """The block of the sites of `rows` that lie inside and apart from `taken`."""
+        local, kinds = self.sites(lines, rows, share)
+        ok = self.fits(local, kinds, taken)
+        if not ok.any():
+            return None
+        h = self.half[kinds[ok]]
+        bounds = np.stack([(local[ok] - h).min(axis=0), (local[ok] + h).max(axis=0)])
+        return _Rows(local[ok], self.perm, bounds, self.search.mixed.live[kinds[ok]],
+                     (self, lines, rows, share))
+
+    def spread(self, block: _Rows, taken: list[_Rows], n_types: int) -> _Rows | None:
+        """`block` laid again with each row turned by the number of places (of its first
+        SPREAD_WINDOW) whose sites lie furthest, summed, from the sites of their own type
+        in the rows before and the `taken` blocks: rows typed in turn by the mix repeat
+        one pattern, which would line a type up across rows."""
+        _, lines, rows, share = block.laid
+        live = self.search.mixed.live
+        spread = TypeSpread(n_types)
+        for b in taken:
+            for t in np.unique(b.typ):
+                spread.add_many(int(t), b.sites[b.typ == t])
+        out = []
+        for line, row in zip(lines, rows, strict=True):
+            if self.search.stop():
+                return None
+            best, score = row, -np.inf
+            for k in range(min(len(row), SPREAD_WINDOW)):
+                turned = np.roll(row, k)
+                local, _ = self.sites(line[None], [turned], share)
+                d = sum(float(np.minimum(spread.nearest(int(live[i]), local[turned == i]),
+                                         1e9).sum()) for i in np.unique(turned))
+                if d > score:
+                    best, score = turned, d
+            local, _ = self.sites(line[None], [best], share)
+            for i in np.unique(best):
+                spread.add_many(int(live[i]), local[best == i])
+            out.append(best)
+        return self.block(lines, out, share, taken)
 
 
 class _Search:
@@ -267,9 +432,10 @@ class _Search:
 
     def __init__(self, container: Container, frame: np.ndarray, halves: np.ndarray,
                  gap: float, wall: float, round_about: tuple[int, float] | None,
-                 stop: Callable[[], bool]):
+                 stop: Callable[[], bool], mixed: _Mixed | None = None):
         self.c = container
         self.stop = stop
+        self.mixed = mixed
         # (box axis, radius): every type lies within a cylinder of that radius about it
         self.round = round_about
         self.frame = frame
@@ -286,7 +452,10 @@ class _Search:
         """The block of rows with the most sites inside the container, within the bounds
         lo..hi (frame coordinates) and apart from the `taken` blocks, over `perms`; where
         the types are round about one box axis (`self.round`), also with the rows across
-        it staggered (each column's neighbours at the disks' diameter)."""
+        it staggered (each column's neighbours at the disks' diameter); for types of unlike
+        length, rows of sites each as long as its type (`typed_rows`)."""
+        if self.mixed is not None:
+            return self.typed_rows(lo, hi, taken, perms, few)
         best = None
         for perm in perms:
             half = self.halves[:, perm].max(axis=0)  # frame axis j holds box axis perm[j]
@@ -340,6 +509,42 @@ class _Search:
                         best = _Rows(sites, perm, bounds)
         return best
 
+    def typed_rows(self, lo: np.ndarray, hi: np.ndarray, taken: list[_Rows], perms,
+                   few: bool) -> _Rows | None:
+        """As `rows`, for types of unlike length along box axis `self.mixed.axis`: each row
+        along it is filled by `_Mixed.row`, flush with its low end, its high one or
+        centred (`few`: the first two); across it the rows are as far apart as the largest
+        box (each type centred there). The block's rows are turned apart
+        (`_RowGeometry.spread`) once it is chosen."""
+        mix = self.mixed
+        best, most = None, 0
+        for perm in perms:
+            geo = _RowGeometry(self, lo, hi, perm)
+            layouts = [np.stack(np.meshgrid(
+                *[np.arange(f, geo.end[j], geo.cell[j]) for f, j in zip(first, geo.cross,
+                                                                     strict=True)],
+                indexing="ij"), axis=-1).reshape(-1, 2)
+                for first in product(*[_offsets(lo[j], hi[j], geo.cell[j], geo.low[j],
+                                                geo.high[j], few) for j in geo.cross])]
+            # the rows' types, one row for each line of the layout with the most, in turn:
+            # every layout's lines take the first of them
+            counts = mix.counts.copy()
+            typed = [mix.row(geo.room, geo.length, counts)
+                     for _ in range(max(len(lines) for lines in layouts))]
+            for lines in layouts:
+                if self.stop():
+                    return None
+                for share in (0.0, 1.0, 0.5)[: 2 if few else 3]:
+                    rows = typed[: len(lines)]
+                    local, kinds = geo.sites(lines, rows, share)
+                    ok = geo.fits(local, kinds, taken)
+                    if ok.sum() > most:
+                        best, most = (geo, lines, rows, share), int(ok.sum())
+        if best is None:
+            return None
+        geo, lines, rows, share = best
+        return geo.block(lines, rows, share, taken)
+
     def leftovers(self, taken: list[_Rows]) -> _Rows | None:
         """The block of rows with the most sites in a slab the taken blocks leave between
         the last one and the container's side, along each axis and on either side."""
@@ -363,7 +568,8 @@ class _Search:
 def stack_start(container: Container, types: Sequence, volumes: np.ndarray,
                 shares: np.ndarray, margin: np.ndarray, clearance: float,
                 wall_margin: float, rng: np.random.Generator,
-                stop: Callable[[], bool] = lambda: False) -> Stack | None:
+                stop: Callable[[], bool] = lambda: False, *,
+                max_tvd: float = CavityPassOptions().max_tvd) -> Stack | None:
     """The densest stack of the types' boxes in rows along the container's axes, or None
     where it holds less than STACKED of the container's volume (each type's volume taken
     with its box grown by the clearance: 0.3 mm costs a 0.5 mm plate 40% of its room in
@@ -374,8 +580,11 @@ def stack_start(container: Container, types: Sequence, volumes: np.ndarray,
     clearance and wall_margin (container units) as the solver keeps them. Every site takes
     the largest box of the types along each axis, the types' longest sides along the same
     axis; the sites are typed in random order (rng), each the type furthest below its share.
-    The slabs the rows leave beside them (a 4 mm strip beside rows of 12 mm tiles) take
-    rows of their own, turned as fits them best, up to LEFTOVER_BLOCKS of them.
+    Types of unlike length along one axis (bricks 20 and 10 mm long) instead stand in rows
+    along it whose sites are each as long as their type, typed as they are laid (`_Mixed`;
+    max_tvd: how far the mix may drift for a slab that fits one type only). The slabs the
+    rows leave beside them (a 4 mm strip beside rows of 12 mm tiles) take rows of their
+    own, turned as fits them best, up to LEFTOVER_BLOCKS of them.
     """
     live = np.flatnonzero(np.asarray(shares) > 0)
     if len(live) == 0:
@@ -394,14 +603,25 @@ def stack_start(container: Container, types: Sequence, volumes: np.ndarray,
     roundness = None  # coins or cans stand staggered where all are round about one axis
     if all(r is not None for r in rounds) and len({r[0] for r in rounds}) == 1:
         roundness = (rounds[0][0], max(r[1] for r in rounds))
+    shares = np.asarray(shares, np.float64)
+    mixed = None  # types of unlike length along one box axis: rows of sites each as long
+    axis = _row_axis(halves, q, gap) if roundness is None else None
+    if axis is not None:
+        by_volume = live[np.argsort(-volumes[live], kind="stable")]
+        mixed = _Mixed(axis, live, shares, by_volume, np.zeros(len(shares)), max_tvd)
     best: tuple[_Search, _Rows] | None = None
     for frame in _container_frames(container):
-        search = _Search(container, frame, halves, gap, wall, roundness, stop)
+        search = _Search(container, frame, halves, gap, wall, roundness, stop, mixed)
         for perm in permutations(range(3)):
             half = halves[:, perm].max(axis=0)
-            if mean_volume < BOXY * float(np.prod(2.0 * half + clearance)):
-                continue  # round and irregular types: a random packing fills more
+            size = 2.0 * half + clearance
             cell = 2.0 * half + gap
+            if mixed is not None:  # along the rows each type's own length, by the mix
+                jr = perm.index(mixed.axis)
+                size = np.prod(2.0 * halves + clearance, axis=1)  # each type's own box
+                cell[jr] = float(q @ (2.0 * halves[:, mixed.axis] + gap))
+            if mean_volume < BOXY * float(q @ size if mixed is not None else np.prod(size)):
+                continue  # round and irregular types: a random packing fills more
             n = np.floor((search.hi - search.lo - 2.0 * (wall + half)) / cell + 1e-9) + 1
             if np.any(n < 1) or float(np.prod(n)) * mean_volume < STACKED * container.volume:
                 continue  # not even the container's box holds enough
@@ -412,20 +632,27 @@ def stack_start(container: Container, types: Sequence, volumes: np.ndarray,
             or len(best[1].sites) * mean_volume < STACKED * container.volume):
         return None
     search, first = best
-    blocks = [first]
-    for _ in range(LEFTOVER_BLOCKS):
-        more = search.leftovers(blocks)
+    blocks: list[_Rows] = []
+    for _ in range(LEFTOVER_BLOCKS + 1):
+        more = first if not blocks else search.leftovers(blocks)
+        if more is not None and more.laid is not None:  # typed rows: turned apart
+            more = more.laid[0].spread(more, blocks, len(shares))
         if stop():
             return None
         if more is None:
             break
         blocks.append(more)
+        if mixed is not None:
+            mixed.counts = np.bincount(np.concatenate([b.typ for b in blocks]),
+                                       minlength=len(shares)).astype(np.float64)
     frame = search.frame
     sites = np.concatenate([b.sites for b in blocks]) @ frame.T
     block_of = np.concatenate([np.full(len(b.sites), i) for i, b in enumerate(blocks)])
-    order = rng.permutation(len(sites))
-    typ, sites, block_of = _mix(sites[order], block_of[order], live,
-                                np.asarray(shares, np.float64), volumes)
+    if mixed is not None:  # typed as their rows were laid
+        typ = np.concatenate([b.typ for b in blocks])
+    else:
+        order = rng.permutation(len(sites))
+        typ, sites, block_of = _mix(sites[order], block_of[order], live, shares, volumes)
     pos = np.empty_like(sites)
     quat = np.empty((len(sites), 4))
     for i, block in enumerate(blocks):

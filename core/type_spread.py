@@ -33,6 +33,14 @@ class TypeSpread:
             self.trees[t] = cKDTree(np.array(pts))
             self.in_tree[t] = len(pts)
 
+    def add_many(self, t: int, points: np.ndarray) -> None:
+        """Record objects of type t at `points` (K, 3), the k-d tree rebuilt once."""
+        pts = self.points[t]
+        pts.extend(np.asarray(points, np.float64).reshape(-1, 3).copy())
+        if len(pts) - self.in_tree[t] >= REBUILD_AFTER:
+            self.trees[t] = cKDTree(np.array(pts))
+            self.in_tree[t] = len(pts)
+
     def nearest(self, t: int, query: np.ndarray) -> np.ndarray:
         """Distance from each of `query` (Q,3) to the nearest recorded object of type t
         (inf where the type has none)."""
@@ -47,12 +55,16 @@ class TypeSpread:
         return best
 
 
-def type_needed(counts: np.ndarray, shares: np.ndarray, by_volume: np.ndarray) -> int:
+def type_needed(counts: np.ndarray, shares: np.ndarray, by_volume: np.ndarray, *,
+                within: bool = False) -> int:
     """The type the mix needs next: of the types in `by_volume` (largest first) the first
     below its share of the (T,) counts so far, or, when none is, the one furthest below
-    it; a type with a zero share (T,) never."""
+    it; a type with a zero share (T,) never. within: that one too from `by_volume` (the
+    types that fit), not from every type with a share."""
     g = max(float(counts.sum()), 1.0)
     for t in by_volume:
         if counts[t] < shares[t] * g:
             return int(t)
+    if within:
+        return int(min(by_volume, key=lambda t: (counts[t] / shares[t], t)))
     return int(np.argmin(np.where(shares > 0, counts / np.maximum(shares, 1e-12), np.inf)))

@@ -179,8 +179,8 @@ def test_mix_cap_lets_small_scenes_take_the_best_next_object():
     """57 fruit of 5 types (11, 13, 11, 11, 11): any next object leaves TVD 0.0305, just
     over 0.03; a fixed cap stopped the extra passes there (the default scene stalled at 57
     fruit). With many objects the cap is max_tvd itself."""
+    from jampacked.core.metrics import mix_cap
     from jampacked.core.metrics import tvd_of_counts as _tvd
-    from jampacked.core.phases import mix_cap
 
     q = np.full(5, 0.2)
     counts = np.array([11.0, 13, 11, 11, 11])
@@ -206,8 +206,8 @@ def test_a_zero_mix_tolerance_takes_no_object_beyond_the_best_mix():
     """--mix-tolerance 0 promises the mix as close as the count allows: in the rocker arm
     (orange and peach x250, equal shares) the extra passes took 4 oranges and 7 peaches
     (TVD 0.136) where 5 and 6 give 0.045, on the one-object slack small scenes get."""
+    from jampacked.core.metrics import mix_cap
     from jampacked.core.metrics import tvd_of_counts as _tvd
-    from jampacked.core.phases import mix_cap
 
     q = np.array([0.5, 0.5])
     counts = np.array([5.0, 6.0])  # the best mix of 11

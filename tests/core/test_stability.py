@@ -178,7 +178,7 @@ def _scaled_strawberry(ratio: float):
 def _mix_bound(shares: np.ndarray, n: int,
                tolerance: float = CavityPassOptions().max_tvd) -> float:
     """The TVD a packing of n objects may have: the tolerance, or with few objects one
-    object from the best mix n allows (`phases.mix_cap`)."""
+    object from the best mix n allows (`metrics.mix_cap`)."""
     return max(tolerance, best_tvd(shares, n) + 1.0 / n)
 
 

@@ -39,6 +39,34 @@ def test_nearest_matches_a_direct_search(monkeypatch, rebuild):
     assert np.all(np.isinf(spread.nearest(2, query)))
 
 
+@pytest.mark.parametrize("rebuild", [type_spread.REBUILD_AFTER, 5])
+def test_points_added_at_once_match_a_direct_search(monkeypatch, rebuild):
+    monkeypatch.setattr(type_spread, "REBUILD_AFTER", rebuild)
+    rng = np.random.default_rng(4)
+    spread = TypeSpread(2)
+    added: list[np.ndarray] = []
+    query = rng.uniform(-10, 10, (9, 3))
+    for k in (1, 3, 2, 40, 7, 150):
+        pts = rng.uniform(-10, 10, (k, 3))
+        spread.add_many(0, pts)
+        added.extend(pts)
+        np.testing.assert_allclose(spread.nearest(0, query), _reference(added, query),
+                                   rtol=0, atol=1e-12)
+    assert spread.trees[0] is not None
+    assert np.all(np.isinf(spread.nearest(1, query)))
+
+
+def test_the_type_needed_among_those_that_fit():
+    shares = np.array([0.5, 0.5])
+    by_volume = np.array([0, 1])
+    # both at their share: any type with a share may be needed; within, only one that fits
+    assert type_spread.type_needed(np.array([3.0, 3.0]), shares, by_volume) == 0
+    assert type_spread.type_needed(np.array([3.0, 3.0]), shares, [1], within=True) == 1
+    # type 0 is behind: still the one needed, unless only type 1 fits
+    assert type_spread.type_needed(np.array([2.0, 5.0]), shares, [1]) == 0
+    assert type_spread.type_needed(np.array([2.0, 5.0]), shares, [1], within=True) == 1
+
+
 def test_the_recorded_point_is_a_copy():
     spread = TypeSpread(1)
     p = np.array([1.0, 2.0, 3.0])
