@@ -603,6 +603,10 @@ def stack_start(container: Container, types: Sequence, volumes: np.ndarray,
     roundness = None  # coins or cans stand staggered where all are round about one axis
     if all(r is not None for r in rounds) and len({r[0] for r in rounds}) == 1:
         roundness = (rounds[0][0], max(r[1] for r in rounds))
+    # round and irregular types (by the mix, each in its own box): a random packing fills
+    # more. Sites larger than a type (the largest one's) count against STACKED instead
+    if mean_volume < BOXY * float(q @ np.prod(2.0 * halves + clearance, axis=1)):
+        return None
     shares = np.asarray(shares, np.float64)
     mixed = None  # types of unlike length along one box axis: rows of sites each as long
     axis = _row_axis(halves, q, gap) if roundness is None else None
@@ -614,14 +618,10 @@ def stack_start(container: Container, types: Sequence, volumes: np.ndarray,
         search = _Search(container, frame, halves, gap, wall, roundness, stop, mixed)
         for perm in permutations(range(3)):
             half = halves[:, perm].max(axis=0)
-            size = 2.0 * half + clearance
             cell = 2.0 * half + gap
             if mixed is not None:  # along the rows each type's own length, by the mix
-                jr = perm.index(mixed.axis)
-                size = np.prod(2.0 * halves + clearance, axis=1)  # each type's own box
-                cell[jr] = float(q @ (2.0 * halves[:, mixed.axis] + gap))
-            if mean_volume < BOXY * float(q @ size if mixed is not None else np.prod(size)):
-                continue  # round and irregular types: a random packing fills more
+                cell[perm.index(mixed.axis)] = float(
+                    q @ (2.0 * halves[:, mixed.axis] + gap))
             n = np.floor((search.hi - search.lo - 2.0 * (wall + half)) / cell + 1e-9) + 1
             if np.any(n < 1) or float(np.prod(n)) * mean_volume < STACKED * container.volume:
                 continue  # not even the container's box holds enough
