@@ -122,6 +122,13 @@ SCENES: dict[str, dict] = {
         "kwargs": {"time_budget": 60.0},
         "reference": "20 x 10 x 5 mm bricks; a stack of 5 x 6 x 10 holds 90%",
     },
+    "two-bricks": {
+        "container": "box:103x62x52",
+        "types": [str(BOXY / "brick_20x10x5.stl"), str(BOXY / "brick_10x10x5.stl")],
+        "kwargs": {"time_budget": 60.0},
+        "reference": "20 x 10 x 5 and 10 x 10 x 5 mm bricks, equal shares: rows of both in "
+                     "turn",
+    },
     "two-tiles": {
         "container": "box:42x40x30",
         "types": [str(BOXY / "tile_12x8x1.stl"), str(BOXY / "tile_9x6x1.stl")],
