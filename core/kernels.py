@@ -595,7 +595,7 @@ def contacts_parallel(pa, pb, n_pairs, wa, n_wall, typ, pos, quat, scale, margin
 
 @njit(cache=True)
 def resolve(focus, state, table, cont, scratch, grid, params, max_iter, rollback, par_min,
-            settle_every):
+            settle_every, max_tests):
     """Penalty-force overlap resolution starting from the objects in `focus`.
 
     state: (typ, pos, quat, scale, alive, margin, vel) of every inserted object; table: the
@@ -619,6 +619,9 @@ def resolve(focus, state, table, cont, scratch, grid, params, max_iter, rollback
     deepest penetration of the objects in contact fell below what it was settle_every
     iterations before (at the first iteration for the first check), so a long `max_iter`
     is spent on a push that is settling, not on one that jams; 0: no check.
+
+    max_tests > 0: the call gives up (fails) once it has run that many contact tests
+    without resolving; 0: no cap.
 
     An iteration with at least `par_min` contact tests (pairs plus walls) splits them into
     Fc.shape[0] chunks that run on numba's threads (`contacts_parallel`) and sums the
@@ -734,7 +737,8 @@ def resolve(focus, state, table, cont, scratch, grid, params, max_iter, rollback
             ok = True
             its = it
             break
-        if it == max_iter:
+        if it == max_iter or (max_tests > 0 and tests >= max_tests):
+            its = it
             break
         if settle_every > 0 and it % settle_every == 0:
             deepest = 0.0  # the hit objects hold this iteration's deepest penetrations

@@ -46,6 +46,10 @@ STACK_KEPT = 0.76
 STACK_FULL = "the stacked start filled the container"
 #: the least scale a cavity pass starts an object at after a stacked start
 STACK_MIN_START = 0.5
+#: the contact tests an insertion's push may run after a stacked start before it fails:
+#: rows stand a gap apart, so a push runs through all of them, in one kernel call that
+#: neither the budget nor Ctrl-C can end (docs/notes-core.md)
+STACK_PUSH_TESTS = 100_000
 
 
 @dataclass
@@ -112,6 +116,8 @@ def place_once(solver: Solver, q: np.ndarray, s1: float, f_min: float,
     # between stacked rows the holes are slivers: an object started there at a small
     # fraction of its size pushes whole rows and fails (docs/notes-core.md)
     floor = STACK_MIN_START if stack is not None else 0.0
+    if stack is not None:
+        solver.max_tests = STACK_PUSH_TESTS
     st2 = phase2(solver, q, s1 * ph.phase2_spacing, rng, stop,
                  iters=ph.phase2_iterations, margin=margin, retries=ph.phase2_retries,
                  max_tvd=cav.max_tvd, min_start=floor,
@@ -145,6 +151,7 @@ def place_once(solver: Solver, q: np.ndarray, s1: float, f_min: float,
             extra.append(ExtraPassStats(**asdict(st), round=rnd, factor=factor))
         if grown == 0 or stop():
             break
+    solver.max_tests = 0  # certification's repair pushes as far as it needs
     after3 = snapshot_metrics(solver.s, vol, q, c_volume)
     t3 = time.perf_counter()
     return Attempt(

@@ -151,6 +151,8 @@ class Solver:
         self.tuner = tuner
         self.calls = 0
         self.iterations = 0
+        # the contact tests a `resolve` call may run before it fails (0: no cap)
+        self.max_tests = 0
         self._work = kernels.resolve_scratch(0)
         # broad phase: cell lists over the container's grid box (objects pushed past it
         # sit in the border cells)
@@ -179,7 +181,8 @@ class Solver:
                 focus, self.s.view(), self.t.arrays(),
                 self.container_arrays(), self._scratch(), self.cells.sync(self.s, focus),
                 (p.clearance, p.tol, p.k_obj, p.k_wall, p.k_rot, p.damping, p.wall_margin),
-                int(max_iter), rollback, p.parallel_min, int(settle_every))
+                int(max_iter), rollback, p.parallel_min, int(settle_every),
+                int(self.max_tests))
         finally:
             if threads != before:
                 numba.set_num_threads(before)

@@ -877,6 +877,27 @@ def _jostle(table, container, n):
                        random_quats(rng, n), scale=np.full(n, 2.5))
 
 
+def test_resolve_gives_up_after_its_contact_tests_and_rolls_back(table, container):
+    """Solver.max_tests: a push over that many contact tests fails and is rolled back; a
+    crowd that settles within it settles exactly as without the cap."""
+    sv = _jostle(table, container, 80)
+    before = _snapshot(sv.s)
+    sv.max_tests = 2_000
+    assert not sv.resolve(np.arange(80), max_iter=300, rollback=True)
+    assert sv.iterations < 20
+    for x, y in zip(before, sv.s.view(), strict=True):
+        np.testing.assert_array_equal(x, y)
+    results = []
+    for cap in (0, 10_000_000):
+        sv = _jostle(table, container, 50)
+        sv.max_tests = cap
+        assert sv.resolve(np.arange(50), max_iter=300, rollback=True)
+        results.append((sv.iterations, _snapshot(sv.s)))
+    assert results[0][0] == results[1][0]
+    for x, y in zip(results[0][1], results[1][1], strict=True):
+        np.testing.assert_array_equal(x, y)
+
+
 def test_resolve_gives_up_on_a_push_that_stops_settling(table, container):
     """settle_every: a jam (80 objects) stops at the first check whose deepest penetration
     did not fall, and is rolled back; a crowd that settles (50) settles exactly as

@@ -6,12 +6,13 @@ import numpy as np
 import pytest
 import trimesh
 
+from jampacked.core import placement
 from jampacked.core.api import pack
 from jampacked.core.container import build_container
 from jampacked.core.metrics import nni, tvd_of_counts
 from jampacked.core.options import AttemptOptions, PackOptions
 from jampacked.core.packing_json import load_packing, save_packing
-from jampacked.core.placement import STACK_FULL, STACK_KEPT
+from jampacked.core.placement import STACK_FULL, STACK_KEPT, STACK_PUSH_TESTS
 from jampacked.core.rotations import quat_to_matrix
 from jampacked.core.stacking import BOXY, STACKED, box_frame, round_about, stack_start
 from jampacked.core.summary import STACKED_LABEL, summarize
@@ -434,3 +435,31 @@ def test_coins_of_two_sizes_stand_in_columns_in_a_jar():
     counts = np.bincount(st.typ, minlength=2)
     assert abs(counts[0] - counts[1]) <= 1
     assert counts @ [c.volume for c in coins] >= 0.5 * jar.volume
+
+
+def test_pushes_after_a_stacked_start_are_capped_and_only_there(tmp_path, monkeypatch):
+    # rows stand a gap apart, so an insertion beside them pushed through all of them in one
+    # kernel call: 16 s for one plate beside 2949 in a jar, past the budget and Ctrl-C
+    seen, kept = [], []
+    phase2, place_once = placement.phase2, placement.place_once
+
+    def spy_phase2(solver, *args, **kwargs):
+        seen.append(solver.max_tests)
+        return phase2(solver, *args, **kwargs)
+
+    def spy_place_once(*args, **kwargs):
+        att = place_once(*args, **kwargs)
+        kept.append(att.solver.max_tests)
+        return att
+
+    monkeypatch.setattr(placement, "phase2", spy_phase2)
+    monkeypatch.setattr(placement, "place_once", spy_place_once)
+    trimesh.creation.box(extents=(10.0, 10.0, 0.5)).export(tmp_path / "plate.stl")
+    p = pack("box:31x31x30", [str(tmp_path / "plate.stl")], seed=1)
+    assert p.report.phase1.extra["lattice"] == "stacked"
+    assert seen and set(seen) == {STACK_PUSH_TESTS}
+    assert kept == [0]  # certification's repair pushes as far as it needs
+    seen.clear()
+    trimesh.creation.icosphere(subdivisions=2, radius=3.0).export(tmp_path / "ball.stl")
+    pack("box:20x20x20", [str(tmp_path / "ball.stl")], seed=1, time_budget=3.0)
+    assert seen and set(seen) == {0}
