@@ -116,6 +116,7 @@ _BLENDER_WORDS = (
     # export: the add-on exports with +z up and names an opening by its panel's words
     (", or give another --up (the drain goes under the cavity's lowest point)", ""),
     ("--open-plane or --window", "an Opening (Plane or Window)"),
+    ("--keep-voids", "Fill Sealed Voids off"),
     ("--mode parts", "Parts mode"),
     ("Ctrl-C stops them", "Finish Now stops them"),
     ("--resolution", "Resolution"),

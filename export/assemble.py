@@ -292,6 +292,23 @@ def _drain_warning(packing: Packing, scene: PlacedScene, options: ExportOptions,
             f"--open-plane or --window{DRAIN_UP_ADVICE}."]
 
 
+#: filled sealed voids more than this share of the print's volume are said: the space
+#: between the objects and a shell whose drain they cover, made solid, hides them
+LARGE_FILL = 0.1
+
+
+def _large_fill_warning(filled: float, volume: float, shell: bool) -> list[str]:
+    """A warning where filling the sealed voids made much of the print solid (`filled`
+    and the print's `volume` after it, container units cubed; `shell`: it has one)."""
+    if volume <= 0 or filled <= LARGE_FILL * volume:
+        return []
+    opening = ("open the shell with --open-plane or --window (or uncover its drain), or "
+               if shell else "")
+    return [f"filling the sealed voids made {filled / volume:.0%} of the print's volume "
+            "solid: there the print is a solid block, with the objects hidden in it. To "
+            f"see them, {opening}keep the voids hollow with --keep-voids."]
+
+
 def _one_body(packing: Packing, scene: PlacedScene, shell: m3.Manifold | None,
               options: ExportOptions, out: ExportReport, report: Progress,
               cancel: Callable[[], bool], check_cancel: Callable[[], None],
@@ -338,6 +355,8 @@ def _one_body(packing: Packing, scene: PlacedScene, shell: m3.Manifold | None,
     out.voids_filled_volume = cleaned.voids_filled_volume
     out.bodies = cleaned.bodies
     out.warnings += cleaned.warnings
+    out.warnings += _large_fill_warning(cleaned.voids_filled_volume, cleaned.volume,
+                                        shell is not None)
     out.volume = cleaned.volume
     if options.mode == "connect" and out.bodies != 1:
         raise MeshError(f"connect made {out.bodies} bodies instead of one; nothing was "

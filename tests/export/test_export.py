@@ -538,9 +538,12 @@ def test_sealed_voids_are_filled_unless_kept(tmp_path, mode):
     assert rep.passed and rep.bodies == 1 and rep.voids_filled == 1
     assert rep.voids_filled_volume == pytest.approx(16.0 ** 3, rel=1e-6)
     assert rep.volume == pytest.approx(20.0 ** 3, rel=1e-6)
-    # its plates overlap at the edges, as made by hand: said, and exported as they are
-    (note,) = rep.warnings
+    # its plates overlap at the edges, as made by hand: said, and exported as they are;
+    # the cube is then solid, which is said too
+    note, solid = rep.warnings
     assert "is not certified" in note and "overlap by 0.1 of the smaller" in note
+    assert "made 51% of the print's volume solid" in solid  # 4096 of 8000
+    assert "--keep-voids" in solid and "--window" not in solid  # it has no shell
     v = validate_file(tmp_path / "f.stl")
     assert v.passed and len(v.bodies) == 1
     assert _trimesh_bodies_volume(tmp_path / "f.stl") == (1, pytest.approx(8000.0, rel=1e-6))
@@ -1147,3 +1150,14 @@ def test_the_crossing_check_can_be_cancelled_between_its_two_passes():
     with pytest.raises(Cancelled):
         crossing_pairs(np.asarray(box.vertices), np.asarray(box.faces), True, stop)
     assert len(calls) == 2
+
+
+def test_a_fill_that_hides_the_objects_says_how_to_see_them():
+    # an independent check: bricks in a flat box, a 2 mm shell whose drain a brick covered,
+    # came out as the box's solid (the fill 11% of it) with nothing said but the drain
+    from jampacked.export.assemble import LARGE_FILL, _large_fill_warning
+
+    (w,) = _large_fill_warning(55_106.6, 479_996.1, shell=True)
+    assert "11% of the print's volume" in w and "--window" in w and "--keep-voids" in w
+    assert _large_fill_warning(16.0, 1e5, shell=True) == []  # pockets between objects
+    assert _large_fill_warning(LARGE_FILL * 1e5, 1e5, shell=True) == []
