@@ -17,7 +17,7 @@ from .container import deepest_points, interior_points
 from .fidelity import MANY_OBJECTS
 from .kernels import sample_grid_many
 from .lie_flat import flat_quaternion, flat_spacing
-from .metrics import density, equivalent_radius, mix_cap, tvd_of_counts
+from .metrics import best_tvd, density, equivalent_radius, mix_cap, tvd_of_counts
 from .report import PhaseStats
 from .rotations import random_quaternions
 from .solver import Solver
@@ -369,10 +369,13 @@ def phase2(solver: Solver, shares: np.ndarray, spacing: float, rng: np.random.Ge
     return st
 
 
-def stacked_phase1(solver: Solver, stack: Stack, margin: np.ndarray) -> PhaseStats:
+def stacked_phase1(solver: Solver, stack: Stack, margin: np.ndarray, shares: np.ndarray,
+                   max_tvd: float) -> PhaseStats:
     """Phase 1 from a stacked start (`stacking.stack_start`): its objects at full size,
-    less any the solver finds overlapping or through the wall (its wall samples are finer
-    than the stack's). margin: (T,) contact margins (container units)."""
+    less any the solver finds through the wall (its wall samples are finer than the
+    stack's) and, where those leave the mix further than max_tvd from the (T,) shares
+    (or the best the count allows), the last stacked of the type furthest over its share
+    until it is not. margin: (T,) contact margins (container units)."""
     t0 = time.perf_counter()
     st = PhaseStats()
     s = solver.s
@@ -383,12 +386,32 @@ def stacked_phase1(solver: Solver, stack: Stack, margin: np.ndarray) -> PhaseSta
     # the rows keep the objects apart by construction; the wall is sampled coarser there
     bad = first + np.flatnonzero(solver.wall_penetrations()[first:] > solver.p.tol)
     s.alive[bad] = 0
-    st.failed = len(bad)
+    trimmed = _trim_to_mix(s.typ[first: s.n], s.alive[first: s.n], shares, max_tvd)
+    st.failed = len(bad) + trimmed
     st.grown = st.inserted - st.failed
     kept = stack.typ[s.alive[first: s.n] == 1]
-    st.extra = {"lattice": "stacked",
+    st.extra = {"lattice": "stacked", "mix_trimmed": trimmed,
                 "stack_density": float(solver.t.volume[kept].sum() / solver.c.volume),
                 "stack_filled": float(stack.room[kept].sum() / solver.c.volume)}
     st.stopped = ""  # nothing is left growing, whenever the deadline passed
     st.seconds = time.perf_counter() - t0
     return st
+
+
+def _trim_to_mix(typ: np.ndarray, alive: np.ndarray, shares: np.ndarray,
+                 max_tvd: float) -> int:
+    """Remove (alive 0, in place) the last alive object of the type furthest over its share
+    while the mix of the alive ones (`typ`, `alive`: (N,)) is further than max_tvd from
+    the (T,) shares and than the best mix their count allows; returns how many."""
+    counts = np.bincount(typ[alive == 1], minlength=len(shares)).astype(np.float64)
+    removed = 0
+    while counts.sum() > 1:
+        n = counts.sum()
+        if tvd_of_counts(counts, shares) <= max(max_tvd, best_tvd(shares, int(n))) + 1e-12:
+            break
+        t = int(np.argmax(counts / n - shares))
+        k = int(np.flatnonzero((typ == t) & (alive == 1))[-1])
+        alive[k] = 0
+        counts[t] -= 1
+        removed += 1
+    return removed

@@ -104,7 +104,7 @@ def place_once(solver: Solver, q: np.ndarray, s1: float, f_min: float,
                             max_tvd=cav.max_tvd)
     if stack is not None:
         report(0.05, f"stacked start: {len(stack.typ)} objects in rows")
-        st1 = stacked_phase1(solver, stack, margin)
+        st1 = stacked_phase1(solver, stack, margin, q, cav.max_tvd)
     else:
         st1 = phase1(solver, q, s1, rng, stop, iters=ph.phase1_iterations, margin=margin,
                      growth_steps=ph.phase1_growth_steps, spread_window=ph.spread_window,

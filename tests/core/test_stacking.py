@@ -12,6 +12,7 @@ from jampacked.core.container import build_container
 from jampacked.core.metrics import nni, tvd_of_counts
 from jampacked.core.options import AttemptOptions, PackOptions
 from jampacked.core.packing_json import load_packing, save_packing
+from jampacked.core.phases import _trim_to_mix
 from jampacked.core.placement import STACK_FULL, STACK_KEPT, STACK_PUSH_TESTS
 from jampacked.core.rotations import quat_to_matrix
 from jampacked.core.stacking import BOXY, STACKED, box_frame, round_about, stack_start
@@ -463,3 +464,34 @@ def test_pushes_after_a_stacked_start_are_capped_and_only_there(tmp_path, monkey
     trimesh.creation.icosphere(subdivisions=2, radius=3.0).export(tmp_path / "ball.stl")
     pack("box:20x20x20", [str(tmp_path / "ball.stl")], seed=1, time_budget=3.0)
     assert seen and set(seen) == {0}
+
+
+def test_the_wall_check_after_a_stack_leaves_the_mix_within_its_tolerance(tmp_path):
+    # an independent check: bricks and 2 mm cubes (90 / 10) in a slab with a round hole
+    # through it; the solver's wall check took 18 of the 193 stacked, most of them bricks,
+    # and the packing ended at TVD 0.056 with the default tolerance 0.04
+    slab = trimesh.creation.box(extents=(100.0, 100.0, 30.0))
+    hole = trimesh.creation.cylinder(radius=20.0, height=40.0, sections=64)
+    trimesh.boolean.difference([slab, hole], engine="manifold").export(tmp_path / "c.stl")
+    paths = []
+    for name, ext in (("brick", (20.0, 10.0, 5.0)), ("cube", (2.0, 2.0, 2.0))):
+        trimesh.creation.box(extents=ext).export(tmp_path / f"{name}.stl")
+        paths.append(str(tmp_path / f"{name}.stl"))
+    p = pack(str(tmp_path / "c.stl"), paths, [0.9, 0.1], seed=0, time_budget=3.0)
+    assert p.report.phase1.extra["lattice"] == "stacked"
+    assert p.report.phase1.extra["mix_trimmed"] > 0
+    assert p.metrics["tvd"] <= 0.04 and p.certificate["certified"]
+
+
+def test_trimming_to_the_mix_takes_the_last_of_the_type_over_its_share():
+    typ = np.array([0, 1, 1, 0, 1, 1, 1, 1])
+    alive = np.ones(8, np.uint8)
+    alive[7] = 0  # removed already: not counted, not taken again
+    # 2 and 5 against 0.5 / 0.5: TVD 0.21; two type-1 objects less, 0.1, the best five
+    # objects allow
+    assert _trim_to_mix(typ, alive, np.array([0.5, 0.5]), 0.04) == 2
+    np.testing.assert_array_equal(alive, [1, 1, 1, 1, 1, 0, 0, 0])
+    assert _trim_to_mix(typ, alive, np.array([0.5, 0.5]), 0.04) == 0
+    # within the tolerance nothing goes
+    typ, alive = np.array([0, 0, 1, 1, 1]), np.ones(5, np.uint8)
+    assert _trim_to_mix(typ, alive, np.array([0.4, 0.6]), 0.04) == 0
