@@ -22,6 +22,7 @@ from rich.table import Table
 from jampacked.cli.interrupt import CancelOnInterrupt
 from jampacked.core.mesh_files import length_unit
 from jampacked.core.packing import Packing, is_spec
+from jampacked.core.placement import REPEATED, STACK_FULL
 from jampacked.core.report import NOTE_PREFIX
 from jampacked.core.summary import summarize
 
@@ -184,6 +185,11 @@ def print_summary(packing: Packing, console: Console, title: str | None = None) 
                                   f"{s.repair.removed} removed"
                                   + (f" ({s.repair.for_mix} of them for the type mix)"
                                      if s.repair.for_mix else ""))
+    # why a budget was left unspent (no stop reason of the run: placement ran to its end)
+    ended = next((a.stopped for a in s.attempts if a.stopped in (REPEATED, STACK_FULL)), None)
+    if ended is not None and not s.stopped:
+        n = len(s.attempts)
+        summary.add_row("attempts ended", f"after {n} attempt{'s' if n > 1 else ''}: {ended}")
     if len(s.attempts) > 1:
         for i, a in enumerate(s.attempts):
             summary.add_row(f"attempt {i + 1}", f"{a.count} objects, {_pct(a.density)}"

@@ -43,7 +43,7 @@ REPEATED = "repeated the best attempt"
 #: container is kept without further attempts, which start at random rotations: random
 #: packings jam below it for any convex shape (superballs, the densest known, about 0.76)
 STACK_KEPT = 0.76
-STACK_FULL = "the stacked start filled the container"
+STACK_FULL = "the stacked start filled more of the container than random starts reach"
 #: the least scale a cavity pass starts an object at after a stacked start
 STACK_MIN_START = 0.5
 #: the contact tests an insertion's push may run after a stacked start before it fails:

@@ -180,6 +180,32 @@ def test_info_lists_the_attempts_and_the_time_of_those_not_kept(packed, capsys):
     assert "attempts not kept" in so
 
 
+def test_info_says_why_the_attempts_ended_before_the_budget(packed, capsys):
+    # an independent check: a crate of bricks ended 1 s into a 30 s budget, and nothing
+    # said why
+    from jampacked.core.placement import REPEATED, STACK_FULL
+
+    d, out, *_ = packed
+    doc = json.loads(out.read_text())
+    doc["report"]["stopped"] = None  # placement ran to its end
+    one = {"density": 0.82, "count": 258, "seconds": 0.3, "phase1": 0.3, "phase2": 0.0,
+           "extra": 0.0, "stopped": STACK_FULL}
+    for name, attempts, said in (
+            ("stack", [one], f"after 1 attempt: {STACK_FULL}"),
+            ("repeat", [{**one, "stopped": None}, {**one, "stopped": REPEATED}],
+             f"after 2 attempts: {REPEATED}"),
+            ("none", [{**one, "stopped": None}], None)):
+        doc["report"]["attempts"] = attempts
+        edited = d / f"{name}.json"
+        edited.write_text(json.dumps(doc))
+        assert main(["info", str(edited)]) == 0
+        so = " ".join(capsys.readouterr().out.split())
+        if said is None:
+            assert "attempts ended" not in so
+        else:
+            assert "attempts ended" in so and said.split()[-1] in so
+
+
 def test_info_gives_the_least_gaps_or_says_none_came_near(packed, capsys):
     d, out, *_ = packed
     doc = json.loads(out.read_text())
