@@ -645,6 +645,8 @@ def stack_start(container: Container, types: Sequence, volumes: np.ndarray,
         if mixed is not None:
             mixed.counts = np.bincount(np.concatenate([b.typ for b in blocks]),
                                        minlength=len(shares)).astype(np.float64)
+    if not blocks:  # the first block's rows, turned apart, left no site inside
+        return None
     frame = search.frame
     sites = np.concatenate([b.sites for b in blocks]) @ frame.T
     block_of = np.concatenate([np.full(len(b.sites), i) for i, b in enumerate(blocks)])
