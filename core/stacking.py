@@ -271,7 +271,8 @@ class _Rows:
     perm: tuple[int, int, int]
     bounds: np.ndarray
     typ: np.ndarray | None = None
-    # (geometry, lines, rows, share) the typed rows were laid by (`_RowGeometry.block`)
+    # (geometry, lines, rows, share, spans) the typed rows were laid by
+    # (`_RowGeometry.laid`)
     laid: tuple | None = None
 
 
@@ -351,20 +352,24 @@ class _RowGeometry:
                      + search.gap + search.slack)
         self.samples = [_box_samples(h, search.c.grid.spacing) for h in self.half]
 
-    def sites(self, lines: np.ndarray, rows: list[np.ndarray], share: float
+    def sites(self, lines: np.ndarray, rows: list[np.ndarray], share: float,
+              spans: tuple[np.ndarray, np.ndarray] | None = None
               ) -> tuple[np.ndarray, np.ndarray]:
         """(M, 3) the sites of `rows` (indices into live, one row per line (K, 2) across
         the rows) and (M,) their types' indices: each row `share` of its room's slack from
-        its low end."""
+        its low edge; spans: each line's own (K,) low edge and room, where not the
+        block's."""
         kinds = np.concatenate(rows) if rows else np.zeros(0, np.int64)
         local = np.empty((len(kinds), 3))
         if len(kinds) == 0:
             return local, kinds
+        edge, room = spans if spans is not None else (np.full(len(rows), self.edge),
+                                                      np.full(len(rows), self.room))
         line_of = np.repeat(np.arange(len(rows)), [len(r) for r in rows])
         used = np.array([self.length[r].sum() for r in rows])
         before = np.concatenate([np.cumsum(self.length[r]) - self.length[r] for r in rows])
         local[:, self.cross] = lines[line_of]
-        local[:, self.jr] = (self.edge + share * (self.room - used)[line_of] + before
+        local[:, self.jr] = ((edge + share * (room - used))[line_of] + before
                              + self.half[kinds, self.jr])
         return local, kinds
 
@@ -387,44 +392,80 @@ class _RowGeometry:
 
     def block(self, lines: np.ndarray, rows: list[np.ndarray], share: float,
               taken: list[_Rows]) -> _Rows | None:
-        """The block of the sites of `rows` that lie inside and apart from `taken`."""
+        """The block of the sites of `rows` that lie inside and apart from `taken`, each
+        line then typed again by the mix (`_Mixed.row`) over the stretch its sites inside
+        span, centred there: a row typed for the block's whole length loses its ends to a
+        round wall, and with them the mix (a cone: TVD 0.25)."""
         local, kinds = self.sites(lines, rows, share)
+        ok = self.fits(local, kinds, taken)
+        line_of = np.repeat(np.arange(len(rows)), [len(r) for r in rows])
+        r = local[:, self.jr]
+        h = self.half[kinds, self.jr]
+        keep, edge, room = [], [], []
+        for i in np.unique(line_of[ok]):
+            mine = ok & (line_of == i)
+            keep.append(i)
+            edge.append(float((r - h)[mine].min()))
+            room.append(float((r + h)[mine].max()) - edge[-1] + self.search.gap
+                        + self.search.slack)
+        if not keep:
+            return None
+        counts = self.search.mixed.counts.copy()
+        retyped = [self.search.mixed.row(w, self.length, counts) for w in room]
+        return self.laid(lines[keep], retyped, 0.5, (np.array(edge), np.array(room)), taken)
+
+    def laid(self, lines: np.ndarray, rows: list[np.ndarray], share: float,
+             spans: tuple[np.ndarray, np.ndarray], taken: list[_Rows]) -> _Rows | None:
+        """The block of the sites of `rows` laid in `spans` (`sites`) that lie inside and
+        apart from `taken`."""
+        local, kinds = self.sites(lines, rows, share, spans)
         ok = self.fits(local, kinds, taken)
         if not ok.any():
             return None
         h = self.half[kinds[ok]]
         bounds = np.stack([(local[ok] - h).min(axis=0), (local[ok] + h).max(axis=0)])
         return _Rows(local[ok], self.perm, bounds, self.search.mixed.live[kinds[ok]],
-                     (self, lines, rows, share))
+                     (self, lines, rows, share, spans))
 
     def spread(self, block: _Rows, taken: list[_Rows], n_types: int) -> _Rows | None:
         """`block` laid again with each row turned by the number of places (of its first
         SPREAD_WINDOW) whose sites lie furthest, summed, from the sites of their own type
         in the rows before and the `taken` blocks: rows typed in turn by the mix repeat
-        one pattern, which would line a type up across rows."""
-        _, lines, rows, share = block.laid
+        one pattern, which would line a type up across rows. A row whose turn leaves
+        fewer of its sites inside stays as it was; a block of more than SPREAD_SITES, as
+        it is."""
+        _, lines, rows, share, spans = block.laid
+        if len(block.sites) > SPREAD_SITES:  # as `_mix`: the mix's own turns alone
+            return block
         live = self.search.mixed.live
         spread = TypeSpread(n_types)
         for b in taken:
             for t in np.unique(b.typ):
                 spread.add_many(int(t), b.sites[b.typ == t])
         out = []
-        for line, row in zip(lines, rows, strict=True):
+        for i, (line, row) in enumerate(zip(lines, rows, strict=True)):
             if self.search.stop():
                 return None
+            one = (spans[0][i: i + 1], spans[1][i: i + 1])
             best, score = row, -np.inf
             for k in range(min(len(row), SPREAD_WINDOW)):
                 turned = np.roll(row, k)
-                local, _ = self.sites(line[None], [turned], share)
-                d = sum(float(np.minimum(spread.nearest(int(live[i]), local[turned == i]),
-                                         1e9).sum()) for i in np.unique(turned))
+                local, _ = self.sites(line[None], [turned], share, one)
+                d = sum(float(np.minimum(spread.nearest(int(live[j]), local[turned == j]),
+                                         1e9).sum()) for j in np.unique(turned))
                 if d > score:
                     best, score = turned, d
-            local, _ = self.sites(line[None], [best], share)
-            for i in np.unique(best):
-                spread.add_many(int(live[i]), local[best == i])
+            local, _ = self.sites(line[None], [best], share, one)
+            for j in np.unique(best):
+                spread.add_many(int(live[j]), local[best == j])
             out.append(best)
-        return self.block(lines, out, share, taken)
+        line_of = np.repeat(np.arange(len(rows)), [len(r) for r in rows])
+        before = np.bincount(line_of, self.fits(*self.sites(lines, rows, share, spans),
+                                                taken), len(rows))
+        after = np.bincount(line_of, self.fits(*self.sites(lines, out, share, spans), taken),
+                            len(rows))  # a turn keeps each row's types: the same line_of
+        out = [o if a >= b else r for o, r, a, b in zip(out, rows, after, before, strict=True)]
+        return self.laid(lines, out, share, spans, taken)
 
 
 class _Search:
@@ -526,16 +567,14 @@ class _Search:
                 indexing="ij"), axis=-1).reshape(-1, 2)
                 for first in product(*[_offsets(lo[j], hi[j], geo.cell[j], geo.low[j],
                                                 geo.high[j], few) for j in geo.cross])]
-            # the rows' types, one row for each line of the layout with the most, in turn:
-            # every layout's lines take the first of them
-            counts = mix.counts.copy()
-            typed = [mix.row(geo.room, geo.length, counts)
-                     for _ in range(max(len(lines) for lines in layouts))]
+            # the layouts are judged with one row typed for the block's length on every
+            # line; the chosen one's lines are typed each over its own stretch (`block`)
+            template = mix.row(geo.room, geo.length, mix.counts.copy())
             for lines in layouts:
                 if self.stop():
                     return None
                 for share in (0.0, 1.0, 0.5)[: 2 if few else 3]:
-                    rows = typed[: len(lines)]
+                    rows = [template] * len(lines)
                     local, kinds = geo.sites(lines, rows, share)
                     ok = geo.fits(local, kinds, taken)
                     if ok.sum() > most:
