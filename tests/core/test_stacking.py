@@ -358,13 +358,21 @@ def test_a_budget_shorter_than_the_search_keeps_the_stack_and_says_nothing_wrong
     assert not any("growing" in w or "unfilled" in w for w in p.report.warnings)
 
 
-def _bricks(sizes, shares, extents=(103.0, 62.0, 52.0), **kwargs):
-    meshes = [trimesh.creation.box(extents=s) for s in sizes]
+def _stacked(meshes, shares, container: trimesh.Trimesh, wall_margin: float = 0.0,
+             **kwargs):
+    """stack_start for `meshes` in `container`, margins 0.01, no clearance, seed 1."""
     types = [_Type(m) for m in meshes]
-    st = stack_start(_box_container(extents), types, np.array([m.volume for m in meshes]),
-                     np.array(shares), np.full(len(meshes), 0.01), 0.0, 0.0,
-                     np.random.default_rng(1), **kwargs)
+    cont = build_container(container.vertices, container.faces, float(container.volume),
+                           0.5)
+    st = stack_start(cont, types, np.array([m.volume for m in meshes]), np.array(shares),
+                     np.full(len(meshes), 0.01), 0.0, wall_margin, np.random.default_rng(1),
+                     **kwargs)
     return st, types, meshes
+
+
+def _bricks(sizes, shares, extents=(103.0, 62.0, 52.0), **kwargs):
+    return _stacked([trimesh.creation.box(extents=s) for s in sizes], shares,
+                    trimesh.creation.box(extents=extents), **kwargs)
 
 
 def test_bricks_of_two_lengths_stand_in_rows_as_long_as_each():
@@ -428,10 +436,7 @@ def test_coins_of_two_sizes_stand_in_columns_in_a_jar():
     coins = [trimesh.creation.cylinder(radius=r, height=2.0, sections=48)
              for r in (12.5, 10.0)]
     jar = trimesh.creation.cylinder(radius=40.0, height=60.0, sections=96)
-    cont = build_container(jar.vertices, jar.faces, float(jar.volume), 0.5)
-    st = stack_start(cont, [_Type(c) for c in coins], np.array([c.volume for c in coins]),
-                     np.array([0.5, 0.5]), np.array([0.01, 0.01]), 0.0, 0.078,
-                     np.random.default_rng(1))
+    st, _, _ = _stacked(coins, [0.5, 0.5], jar, wall_margin=0.078)
     assert st is not None
     counts = np.bincount(st.typ, minlength=2)
     assert abs(counts[0] - counts[1]) <= 1
@@ -503,13 +508,10 @@ def test_rows_of_two_lengths_in_a_cone_keep_the_mix_and_their_sites():
     # apart then lost a third of the sites (106 -> 71). Each line is now typed over the
     # stretch its sites inside span, and a turn that loses sites is not taken
     cone = trimesh.creation.cone(radius=50.0, height=60.0, sections=64)
-    meshes = [trimesh.creation.box(extents=e) for e in ((30.0, 10.0, 5.0), (10.0, 10.0, 5.0))]
-    cont = build_container(cone.vertices, cone.faces, float(cone.volume), 0.5)
-    st = stack_start(cont, [_Type(m) for m in meshes], np.array([m.volume for m in meshes]),
-                     np.array([0.5, 0.5]), np.array([0.01, 0.01]), 0.0, 0.0,
-                     np.random.default_rng(1))
+    st, types, meshes = _stacked([trimesh.creation.box(extents=e) for e in
+                                  ((30.0, 10.0, 5.0), (10.0, 10.0, 5.0))], [0.5, 0.5], cone)
     assert st is not None
     counts = np.bincount(st.typ, minlength=2)
     assert tvd_of_counts(counts.astype(float), np.array([0.5, 0.5])) <= 0.04
     assert counts @ [m.volume for m in meshes] >= 0.45 * cone.volume
-    assert _apart(st, [_Type(m) for m in meshes]) >= 0.02 - 1e-9
+    assert _apart(st, types) >= 0.02 - 1e-9
