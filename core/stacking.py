@@ -292,20 +292,23 @@ class _Mixed:
     counts: np.ndarray
     max_tvd: float
 
+    def __post_init__(self) -> None:
+        self.at = {int(t): i for i, t in enumerate(self.live)}  # type -> index into live
+        self.one_more = np.eye(len(self.shares))  # row t: one object of type t
+
     def row(self, room: float, length: np.ndarray, counts: np.ndarray) -> np.ndarray:
         """(K,) indices into `live` of a row's types, whose lengths (L,) sum to at most
         `room`; adds them to `counts` (T,)."""
-        at = {int(t): i for i, t in enumerate(self.live)}
+        at = self.at
         out: list[int] = []
         used = 0.0
-        one_more = np.eye(len(counts))
         while True:
             fits = [t for t in self.by_volume if used + length[at[int(t)]] <= room]
             if not fits:
                 break
             t = type_needed(counts, self.shares, fits, within=True)
             if counts[t] >= self.shares[t] * max(float(counts.sum()), 1.0):  # not needed
-                after = tvd_of_counts(counts + one_more[t], self.shares)
+                after = tvd_of_counts(counts + self.one_more[t], self.shares)
                 if (after > self.max_tvd
                         and after > mix_cap(counts, self.shares, self.max_tvd)):
                     break
@@ -419,13 +422,17 @@ class _RowGeometry:
         """The block of the sites of `rows` laid in `spans` (`sites`) that lie inside and
         apart from `taken`."""
         local, kinds = self.sites(lines, rows, share, spans)
-        ok = self.fits(local, kinds, taken)
+        return self._block(local, kinds, self.fits(local, kinds, taken),
+                           (self, lines, rows, share, spans))
+
+    def _block(self, local: np.ndarray, kinds: np.ndarray, ok: np.ndarray, laid: tuple
+               ) -> _Rows | None:
+        """The block of the sites `local` (M, 3) of types `kinds` (M,) that are `ok`."""
         if not ok.any():
             return None
         h = self.half[kinds[ok]]
         bounds = np.stack([(local[ok] - h).min(axis=0), (local[ok] + h).max(axis=0)])
-        return _Rows(local[ok], self.perm, bounds, self.search.mixed.live[kinds[ok]],
-                     (self, lines, rows, share, spans))
+        return _Rows(local[ok], self.perm, bounds, self.search.mixed.live[kinds[ok]], laid)
 
     def spread(self, block: _Rows, taken: list[_Rows], n_types: int) -> _Rows | None:
         """`block` laid again with each row turned by the number of places (of its first
@@ -459,13 +466,18 @@ class _RowGeometry:
             for j in np.unique(best):
                 spread.add_many(int(live[j]), local[best == j])
             out.append(best)
+        # a turn keeps each row's types, so the sites of both lie in the same order of lines
         line_of = np.repeat(np.arange(len(rows)), [len(r) for r in rows])
-        before = np.bincount(line_of, self.fits(*self.sites(lines, rows, share, spans),
-                                                taken), len(rows))
-        after = np.bincount(line_of, self.fits(*self.sites(lines, out, share, spans), taken),
-                            len(rows))  # a turn keeps each row's types: the same line_of
-        out = [o if a >= b else r for o, r, a, b in zip(out, rows, after, before, strict=True)]
-        return self.laid(lines, out, share, spans, taken)
+        was, was_kinds = self.sites(lines, rows, share, spans)
+        now, now_kinds = self.sites(lines, out, share, spans)
+        was_ok, now_ok = self.fits(was, was_kinds, taken), self.fits(now, now_kinds, taken)
+        take = (np.bincount(line_of, now_ok, len(rows))
+                >= np.bincount(line_of, was_ok, len(rows)))  # (K,) per line
+        out = [o if t else r for o, r, t in zip(out, rows, take, strict=True)]
+        turn = take[line_of]
+        return self._block(np.where(turn[:, None], now, was),
+                           np.where(turn, now_kinds, was_kinds),
+                           np.where(turn, now_ok, was_ok), (self, lines, out, share, spans))
 
 
 class _Search:
@@ -573,8 +585,8 @@ class _Search:
             for lines in layouts:
                 if self.stop():
                     return None
+                rows = [template] * len(lines)
                 for share in (0.0, 1.0, 0.5)[: 2 if few else 3]:
-                    rows = [template] * len(lines)
                     local, kinds = geo.sites(lines, rows, share)
                     ok = geo.fits(local, kinds, taken)
                     if ok.sum() > most:
