@@ -12,8 +12,9 @@ import numpy as np
 
 from .distance import DistanceGrid, distance_grid, min_pyramid
 from .grid_size import finest_spacing
-from .kernels import sample_grid_many
+from .kernels import sample_grid_many, wall_depths
 from .mesh_geometry import face_areas2, sample_surface
+from .wall_planes import CreasePlanes, crease_planes
 
 #: lattice points `interior_points` tests at a time
 SLAB_POINTS = 1 << 20
@@ -40,6 +41,16 @@ class Container:
     # lower bounds of the grid's interpolant over blocks of cells (see `min_pyramid`): lets
     # the contact kernels skip objects and point clusters that are far from the wall
     pyramid: tuple[np.ndarray, np.ndarray, np.ndarray]
+    # the face planes the grid's crease cells read (a box's edges and corners), where its
+    # interpolant reads less room than there is
+    creases: CreasePlanes
+
+    def depth(self, points: np.ndarray) -> np.ndarray:
+        """(M,) the wall depth (positive inside) at points (M,3), as the solver reads it:
+        the grid, and the face planes in its crease cells (`kernels.wall_depth`)."""
+        g = self.grid
+        return wall_depths(g.values, g.origin, g.spacing, self.creases.arrays(),
+                           np.ascontiguousarray(points, np.float64).reshape(-1, 3))
 
     @property
     def bounds(self) -> np.ndarray:
@@ -55,8 +66,9 @@ def build_container(vertices: np.ndarray, faces: np.ndarray, volume: float,
     grid = tighten_to_surface(distance_grid(vertices, faces, spacing, pad=2 * spacing,
                                               band=GRID_BAND),
                               vertices, faces)
-    return Container(vertices, np.ascontiguousarray(faces, np.int64), float(volume), grid,
-                     min_pyramid(grid.values))
+    faces = np.ascontiguousarray(faces, np.int64)
+    return Container(vertices, faces, float(volume), grid, min_pyramid(grid.values),
+                     crease_planes(vertices, faces, grid.values, grid.origin, grid.spacing))
 
 
 def tighten_to_surface(grid: DistanceGrid, vertices: np.ndarray,
@@ -124,8 +136,7 @@ def deepest_points(container: Container, points: np.ndarray, count: int) -> np.n
     in their given order (ties: the earlier first); all of them when M <= count."""
     if len(points) <= count:
         return points
-    g = container.grid
-    depth = sample_grid_many(g.values, g.origin, g.spacing, points)
+    depth = container.depth(points)
     return points[np.sort(np.argsort(-depth, kind="stable")[:max(count, 0)])]
 
 
@@ -148,7 +159,6 @@ def _cubic_points(container: Container, spacing: float, min_depth: float,
         pts = np.empty((len(xs) * len(yz), 3))
         pts[:, 0] = np.repeat(xs, len(yz))
         pts[:, 1:] = np.tile(yz, (len(xs), 1))
-        depth = sample_grid_many(container.grid.values, container.grid.origin,
-                                 container.grid.spacing, pts)
+        depth = container.depth(pts)
         kept.append(pts[depth >= min_depth])
     return np.concatenate(kept)

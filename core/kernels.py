@@ -14,7 +14,8 @@ Flat type table (T types), built by `solver.TypeTable`:
   inner spheres and the surface points: everything a contact test reads
 - g_off (T+1,), g_vals (G,) flattened C-order grids, g_shape (T,3), g_origin (T,3), g_h (T,)
 Container grid: c_vals (nx,ny,nz), c_origin (3,), c_h; its min pyramid c_pyr, c_poff,
-c_pshape (`distance.min_pyramid`).
+c_pshape (`distance.min_pyramid`); crease: the face planes its crease cells read
+(`wall_planes.CreasePlanes.arrays`; the pyramid bounds the grid, which they only raise).
 Penetration below `tol` (container units) is ignored.
 """
 
@@ -121,6 +122,67 @@ def sample_grid_many(vals3, origin, h, pts):
     for m in range(pts.shape[0]):
         d, _, _, _ = trilinear(flat, 0, nx, ny, nz, origin[0], origin[1], origin[2], h,
                                pts[m, 0], pts[m, 1], pts[m, 2])
+        out[m] = d
+    return out
+
+
+@njit(cache=True)
+def crease_depth(px, py, pz, d, gx, gy, gz, nx, ny, nz, ox, oy, oz, h, cells, offsets, ids,
+                 planes, reach):
+    """The wall depth at (px, py, pz): the grid's (d, gx, gy, gz), or where the point's
+    cell is a crease cell and its planes read more, their least depth (at most reach) and
+    that plane's inward normal. Returns (depth, gx, gy, gz)."""
+    if cells.shape[0] == 0 or d >= reach or d <= -h:
+        return d, gx, gy, gz
+    fx = (px - ox) / h
+    fy = (py - oy) / h
+    fz = (pz - oz) / h
+    if fx < 0.0 or fy < 0.0 or fz < 0.0 or fx > nx - 1.0 or fy > ny - 1.0 or fz > nz - 1.0:
+        return d, gx, gy, gz
+    i = min(int(fx), nx - 2)
+    j = min(int(fy), ny - 2)
+    k = min(int(fz), nz - 2)
+    key = (i * (ny - 1) + j) * (nz - 1) + k
+    at = np.searchsorted(cells, key)
+    if at >= cells.shape[0] or cells[at] != key:
+        return d, gx, gy, gz
+    best = reach
+    arg = -1
+    for u in range(offsets[at], offsets[at + 1]):
+        pl = ids[u]
+        v = planes[pl, 0] * px + planes[pl, 1] * py + planes[pl, 2] * pz + planes[pl, 3]
+        if v < best:
+            best = v
+            arg = pl
+    if best <= d:
+        return d, gx, gy, gz
+    if arg < 0:
+        return best, gx, gy, gz
+    return best, planes[arg, 0], planes[arg, 1], planes[arg, 2]
+
+
+@njit(cache=True)
+def wall_depth(c_flat, nx, ny, nz, c_origin, c_h, crease, px, py, pz):
+    """The container's wall depth (positive inside) and its gradient at (px, py, pz): the
+    grid's `trilinear` reading, or in a crease cell the larger reading of its face planes
+    (`crease_depth`; crease as `wall_planes.CreasePlanes.arrays` gives it).
+    Returns (d, gx, gy, gz)."""
+    d, gx, gy, gz = trilinear(c_flat, 0, nx, ny, nz, c_origin[0], c_origin[1], c_origin[2],
+                              c_h, px, py, pz)
+    cells, offsets, ids, planes, reach = crease
+    return crease_depth(px, py, pz, d, gx, gy, gz, nx, ny, nz, c_origin[0], c_origin[1],
+                        c_origin[2], c_h, cells, offsets, ids, planes, reach)
+
+
+@njit(cache=True)
+def wall_depths(vals3, origin, h, crease, pts):
+    """`wall_depth` at points (M,3) -> (M,)."""
+    nx, ny, nz = vals3.shape
+    flat = vals3.ravel()
+    out = np.empty(pts.shape[0])
+    for m in range(pts.shape[0]):
+        d, _, _, _ = wall_depth(flat, nx, ny, nz, origin, h, crease, pts[m, 0], pts[m, 1],
+                                pts[m, 2])
         out[m] = d
     return out
 
@@ -439,8 +501,9 @@ def region_min(pyr, p_off, p_shape, c_origin, c_h, lx, ly, lz, ux, uy, uz):
 @njit(cache=True)
 def wall_contact(a, typ, pos, quat, scale, margin, clearance, tol, radius, sph_off, sph_c,
                  sph_r, pc_off, pcl, pcl_off, pts, c_vals, c_shape, c_origin, c_h, c_pyr,
-                 c_poff, c_pshape, F, Tq):
-    """Penetration of object a into the container wall (spheres and surface points).
+                 c_poff, c_pshape, crease, F, Tq):
+    """Penetration of object a into the container wall (spheres and surface points), the
+    wall read by `wall_depth`.
 
     The min pyramid skips work that cannot find a contact: the whole object when the
     grid's lower bound over its bounding sphere exceeds its largest inner sphere plus the
@@ -469,8 +532,8 @@ def wall_contact(a, typ, pos, quat, scale, margin, clearance, tol, radius, sph_o
         ux = (R[0, 0] * sph_c[u, 0] + R[0, 1] * sph_c[u, 1] + R[0, 2] * sph_c[u, 2]) * s
         uy = (R[1, 0] * sph_c[u, 0] + R[1, 1] * sph_c[u, 1] + R[1, 2] * sph_c[u, 2]) * s
         uz = (R[2, 0] * sph_c[u, 0] + R[2, 1] * sph_c[u, 1] + R[2, 2] * sph_c[u, 2]) * s
-        d, gx, gy, gz = trilinear(c_vals, 0, nx_, ny_, nz_, c_origin[0], c_origin[1],
-                                  c_origin[2], c_h, ux + px, uy + py, uz + pz)
+        d, gx, gy, gz = wall_depth(c_vals, nx_, ny_, nz_, c_origin, c_h, crease, ux + px,
+                                   uy + py, uz + pz)
         pen = sph_r[u] * s + delta - d
         if pen <= tol:
             continue
@@ -492,8 +555,8 @@ def wall_contact(a, typ, pos, quat, scale, margin, clearance, tol, radius, sph_o
             wx = (R[0, 0] * pts[m, 0] + R[0, 1] * pts[m, 1] + R[0, 2] * pts[m, 2]) * s
             wy = (R[1, 0] * pts[m, 0] + R[1, 1] * pts[m, 1] + R[1, 2] * pts[m, 2]) * s
             wz = (R[2, 0] * pts[m, 0] + R[2, 1] * pts[m, 1] + R[2, 2] * pts[m, 2]) * s
-            d, gx, gy, gz = trilinear(c_vals, 0, nx_, ny_, nz_, c_origin[0], c_origin[1],
-                                      c_origin[2], c_h, wx + px, wy + py, wz + pz)
+            d, gx, gy, gz = wall_depth(c_vals, nx_, ny_, nz_, c_origin, c_h, crease,
+                                       wx + px, wy + py, wz + pz)
             pen = delta - d
             if pen <= tol:
                 continue
@@ -570,8 +633,8 @@ CONTACT_CHUNKS = 4  # fixed, so that a packing does not depend on the machine's 
 def contacts_parallel(pa, pb, n_pairs, wa, n_wall, typ, pos, quat, scale, margin, clearance,
                       wall_clearance, tol, radius, sph_off, sph_c, sph_r, pc_off, pcl,
                       pcl_off, box, pts, g_off, g_vals, g_shape, g_origin, g_h, c_flat,
-                      c_shape, c_origin, c_h, c_pyr, c_poff, c_pshape, Fc, Tqc, pen_pair,
-                      pen_wall):
+                      c_shape, c_origin, c_h, c_pyr, c_poff, c_pshape, crease, Fc, Tqc,
+                      pen_pair, pen_wall):
     """Pair contacts (pa[k], pb[k]) for k < n_pairs and wall contacts of wa[k] for
     k < n_wall in Fc.shape[0] chunks run in parallel: chunk c takes every c-th pair and
     wall test and accumulates forces in Fc[c] (N,4) and torques in Tqc[c] (N,3), so no two
@@ -585,7 +648,7 @@ def contacts_parallel(pa, pb, n_pairs, wa, n_wall, typ, pos, quat, scale, margin
             pen_wall[k] = wall_contact(wa[k], typ, pos, quat, scale, margin, wall_clearance,
                                        tol, radius, sph_off, sph_c, sph_r, pc_off, pcl,
                                        pcl_off, pts, c_flat, c_shape, c_origin, c_h, c_pyr,
-                                       c_poff, c_pshape, F, Tq)
+                                       c_poff, c_pshape, crease, F, Tq)
         for k in range(c, n_pairs, nc):
             pen_pair[k] = pair_contact(pa[k], pb[k], typ, pos, quat, scale, margin,
                                        clearance, tol, radius, sph_off, sph_c, sph_r, pc_off,
@@ -601,8 +664,9 @@ def resolve(focus, state, table, cont, scratch, grid, params, max_iter, rollback
     state: (typ, pos, quat, scale, alive, margin, vel) of every inserted object; table: the
     flat type table (radius, sph_off, sph_c, sph_r, pc_off, pcl, pcl_off, box, pts, g_off,
     g_vals, g_shape, g_origin, g_h); cont: the container grid (c_vals, c_origin, c_h, c_pyr,
-    c_poff, c_pshape); scratch: `resolve_scratch(N)`, the call's working arrays, zero (or
-    -1) where the call expects it and left so; grid: the cell lists of the objects
+    c_poff, c_pshape) and its crease planes (`wall_planes.CreasePlanes.arrays`); scratch:
+    `resolve_scratch(N)`, the call's working arrays, zero (or -1) where the call expects it
+    and left so; grid: the cell lists of the objects
     (`cellgrid`), cells at least the largest contact reach wide, updated as objects move;
     params: (clearance, tol, k_obj, k_wall, k_rot, damping, wall_extra). See the module doc
     for the arrays. Work per iteration follows the objects in contact, not N.
@@ -637,7 +701,7 @@ def resolve(focus, state, table, cont, scratch, grid, params, max_iter, rollback
     typ, pos, quat, scale, alive, margin, vel = state
     (radius, sph_off, sph_c, sph_r, pc_off, pcl, pcl_off, box, pts, g_off, g_vals, g_shape,
      g_origin, g_h) = table
-    c_vals, c_origin, c_h, c_pyr, c_poff, c_pshape = cont
+    c_vals, c_origin, c_h, c_pyr, c_poff, c_pshape, crease = cont
     (Fc, Tqc, moved, moved_list, bpos, bquat, bvel, F, Tq, pen_obj, pen_wall, active, hit,
      act_list, hit_list, pen_w) = scratch
     clearance, tol, k_obj, k_wall, k_rot, damping, wall_extra = params
@@ -685,7 +749,7 @@ def resolve(focus, state, table, cont, scratch, grid, params, max_iter, rollback
                               margin, clearance, clearance + wall_extra, tol, radius, sph_off,
                               sph_c, sph_r, pc_off, pcl, pcl_off, box, pts, g_off, g_vals,
                               g_shape, g_origin, g_h, c_flat, c_shape, c_origin, c_h, c_pyr,
-                              c_poff, c_pshape, Fc, Tqc, pen_pair, pen_w)
+                              c_poff, c_pshape, crease, Fc, Tqc, pen_pair, pen_w)
             _add_chunks(F, Tq, Fc, Tqc, act_list, n_act)  # pa's rows are act_list's
             _add_chunks(F, Tq, Fc, Tqc, pb, n_pairs)
         else:
@@ -695,7 +759,8 @@ def resolve(focus, state, table, cont, scratch, grid, params, max_iter, rollback
                 pen_w[ii] = wall_contact(a, typ, pos, quat, scale, margin,
                                          clearance + wall_extra, tol, radius, sph_off, sph_c,
                                          sph_r, pc_off, pcl, pcl_off, pts, c_flat, c_shape,
-                                         c_origin, c_h, c_pyr, c_poff, c_pshape, F, Tq)
+                                         c_origin, c_h, c_pyr, c_poff, c_pshape, crease, F,
+                                         Tq)
                 while kp < n_pairs and pa[kp] == a:
                     pen_pair[kp] = pair_contact(a, pb[kp], typ, pos, quat, scale, margin,
                                                clearance, tol, radius, sph_off, sph_c, sph_r,
@@ -823,7 +888,7 @@ def wall_penetrations(state, table, cont, clearance, tol, wall_extra):
     objects. state, table and cont as `resolve` takes them (vel unused)."""
     typ, pos, quat, scale, alive, margin, _ = state
     radius, sph_off, sph_c, sph_r, pc_off, pcl, pcl_off, _, pts = table[:9]
-    c_vals, c_origin, c_h, c_pyr, c_poff, c_pshape = cont
+    c_vals, c_origin, c_h, c_pyr, c_poff, c_pshape, crease = cont
     n = typ.shape[0]
     F = np.zeros((n, 4))
     Tq = np.zeros((n, 3))
@@ -835,7 +900,7 @@ def wall_penetrations(state, table, cont, clearance, tol, wall_extra):
             out[a] = wall_contact(a, typ, pos, quat, scale, margin, clearance + wall_extra,
                                   tol, radius, sph_off, sph_c, sph_r, pc_off, pcl, pcl_off,
                                   pts, c_flat, c_shape, c_origin, c_h, c_pyr, c_poff,
-                                  c_pshape, F, Tq)
+                                  c_pshape, crease, F, Tq)
     return out
 
 
@@ -874,14 +939,15 @@ def max_penetrations(state, table, cont, clearance, tol, wall_extra):
 
 @njit(cache=True)
 def free_distance(px, py, pz, typ, pos, quat, scale, alive, radius, g_off, g_vals, g_shape,
-                  g_origin, g_h, c_vals, c_origin, c_h):
-    """Distance from a point to the nearest alive object's surface or the container wall.
+                  g_origin, g_h, c_vals, c_origin, c_h, crease):
+    """Distance from a point to the nearest alive object's surface or the container wall
+    (`wall_depth`).
 
     Negative if the point is inside an object or outside the container.
     """
     nx_, ny_, nz_ = c_vals.shape
-    best, _, _, _ = trilinear(c_vals.ravel(), 0, nx_, ny_, nz_, c_origin[0], c_origin[1],
-                              c_origin[2], c_h, px, py, pz)
+    best, _, _, _ = wall_depth(c_vals.ravel(), nx_, ny_, nz_, c_origin, c_h, crease, px, py,
+                               pz)
     for b in range(typ.shape[0]):
         if alive[b]:
             best = _object_distance(px, py, pz, b, best, typ, pos, quat, scale, radius, g_off,
@@ -891,14 +957,14 @@ def free_distance(px, py, pz, typ, pos, quat, scale, alive, radius, g_off, g_val
 
 @njit(cache=True)
 def free_distances(points, typ, pos, quat, scale, alive, radius, g_off, g_vals, g_shape,
-                   g_origin, g_h, c_vals, c_origin, c_h):
+                   g_origin, g_h, c_vals, c_origin, c_h, crease):
     """`free_distance` for many points (M,3) -> (M,), every object tested (the reference
     of `free_distances_near`)."""
     out = np.empty(points.shape[0])
     for m in range(points.shape[0]):
         out[m] = free_distance(points[m, 0], points[m, 1], points[m, 2], typ, pos, quat, scale,
                                alive, radius, g_off, g_vals, g_shape, g_origin, g_h, c_vals,
-                               c_origin, c_h)
+                               c_origin, c_h, crease)
     return out
 
 
@@ -942,12 +1008,13 @@ def _cell_distances(px, py, pz, c, best, grid, typ, pos, quat, scale, alive, rad
 
 @njit(cache=True)
 def _free_distance_near(px, py, pz, floor, grid, typ, pos, quat, scale, alive, radius, r_max,
-                        g_off, g_vals, g_shape, g_origin, g_h, c_flat, c_shape, c_origin, c_h):
+                        g_off, g_vals, g_shape, g_origin, g_h, c_flat, c_shape, c_origin, c_h,
+                        crease):
     """`free_distances_near` for one point; r_max: the largest bounding radius."""
     origin, hs, dims, _, _, _, _ = grid
     h = hs[0]
-    best, _, _, _ = trilinear(c_flat, 0, c_shape[0], c_shape[1], c_shape[2], c_origin[0],
-                              c_origin[1], c_origin[2], c_h, px, py, pz)
+    best, _, _, _ = wall_depth(c_flat, c_shape[0], c_shape[1], c_shape[2], c_origin, c_h,
+                               crease, px, py, pz)
     if best < floor:
         return best
     ci = min(max(int(np.floor((px - origin[0]) / h)), 0), dims[0] - 1)
@@ -980,7 +1047,7 @@ def _free_distance_near(px, py, pz, floor, grid, typ, pos, quat, scale, alive, r
 
 @njit(cache=True)
 def free_distances_near(points, floor, grid, typ, pos, quat, scale, alive, radius, g_off,
-                        g_vals, g_shape, g_origin, g_h, c_vals, c_origin, c_h):
+                        g_vals, g_shape, g_origin, g_h, c_vals, c_origin, c_h, crease):
     """`free_distances` through the cell grid (`cellgrid`): for each point (M,3), cells in
     shells of growing Chebyshev distance r from its cell, until no object centre beyond
     shell r (at least (r - 1) h away) can come nearer than the best distance so far. Equal
@@ -996,5 +1063,5 @@ def free_distances_near(points, floor, grid, typ, pos, quat, scale, alive, radiu
         out[m] = _free_distance_near(points[m, 0], points[m, 1], points[m, 2], floor, grid,
                                      typ, pos, quat, scale, alive, radius, r_max, g_off,
                                      g_vals, g_shape, g_origin, g_h, c_flat, c_shape, c_origin,
-                                     c_h)
+                                     c_h, crease)
     return out

@@ -212,9 +212,9 @@ class Solver:
 
     def container_arrays(self) -> tuple:
         """The container's grid and its min pyramid, as the kernels take them:
-        (values, origin, spacing, pyramid, pyramid offsets, pyramid shapes)."""
+        (values, origin, spacing, pyramid, pyramid offsets, pyramid shapes, crease planes)."""
         c = self.c.grid
-        return (c.values, c.origin, c.spacing, *self.c.pyramid)
+        return (c.values, c.origin, c.spacing, *self.c.pyramid, self.c.creases.arrays())
 
     def penetrations(self) -> np.ndarray:
         """(n,2) deepest object and wall penetration of each inserted object (0 if removed)."""
@@ -247,5 +247,5 @@ class Solver:
         d = kernels.free_distances_near(
             np.ascontiguousarray(points, np.float64), floor,
             grid, typ, pos, quat, scale, alive, t.radius, t.g_off, t.g_vals, t.g_shape,
-            t.g_origin, t.g_h, c.values, c.origin, c.spacing)
+            t.g_origin, t.g_h, c.values, c.origin, c.spacing, self.c.creases.arrays())
         return d - self.p.clearance if self.p.clearance > 0 else d

@@ -24,7 +24,6 @@ import numpy as np
 import trimesh
 
 from .container import Container
-from .kernels import sample_grid_many
 from .metrics import mix_cap, tvd_of_counts
 from .options import CavityPassOptions
 from .rotations import matrix_to_quat
@@ -211,15 +210,14 @@ def _inside(container: Container, sites: np.ndarray, turn: np.ndarray,
             samples: np.ndarray, depth: float) -> np.ndarray:
     """(M,) whether the box sampled by `samples` (its frame), turned by `turn` (3, 3) and
     centred at each of `sites` (M, 3), lies at least `depth` inside the container."""
-    g = container.grid
     reach = float(np.linalg.norm(samples, axis=1).max())
-    centre = sample_grid_many(g.values, g.origin, g.spacing, sites)
+    centre = container.depth(sites)
     # a site deeper than its box's reach (and a cell) holds it; only the rest are sampled
-    ok = centre >= depth + reach + g.spacing
+    ok = centre >= depth + reach + container.grid.spacing
     near = np.flatnonzero(~ok & (centre >= depth))
     if len(near):
         pts = (sites[near, None, :] + (samples @ turn.T)[None]).reshape(-1, 3)
-        d = sample_grid_many(g.values, g.origin, g.spacing, pts).reshape(len(near), -1)
+        d = container.depth(pts).reshape(len(near), -1)
         ok[near] = d.min(axis=1) >= depth
     return ok
 

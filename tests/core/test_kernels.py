@@ -22,6 +22,7 @@ from jampacked.core.distance import DistanceGrid, distance_grid, min_pyramid
 from jampacked.core.objects import build_type, point_clusters
 from jampacked.core.rotations import quat_to_matrix
 from jampacked.core.spheres import inner_spheres, sphere_coverage
+from jampacked.core.wall_planes import no_creases
 
 HALF_CONTAINER = 15.0  # the container is the box |x_i| <= 15
 
@@ -152,7 +153,32 @@ def pair_contact_ref(a, b, table, grids, typ, pos, quat, scale, margin, clearanc
     return worst, F, Tq
 
 
-def wall_contact_ref(a, table, cgrid, typ, pos, quat, scale, margin, clearance, tol):
+def wall_depth_ref(container, pts: np.ndarray):
+    """The wall depth (M,) and gradient (M,3) at points (M,3): the grid's interpolant, or in
+    a crease cell whose planes read more (where the grid reads between -1 cell and their
+    reach), the least of its planes' depths, at most the reach, and that plane's normal."""
+    g, cp = container.grid, container.creases
+    d, grad = trilinear_ref(g.values, g.origin, g.spacing, pts)
+    n = np.array(g.values.shape)
+    f = (pts - g.origin) / g.spacing
+    for m in range(len(pts)):
+        if not (-g.spacing < d[m] < cp.reach) or (f[m] < 0).any() or (f[m] > n - 1).any():
+            continue
+        i, j, k = np.minimum(f[m].astype(np.int64), n - 2)
+        at = np.flatnonzero(cp.cells == (i * (n[1] - 1) + j) * (n[2] - 1) + k)
+        if not len(at):
+            continue
+        planes = cp.planes[cp.ids[cp.offsets[at[0]]:cp.offsets[at[0] + 1]]]
+        depth = planes[:, :3] @ pts[m] + planes[:, 3]
+        best = min(float(depth.min()), cp.reach)
+        if best > d[m]:
+            d[m] = best
+            if depth.min() < cp.reach:
+                grad[m] = planes[int(np.argmin(depth)), :3]
+    return d, grad
+
+
+def wall_contact_ref(a, table, container, typ, pos, quat, scale, margin, clearance, tol):
     """Deepest wall penetration of object a and its forces/torque (see pair_contact_ref)."""
     n = len(typ)
     F = np.zeros((n, 4))
@@ -162,7 +188,7 @@ def wall_contact_ref(a, table, cgrid, typ, pos, quat, scale, margin, clearance, 
     worst = 0.0
     for kind in ("sph", "pts"):
         world, off, rad = posed(table, typ[a], kind, R, scale[a], pos[a])
-        d, g = trilinear_ref(cgrid.values, cgrid.origin, cgrid.spacing, world)
+        d, g = wall_depth_ref(container, world)
         pen = (rad if rad is not None else 0.0) + delta - d
         for m in np.flatnonzero(pen > tol):
             p = pen[m]
@@ -174,10 +200,11 @@ def wall_contact_ref(a, table, cgrid, typ, pos, quat, scale, margin, clearance, 
     return worst, F, Tq
 
 
-def free_distance_ref(points, table, grids, cgrid, typ, pos, quat, scale, alive):
+def free_distance_ref(points, table, grids, container, typ, pos, quat, scale, alive):
     """Distance to the nearest alive object (its grid, bounded below by its bounding sphere)
-    or the container wall; negative inside an object or outside the container."""
-    best, _ = trilinear_ref(cgrid.values, cgrid.origin, cgrid.spacing, points)
+    or the container wall (`wall_depth_ref`); negative inside an object or outside the
+    container."""
+    best, _ = wall_depth_ref(container, points)
     for b in np.flatnonzero(alive):
         t = typ[b]
         R = quat_to_rot_ref(quat[b])
@@ -250,7 +277,7 @@ def env_for(table, container, state, clearance=0.0, tol=1e-6) -> dict:
                clearance=clearance, tol=tol, c_vals=g.values, c_origin=g.origin,
                c_h=g.spacing, c_shape=np.array(g.values.shape, np.int64),
                c_pyr=container.pyramid[0], c_poff=container.pyramid[1],
-               c_pshape=container.pyramid[2],
+               c_pshape=container.pyramid[2], crease=container.creases.arrays(),
                F=np.zeros((len(typ), 4)), Tq=np.zeros((len(typ), 3)))
     for name in ("radius", "sph_off", "sph_c", "sph_r", "pc_off", "pcl", "pcl_off", "box", "pts",
                  "g_off", "g_vals", "g_shape", "g_origin", "g_h"):
@@ -273,7 +300,7 @@ def wall_matches_reference(table, container, state, clearance, tol, torque=True)
     typ, pos, quat, scale, _, margin, _ = state.view()
     env = env_for(table, container, state, clearance, tol)
     worst = call(kernels.wall_contact, env, a=0, c_vals=container.grid.values.ravel())
-    ref, F_ref, T_ref = wall_contact_ref(0, table, container.grid, typ, pos, quat, scale,
+    ref, F_ref, T_ref = wall_contact_ref(0, table, container, typ, pos, quat, scale,
                                          margin, clearance, tol)
     assert worst == pytest.approx(ref, rel=1e-12, abs=1e-12)
     np.testing.assert_allclose(env["F"], F_ref, rtol=1e-10, atol=1e-12)
@@ -440,7 +467,7 @@ def test_free_distances_match_reference(table, container):
                              (pos[:, None, :] + rng.normal(size=(n, 50, 3))).reshape(-1, 3)])
     sv = solver.Solver(container, table, state, solver.SolverParams())
     got = sv.free_distances(points)
-    ref = free_distance_ref(points, table, type_grids(table), container.grid, *state.view()[:3],
+    ref = free_distance_ref(points, table, type_grids(table), container, *state.view()[:3],
                             state.scale[:n], state.alive[:n])
     np.testing.assert_allclose(got, ref, rtol=0, atol=1e-9)
     assert (got < 0).any() and (got > 0).any()
@@ -728,7 +755,8 @@ def test_wall_contact_culling_holds_on_a_grid_that_is_no_distance_field(table):
         g = DistanceGrid(vals, np.full(3, -6.0), h)
         # the interpolant at the picked centre or point is `low`
         vals += low - trilinear_ref(vals, g.origin, h, world[pick:pick + 1])[0][0]
-        cont = Container(box.vertices, box.faces, 8000.0, g, min_pyramid(g.values))
+        cont = Container(box.vertices, box.faces, 8000.0, g, min_pyramid(g.values),
+                         no_creases())
         worst, _ = wall_matches_reference(table, cont, state, 0.0, 1e-9, torque=False)
         hits += worst > 0
         misses += worst == 0
@@ -794,7 +822,7 @@ def test_max_penetrations_matches_reference(table, container):
     for a in range(n):
         if not state.alive[a]:
             continue
-        ref[a, 1] = wall_contact_ref(a, table, container.grid, typ, pos, quat, scale, margin,
+        ref[a, 1] = wall_contact_ref(a, table, container, typ, pos, quat, scale, margin,
                                      params.clearance, params.tol)[0]
         for b in range(a + 1, n):
             if state.alive[b]:
@@ -987,7 +1015,7 @@ def test_contacts_parallel_match_one_at_a_time(table, container):
         table.sph_r, table.pc_off, table.pcl, table.pcl_off, table.box, table.pts,
         table.g_off, table.g_vals, table.g_shape, table.g_origin, table.g_h,
         c.values.ravel(), np.array(c.values.shape, np.int64), c.origin, c.spacing,
-        *container.pyramid, Fc, Tqc, pen_pair, pen_wall)
+        *container.pyramid, container.creases.arrays(), Fc, Tqc, pen_pair, pen_wall)
     np.testing.assert_array_equal(pen_pair, pair_ref)
     np.testing.assert_array_equal(pen_wall, wall_ref)
     np.testing.assert_allclose(Fc.sum(axis=0), F, rtol=1e-12, atol=1e-12)
@@ -1175,7 +1203,7 @@ def test_free_distances_through_cells_equal_every_object(table, container):
     g = container.grid
     ref = kernels.free_distances(points, t, p, q, s, alive, table.radius, table.g_off,
                                  table.g_vals, table.g_shape, table.g_origin, table.g_h,
-                                 g.values, g.origin, g.spacing)
+                                 g.values, g.origin, g.spacing, container.creases.arrays())
     np.testing.assert_array_equal(got, ref)
     # with a floor: exact where the room reaches it, below it elsewhere, with and without a
     # clearance (the floor is on the room, the distance less the clearance)
@@ -1192,9 +1220,7 @@ def test_free_distances_through_cells_equal_every_object(table, container):
         _cells_consistent(sv_c)
     # an empty state: the container's distance alone
     empty = solver.Solver(container, table, solver.PackState(), solver.SolverParams())
-    np.testing.assert_array_equal(
-        empty.free_distances(points),
-        kernels.sample_grid_many(g.values, g.origin, g.spacing, points))
+    np.testing.assert_array_equal(empty.free_distances(points), container.depth(points))
     _cells_consistent(sv)  # the removed objects met were unlinked, none other
 
 

@@ -50,9 +50,10 @@ def test_a_push_in_a_jammed_container_settles_instead_of_removing():
     missed, and the push that clears it moves a chain of neighbours packed against the
     walls. With 100 solver iterations the push ended unsettled and a fruit was removed (the
     knight at 130 mm, seed 3: 3 of 30; the Armadillo scene, seed 1: 8 of 137); it now
-    settles."""
+    settles. (Seed 7: with 100 iterations and no settle check its push moved 30 and
+    removed 1.)"""
     lowpoly = [str(mesh_path(m)) for m in mesh_paths("fruit/ycb_lowpoly/*.obj")]
-    p = pack(str(mesh_path("containers/spot.obj")), lowpoly, seed=2, container_size=130.0,
+    p = pack(str(mesh_path("containers/spot.obj")), lowpoly, seed=7, container_size=130.0,
              type_scale=300.0, attempts=1)
     rep = p.report.repair
     assert rep.first is not None and not rep.first["certified"]  # the repair had work

@@ -15,6 +15,7 @@ from jampacked.core.packing_json import load_packing, save_packing
 from jampacked.core.phases import _trim_to_mix
 from jampacked.core.placement import STACK_FULL, STACK_KEPT, STACK_PUSH_TESTS
 from jampacked.core.rotations import quat_to_matrix
+from jampacked.core.solver import PackState, Solver
 from jampacked.core.stacking import BOXY, STACKED, box_frame, round_about, stack_start
 from jampacked.core.summary import STACKED_LABEL, summarize
 
@@ -94,11 +95,14 @@ def test_plates_stack_in_rows_inside_the_box_and_apart():
     margin = np.array([0.01])
     st = stack_start(cont, types, np.array([plate.volume]), np.array([1.0]), margin, 0.0,
                      0.0, np.random.default_rng(0))
-    assert st is not None and len(st.typ) == 3 * 3 * 57  # 0.52 mm a row across 30 mm
-    assert st.room[0] == pytest.approx(50.0)
     corners = _placed_boxes(st, types)
     lo = np.array([c.min(axis=0) for c in corners])
     hi = np.array([c.max(axis=0) for c in corners])
+    # 0.52 mm a row across 30 mm, and in the 1 mm left along two sides, 6 plates standing
+    # each (the crease cells' planes read the room by the box's edges: the grid missed it)
+    flat = np.isclose(hi[:, 2] - lo[:, 2], 0.5)
+    assert st is not None and flat.sum() == 3 * 3 * 57 and len(st.typ) == 3 * 3 * 57 + 12
+    assert st.room[0] == pytest.approx(50.0)
     assert lo.min() >= -15.5 + 0.01 - 1e-9 and hi.max() <= 15.5 - 0.01 + 1e-9
     # every pair of boxes (all turned alike, onto the axes) is apart by both margins
     sep = np.maximum(lo[:, None] - hi[None], lo[None] - hi[:, None]).max(axis=2)
@@ -144,9 +148,17 @@ def test_no_pass_starts_an_object_in_the_slivers_between_rows(tmp_path):
     assert p.certificate["certified"] and p.metrics["density"] > 0.65
 
 
-def test_phase_2_starts_nothing_in_the_corners_rows_leave(tmp_path):
+def test_phase_2_starts_nothing_below_half_its_size_after_a_stack(tmp_path, monkeypatch):
     # plates stacked in an octagonal prism: phase 2 started plates at a third of their
     # size in its corners, each pushing whole rows, and none grew (25 s of a 20 s budget)
+    scales = []
+    add = PackState.add
+
+    def recording(self, t, pos, quat, scale, margin):
+        scales.append(scale)
+        return add(self, t, pos, quat, scale, margin)
+
+    monkeypatch.setattr(PackState, "add", recording)
     prism = trimesh.creation.cylinder(radius=20.5 / np.cos(np.pi / 8), height=30.0,
                                       sections=8)
     prism.apply_transform(trimesh.transformations.rotation_matrix(np.pi / 8, [0, 0, 1]))
@@ -154,8 +166,8 @@ def test_phase_2_starts_nothing_in_the_corners_rows_leave(tmp_path):
     trimesh.creation.box(extents=(10.0, 10.0, 0.5)).export(tmp_path / "plate.stl")
     p = pack(str(tmp_path / "prism.stl"), [str(tmp_path / "plate.stl")], seed=1,
              time_budget=5.0)
-    assert p.report.phase1.extra["lattice"] == "stacked"
-    assert p.report.phase2.inserted == 0 and p.certificate["certified"]
+    assert p.report.phase1.extra["lattice"] == "stacked" and p.certificate["certified"]
+    assert len(scales) > len(p.type_index) // 2 and min(scales) >= 0.5
 
 
 def test_plates_stack_with_a_printing_clearance_between_them():
@@ -262,9 +274,9 @@ def test_a_fixed_count_of_attempts_runs_them_all_after_a_full_stack(tmp_path):
 
 
 def test_a_stack_that_leaves_room_does_not_end_the_budget(tmp_path):
-    # 9 x 6 tiles in 12 x 8 sites: the stack holds about 64%, which a random start may beat
+    # the two tiles' stack holds 70% of a 47 x 39 box, which a random start may beat
     paths = _two_tiles(tmp_path)
-    p = pack("box:42x40x30", paths, seed=1, time_budget=3.0)
+    p = pack("box:47x39x30", paths, seed=1, time_budget=3.0)
     assert p.report.phase1.extra["lattice"] == "stacked"
     assert p.report.phase1.extra["stack_filled"] < STACK_KEPT
     assert all(a.stopped != STACK_FULL for a in p.report.attempts)
@@ -471,10 +483,25 @@ def test_pushes_after_a_stacked_start_are_capped_and_only_there(tmp_path, monkey
     assert seen and set(seen) == {0}
 
 
-def test_the_wall_check_after_a_stack_leaves_the_mix_within_its_tolerance(tmp_path):
+def test_the_wall_check_after_a_stack_leaves_the_mix_within_its_tolerance(tmp_path,
+                                                                         monkeypatch):
     # an independent check: bricks and 2 mm cubes (90 / 10) in a slab with a round hole
     # through it; the solver's wall check took 18 of the 193 stacked, most of them bricks,
-    # and the packing ended at TVD 0.056 with the default tolerance 0.04
+    # and the packing ended at TVD 0.056 with the default tolerance 0.04. Since the stack
+    # and the solver read the hole's creases alike (`core/wall_planes.py`) the check takes
+    # none there, so here it takes all but 5 cubes, which leaves the bricks over their share
+    check = Solver.wall_penetrations
+    calls = []
+
+    def first_takes_cubes(self):
+        pen = check(self)
+        if not calls:
+            pen[np.flatnonzero((self.s.typ[: self.s.n] == 1) & (self.s.alive[: self.s.n] == 1))
+                [:-5]] = 1.0
+        calls.append(1)
+        return pen
+
+    monkeypatch.setattr(Solver, "wall_penetrations", first_takes_cubes)
     slab = trimesh.creation.box(extents=(100.0, 100.0, 30.0))
     hole = trimesh.creation.cylinder(radius=20.0, height=40.0, sections=64)
     trimesh.boolean.difference([slab, hole], engine="manifold").export(tmp_path / "c.stl")
