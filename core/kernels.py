@@ -130,8 +130,10 @@ def sample_grid_many(vals3, origin, h, pts):
 def crease_depth(px, py, pz, d, gx, gy, gz, nx, ny, nz, ox, oy, oz, h, cells, offsets, ids,
                  planes, reach):
     """The wall depth at (px, py, pz): the grid's (d, gx, gy, gz), or where the point's
-    cell is a crease cell and its planes read more, their least depth (at most reach) and
-    that plane's inward normal. Returns (depth, gx, gy, gz)."""
+    cell is a crease cell and its planes read more room, and some (the point is inside),
+    their least depth (at most reach) and that plane's inward normal. Outside, a plane
+    reads a corner's depth short (-0.35 for -0.6), so there the grid's reading stays.
+    Returns (depth, gx, gy, gz)."""
     if cells.shape[0] == 0 or d >= reach or d <= -h:
         return d, gx, gy, gz
     fx = (px - ox) / h
@@ -154,7 +156,7 @@ def crease_depth(px, py, pz, d, gx, gy, gz, nx, ny, nz, ox, oy, oz, h, cells, of
         if v < best:
             best = v
             arg = pl
-    if best <= d:
+    if best <= d or best <= 0.0:
         return d, gx, gy, gz
     if arg < 0:
         return best, gx, gy, gz

@@ -6,13 +6,16 @@ near a box's corner (docs/notes-core.md, "A crease's cells read the wall's plane
 those cells the kernels also read the least depth below the planes of the container's faces
 that come within `reach` of the cell, and take the larger of the two readings.
 
-Both are lower bounds of the true depth (positive inside), so their larger one is too: a
+The planes are read only where they say the point is inside, and there they are a lower
+bound of the true depth (positive inside), as the grid is, so their larger one is too: a
 point at depth d <= reach has its nearest face within reach, and that face's plane is at
-most d away; a point outside has, among the faces at its nearest point, one whose plane it
-lies beyond (the angle-weighted pseudonormal's sign, Baerentzen and Aanaes 2005), and the
-kernels read the planes only where the grid reads more than -1 cell, which keeps a point
-more than `reach` outside away from them (the interpolant is within sqrt(3) cells of the
-true depth). Container frame and units.
+most d away. A point outside reads at least one plane negative: among the faces at its
+nearest point, one whose plane it lies beyond (the angle-weighted pseudonormal's sign,
+Baerentzen and Aanaes 2005), as long as that face is among the cell's; the kernels read the
+planes only where the grid reads more than -1 cell, which keeps a point more than `reach`
+outside away from them (a cell's nodes are within sqrt(3) cells of any point in it, so the
+interpolant is within sqrt(3) cells of the true depth). Container frame and units; the
+mesh closed (wound either way: `face_planes`).
 """
 
 from __future__ import annotations
@@ -21,6 +24,10 @@ from dataclasses import dataclass
 
 import numpy as np
 from numba import njit
+
+from .distance import point_triangle_distance
+from .kernels import trilinear
+from .mesh_geometry import signed_six_volumes
 
 #: the depth (cells) up to which the planes are read: the nodes within it hold exact
 #: distances (`container.GRID_BAND`), and inner spheres this deep still touch the wall
@@ -66,11 +73,15 @@ def no_creases() -> CreasePlanes:
 
 def face_planes(vertices: np.ndarray, faces: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
     """Each face's plane as an index into the distinct planes (F,) int64, -1 for a
-    degenerate face, and the distinct planes (P, 4): inward unit normal and offset."""
+    degenerate face, and the distinct planes (P, 4): inward unit normal and offset. A
+    closed mesh wound inward (negative volume) has its normals turned, so that inward is
+    towards its inside either way."""
     v = np.asarray(vertices, np.float64)
     f = np.asarray(faces, np.int64)
     a = v[f[:, 0]]
     cross = np.cross(v[f[:, 1]] - a, v[f[:, 2]] - a)
+    if len(f) and signed_six_volumes(v, f).sum() < 0:
+        cross = -cross
     norm = np.linalg.norm(cross, axis=1)
     size = max(float(np.ptp(v, axis=0).max()), 1e-300)
     edge = np.linalg.norm(v[f[:, 1]] - a, axis=1) + np.linalg.norm(v[f[:, 2]] - a, axis=1)
@@ -107,9 +118,10 @@ def crease_planes(vertices: np.ndarray, faces: np.ndarray, values: np.ndarray,
                 np.maximum(hi, s, out=hi)
     # the kernels read the planes where the grid reads between -1 cell and reach
     candidate = (lo < reach) & (hi > -spacing)
-    slot = np.full(candidate.shape, -1, np.int64)
+    del lo, hi
+    slot = np.full(candidate.shape, -1, np.int32)
     where = np.flatnonzero(candidate.ravel())
-    slot.ravel()[where] = np.arange(len(where))
+    slot.ravel()[where] = np.arange(len(where), dtype=np.int32)
     ids, full = _cell_planes(np.asarray(vertices, np.float64), np.asarray(faces, np.int64),
                              plane_of, np.asarray(origin, np.float64), float(spacing), reach,
                              slot, len(where))
@@ -135,19 +147,28 @@ def crease_planes(vertices: np.ndarray, faces: np.ndarray, values: np.ndarray,
 
 @njit(cache=True)
 def _cell_planes(vertices, faces, plane_of, origin, h, reach, slot, n_slots):
-    """The distinct planes of the faces whose bounding box, grown by `reach`, meets each
-    candidate cell (slot >= 0), at most MAX_PLANES: (n_slots, MAX_PLANES) plane indices
-    (-1 where unused) and whether the cell met more."""
-    ids = np.full((n_slots, MAX_PLANES), -1, np.int64)
+    """Each candidate cell's (slot >= 0) planes: (n_slots, MAX_PLANES) plane indices (-1
+    where unused) of the faces within reach plus half the cell's diagonal of its centre
+    (every face within reach of a point of the cell, and few merely near it, so that
+    neighbouring cells read nearly the same planes), and whether the faces whose bounding
+    boxes, grown by reach, meet the cell lie on more than MAX_PLANES planes (a curved
+    wall's cell: the grid alone reads it)."""
+    ids = np.full((n_slots, MAX_PLANES), -1, np.int32)
+    loose = np.full((n_slots, MAX_PLANES), -1, np.int32)
     full = np.zeros(n_slots, np.bool_)
     cx, cy, cz = slot.shape
+    n = (cx, cy, cz)
+    lo = np.empty(3, np.int64)
+    hi = np.empty(3, np.int64)
+    centre = np.empty(3)
+    near = reach + 0.5 * np.sqrt(3.0) * h
     for f in range(faces.shape[0]):
         pl = plane_of[f]
         if pl < 0:
             continue
-        lo = np.empty(3, np.int64)
-        hi = np.empty(3, np.int64)
-        n = (cx, cy, cz)
+        va = vertices[faces[f, 0]]
+        vb = vertices[faces[f, 1]]
+        vc = vertices[faces[f, 2]]
         for ax in range(3):
             a = vertices[faces[f, 0], ax]
             b = vertices[faces[f, 1], ax]
@@ -162,14 +183,27 @@ def _cell_planes(vertices, faces, plane_of, origin, h, reach, slot, n_slots):
                     s = slot[i, j, k]
                     if s < 0 or full[s]:
                         continue
-                    u = 0
-                    while u < MAX_PLANES and ids[s, u] >= 0 and ids[s, u] != pl:
-                        u += 1
-                    if u == MAX_PLANES:
+                    if not _add_plane(loose, s, pl):
                         full[s] = True
-                    elif ids[s, u] < 0:
-                        ids[s, u] = pl
+                        continue
+                    centre[0] = origin[0] + (i + 0.5) * h
+                    centre[1] = origin[1] + (j + 0.5) * h
+                    centre[2] = origin[2] + (k + 0.5) * h
+                    if point_triangle_distance(centre, va, vb, vc) <= near:
+                        _add_plane(ids, s, pl)  # a subset of loose's: it has room
     return ids, full
+
+
+@njit(cache=True)
+def _add_plane(ids, s, pl):
+    """Plane pl into row s of ids (unused entries -1) unless there; False when full."""
+    for u in range(ids.shape[1]):
+        if ids[s, u] == pl:
+            return True
+        if ids[s, u] < 0:
+            ids[s, u] = pl
+            return True
+    return False
 
 
 @njit(cache=True)
@@ -190,7 +224,8 @@ def _gain(values, origin, h, cells, ids, planes, reach):
                     px = origin[0] + (i + 0.5 * a) * h
                     py = origin[1] + (j + 0.5 * b) * h
                     pz = origin[2] + (k + 0.5 * e) * h
-                    d = _trilinear_value(flat, nx, ny, nz, i, j, k, 0.5 * a, 0.5 * b, 0.5 * e)
+                    d, _, _, _ = trilinear(flat, 0, nx, ny, nz, origin[0], origin[1],
+                                           origin[2], h, px, py, pz)
                     if d <= -h or d >= reach:
                         continue
                     best = reach
@@ -202,16 +237,3 @@ def _gain(values, origin, h, cells, ids, planes, reach):
                                    + planes[pl, 2] * pz + planes[pl, 3])
                     out[m] = max(out[m], best - d)
     return out
-
-
-@njit(cache=True)
-def _trilinear_value(flat, nx, ny, nz, i, j, k, tx, ty, tz):
-    """The interpolant of a flat C-order grid at fractions (tx, ty, tz) of cell (i, j, k)."""
-    b = (i * ny + j) * nz + k
-    c00 = flat[b] + (flat[b + 1] - flat[b]) * tz
-    c01 = flat[b + nz] + (flat[b + nz + 1] - flat[b + nz]) * tz
-    c10 = flat[b + ny * nz] + (flat[b + ny * nz + 1] - flat[b + ny * nz]) * tz
-    c11 = flat[b + ny * nz + nz] + (flat[b + ny * nz + nz + 1] - flat[b + ny * nz + nz]) * tz
-    c0 = c00 + (c01 - c00) * ty
-    c1 = c10 + (c11 - c10) * ty
-    return c0 + (c1 - c0) * tx

@@ -184,9 +184,9 @@ def test_repair_time_cap_removes_what_still_fails():
                           margins=MarginOptions(0.0, 0.0, 0.0, 0.0),
                           cavity=CavityPassOptions(factors=()),
                           attempts=AttemptOptions(max_attempts=1))
-    p = pack(BOX, POLY, seed=1, fidelity="low", options=options, time_budget=60.0)
+    p = pack(BOX, POLY, seed=2, fidelity="low", options=options, time_budget=60.0)
     rep = p.report.repair
-    assert not rep.first["certified"]  # the scene really needs repair
+    assert not rep.first["certified"]  # the scene really needs repair (seeds 2, 3, 6, 7)
     assert rep.timed_out and rep.moved == 0 and rep.removed >= 1
     assert p.certificate["certified"]
 

@@ -155,8 +155,9 @@ def pair_contact_ref(a, b, table, grids, typ, pos, quat, scale, margin, clearanc
 
 def wall_depth_ref(container, pts: np.ndarray):
     """The wall depth (M,) and gradient (M,3) at points (M,3): the grid's interpolant, or in
-    a crease cell whose planes read more (where the grid reads between -1 cell and their
-    reach), the least of its planes' depths, at most the reach, and that plane's normal."""
+    a crease cell whose planes read more and some room (where the grid reads between -1
+    cell and their reach), the least of its planes' depths, at most the reach, and that
+    plane's normal."""
     g, cp = container.grid, container.creases
     d, grad = trilinear_ref(g.values, g.origin, g.spacing, pts)
     n = np.array(g.values.shape)
@@ -171,7 +172,7 @@ def wall_depth_ref(container, pts: np.ndarray):
         planes = cp.planes[cp.ids[cp.offsets[at[0]]:cp.offsets[at[0] + 1]]]
         depth = planes[:, :3] @ pts[m] + planes[:, 3]
         best = min(float(depth.min()), cp.reach)
-        if best > d[m]:
+        if best > max(d[m], 0.0):
             d[m] = best
             if depth.min() < cp.reach:
                 grad[m] = planes[int(np.argmin(depth)), :3]

@@ -95,13 +95,14 @@ def test_plates_stack_in_rows_inside_the_box_and_apart():
     margin = np.array([0.01])
     st = stack_start(cont, types, np.array([plate.volume]), np.array([1.0]), margin, 0.0,
                      0.0, np.random.default_rng(0))
+    assert st is not None
     corners = _placed_boxes(st, types)
     lo = np.array([c.min(axis=0) for c in corners])
     hi = np.array([c.max(axis=0) for c in corners])
     # 0.52 mm a row across 30 mm, and in the 1 mm left along two sides, 6 plates standing
     # each (the crease cells' planes read the room by the box's edges: the grid missed it)
     flat = np.isclose(hi[:, 2] - lo[:, 2], 0.5)
-    assert st is not None and flat.sum() == 3 * 3 * 57 and len(st.typ) == 3 * 3 * 57 + 12
+    assert flat.sum() == 3 * 3 * 57 and len(st.typ) == 3 * 3 * 57 + 12
     assert st.room[0] == pytest.approx(50.0)
     assert lo.min() >= -15.5 + 0.01 - 1e-9 and hi.max() <= 15.5 - 0.01 + 1e-9
     # every pair of boxes (all turned alike, onto the axes) is apart by both margins
