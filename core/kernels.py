@@ -126,15 +126,15 @@ def sample_grid_many(vals3, origin, h, pts):
     return out
 
 
-@njit(cache=True)
-def crease_depth(px, py, pz, d, gx, gy, gz, nx, ny, nz, ox, oy, oz, h, cells, offsets, ids,
+@njit(cache=True, inline="always")
+def crease_depth(px, py, pz, d, gx, gy, gz, nx, ny, nz, ox, oy, oz, h, index, offsets, ids,
                  planes, reach):
     """The wall depth at (px, py, pz): the grid's (d, gx, gy, gz), or where the point's
     cell is a crease cell and its planes read more room, and some (the point is inside),
     their least depth (at most reach) and that plane's inward normal. Outside, a plane
     reads a corner's depth short (-0.35 for -0.6), so there the grid's reading stays.
     Returns (depth, gx, gy, gz)."""
-    if cells.shape[0] == 0 or d >= reach or d <= -h:
+    if index.shape[0] == 0 or d >= reach or d <= -h:
         return d, gx, gy, gz
     fx = (px - ox) / h
     fy = (py - oy) / h
@@ -144,9 +144,8 @@ def crease_depth(px, py, pz, d, gx, gy, gz, nx, ny, nz, ox, oy, oz, h, cells, of
     i = min(int(fx), nx - 2)
     j = min(int(fy), ny - 2)
     k = min(int(fz), nz - 2)
-    key = (i * (ny - 1) + j) * (nz - 1) + k
-    at = np.searchsorted(cells, key)
-    if at >= cells.shape[0] or cells[at] != key:
+    at = index[(i * (ny - 1) + j) * (nz - 1) + k]
+    if at < 0:
         return d, gx, gy, gz
     best = reach
     arg = -1
@@ -163,17 +162,18 @@ def crease_depth(px, py, pz, d, gx, gy, gz, nx, ny, nz, ox, oy, oz, h, cells, of
     return best, planes[arg, 0], planes[arg, 1], planes[arg, 2]
 
 
-@njit(cache=True)
-def wall_depth(c_flat, nx, ny, nz, c_origin, c_h, crease, px, py, pz):
+@njit(cache=True, inline="always")
+def wall_depth(c_flat, nx, ny, nz, c_origin, c_h, index, offsets, ids, planes, reach, px, py,
+               pz):
     """The container's wall depth (positive inside) and its gradient at (px, py, pz): the
     grid's `trilinear` reading, or in a crease cell the larger reading of its face planes
-    (`crease_depth`; crease as `wall_planes.CreasePlanes.arrays` gives it).
-    Returns (d, gx, gy, gz)."""
+    (`crease_depth`; index to reach: `wall_planes.CreasePlanes.arrays`, unpacked by the
+    caller once, outside its loops). Both are inlined into their callers: a call per point
+    cost more than the reading (docs/notes-core.md). Returns (d, gx, gy, gz)."""
     d, gx, gy, gz = trilinear(c_flat, 0, nx, ny, nz, c_origin[0], c_origin[1], c_origin[2],
                               c_h, px, py, pz)
-    cells, offsets, ids, planes, reach = crease
     return crease_depth(px, py, pz, d, gx, gy, gz, nx, ny, nz, c_origin[0], c_origin[1],
-                        c_origin[2], c_h, cells, offsets, ids, planes, reach)
+                        c_origin[2], c_h, index, offsets, ids, planes, reach)
 
 
 @njit(cache=True)
@@ -181,10 +181,11 @@ def wall_depths(vals3, origin, h, crease, pts):
     """`wall_depth` at points (M,3) -> (M,)."""
     nx, ny, nz = vals3.shape
     flat = vals3.ravel()
+    index, offsets, ids, planes, reach = crease
     out = np.empty(pts.shape[0])
     for m in range(pts.shape[0]):
-        d, _, _, _ = wall_depth(flat, nx, ny, nz, origin, h, crease, pts[m, 0], pts[m, 1],
-                                pts[m, 2])
+        d, _, _, _ = wall_depth(flat, nx, ny, nz, origin, h, index, offsets, ids, planes,
+                                reach, pts[m, 0], pts[m, 1], pts[m, 2])
         out[m] = d
     return out
 
@@ -530,12 +531,13 @@ def wall_contact(a, typ, pos, quat, scale, margin, clearance, tol, radius, sph_o
     R = quat_to_rot(quat[a])
     worst = 0.0
     nx_, ny_, nz_ = c_shape[0], c_shape[1], c_shape[2]
+    w_index, w_off, w_ids, w_planes, w_reach = crease
     for u in range(sph_off[t], sph_off[t + 1]):
         ux = (R[0, 0] * sph_c[u, 0] + R[0, 1] * sph_c[u, 1] + R[0, 2] * sph_c[u, 2]) * s
         uy = (R[1, 0] * sph_c[u, 0] + R[1, 1] * sph_c[u, 1] + R[1, 2] * sph_c[u, 2]) * s
         uz = (R[2, 0] * sph_c[u, 0] + R[2, 1] * sph_c[u, 1] + R[2, 2] * sph_c[u, 2]) * s
-        d, gx, gy, gz = wall_depth(c_vals, nx_, ny_, nz_, c_origin, c_h, crease, ux + px,
-                                   uy + py, uz + pz)
+        d, gx, gy, gz = wall_depth(c_vals, nx_, ny_, nz_, c_origin, c_h, w_index, w_off,
+                                   w_ids, w_planes, w_reach, ux + px, uy + py, uz + pz)
         pen = sph_r[u] * s + delta - d
         if pen <= tol:
             continue
@@ -557,8 +559,8 @@ def wall_contact(a, typ, pos, quat, scale, margin, clearance, tol, radius, sph_o
             wx = (R[0, 0] * pts[m, 0] + R[0, 1] * pts[m, 1] + R[0, 2] * pts[m, 2]) * s
             wy = (R[1, 0] * pts[m, 0] + R[1, 1] * pts[m, 1] + R[1, 2] * pts[m, 2]) * s
             wz = (R[2, 0] * pts[m, 0] + R[2, 1] * pts[m, 1] + R[2, 2] * pts[m, 2]) * s
-            d, gx, gy, gz = wall_depth(c_vals, nx_, ny_, nz_, c_origin, c_h, crease,
-                                       wx + px, wy + py, wz + pz)
+            d, gx, gy, gz = wall_depth(c_vals, nx_, ny_, nz_, c_origin, c_h, w_index, w_off,
+                                       w_ids, w_planes, w_reach, wx + px, wy + py, wz + pz)
             pen = delta - d
             if pen <= tol:
                 continue
@@ -948,8 +950,9 @@ def free_distance(px, py, pz, typ, pos, quat, scale, alive, radius, g_off, g_val
     Negative if the point is inside an object or outside the container.
     """
     nx_, ny_, nz_ = c_vals.shape
-    best, _, _, _ = wall_depth(c_vals.ravel(), nx_, ny_, nz_, c_origin, c_h, crease, px, py,
-                               pz)
+    w_index, w_off, w_ids, w_planes, w_reach = crease
+    best, _, _, _ = wall_depth(c_vals.ravel(), nx_, ny_, nz_, c_origin, c_h, w_index, w_off,
+                               w_ids, w_planes, w_reach, px, py, pz)
     for b in range(typ.shape[0]):
         if alive[b]:
             best = _object_distance(px, py, pz, b, best, typ, pos, quat, scale, radius, g_off,
@@ -1015,8 +1018,9 @@ def _free_distance_near(px, py, pz, floor, grid, typ, pos, quat, scale, alive, r
     """`free_distances_near` for one point; r_max: the largest bounding radius."""
     origin, hs, dims, _, _, _, _ = grid
     h = hs[0]
+    w_index, w_off, w_ids, w_planes, w_reach = crease
     best, _, _, _ = wall_depth(c_flat, c_shape[0], c_shape[1], c_shape[2], c_origin, c_h,
-                               crease, px, py, pz)
+                               w_index, w_off, w_ids, w_planes, w_reach, px, py, pz)
     if best < floor:
         return best
     ci = min(max(int(np.floor((px - origin[0]) / h)), 0), dims[0] - 1)

@@ -48,27 +48,29 @@ class CreasePlanes:
     """The cells whose wall depth the face planes read better than the grid.
 
     cells: (K,) int64 sorted flat cell indices, (i * (ny - 1) + j) * (nz - 1) + k for the
-    cell whose lowest node is (i, j, k) of the container grid's (nx, ny, nz); offsets:
+    cell whose lowest node is (i, j, k) of the container grid's (nx, ny, nz); index: each
+    cell's row among them by its flat index, -1 for the others (empty when K is 0); offsets:
     (K + 1,) int64 into `ids`; ids: int64 plane indices of each cell; planes: (P, 4) inward
     unit normal n and offset c, depth n . p + c; reach: the depth (container units) beyond
     which the planes are not read.
     """
 
     cells: np.ndarray
+    index: np.ndarray
     offsets: np.ndarray
     ids: np.ndarray
     planes: np.ndarray
     reach: float
 
     def arrays(self) -> tuple:
-        """(cells, offsets, ids, planes, reach), as the kernels take them."""
-        return self.cells, self.offsets, self.ids, self.planes, self.reach
+        """(index, offsets, ids, planes, reach), as the kernels take them."""
+        return self.index, self.offsets, self.ids, self.planes, self.reach
 
 
 def no_creases() -> CreasePlanes:
     """No cell reads planes: the grid alone."""
-    return CreasePlanes(np.zeros(0, np.int64), np.zeros(1, np.int64), np.zeros(0, np.int64),
-                        np.zeros((0, 4)), 0.0)
+    return CreasePlanes(np.zeros(0, np.int64), np.zeros(0, np.int32), np.zeros(1, np.int64),
+                        np.zeros(0, np.int64), np.zeros((0, 4)), 0.0)
 
 
 def face_planes(vertices: np.ndarray, faces: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
@@ -141,8 +143,11 @@ def crease_planes(vertices: np.ndarray, faces: np.ndarray, values: np.ndarray,
     flat_ids = ids[ids >= 0]  # row by row: each cell's planes together
     used, flat_ids = np.unique(flat_ids, return_inverse=True)
     offsets = np.concatenate([[0], np.cumsum(counts)]).astype(np.int64)
-    return CreasePlanes(cells.astype(np.int64), offsets, flat_ids.ravel().astype(np.int64),
-                        np.ascontiguousarray(planes[used]), float(reach))
+    index = np.full(slot.size, -1, np.int32)
+    index[cells] = np.arange(len(cells), dtype=np.int32)
+    return CreasePlanes(cells.astype(np.int64), index, offsets,
+                        flat_ids.ravel().astype(np.int64), np.ascontiguousarray(planes[used]),
+                        float(reach))
 
 
 @njit(cache=True)
