@@ -47,20 +47,24 @@ SAME_PLANE = 1e-9
 class CreasePlanes:
     """The cells whose wall depth the face planes read better than the grid.
 
-    cells: (K,) int64 sorted flat cell indices, (i * (ny - 1) + j) * (nz - 1) + k for the
-    cell whose lowest node is (i, j, k) of the container grid's (nx, ny, nz); index: each
-    cell's row among them by its flat index, -1 for the others (empty when K is 0); offsets:
+    index: by flat cell index, (i * (ny - 1) + j) * (nz - 1) + k for the cell whose lowest
+    node is (i, j, k) of the container grid's (nx, ny, nz), the row of each of the K crease
+    cells, -1 for the others (empty when K is 0); offsets:
     (K + 1,) int64 into `ids`; ids: int64 plane indices of each cell; planes: (P, 4) inward
     unit normal n and offset c, depth n . p + c; reach: the depth (container units) beyond
     which the planes are not read.
     """
 
-    cells: np.ndarray
     index: np.ndarray
     offsets: np.ndarray
     ids: np.ndarray
     planes: np.ndarray
     reach: float
+
+    @property
+    def cells(self) -> np.ndarray:
+        """(K,) the crease cells' flat indices, sorted (their rows' order)."""
+        return np.flatnonzero(self.index >= 0)
 
     def arrays(self) -> tuple:
         """(index, offsets, ids, planes, reach), as the kernels take them."""
@@ -69,8 +73,8 @@ class CreasePlanes:
 
 def no_creases() -> CreasePlanes:
     """No cell reads planes: the grid alone."""
-    return CreasePlanes(np.zeros(0, np.int64), np.zeros(0, np.int32), np.zeros(1, np.int64),
-                        np.zeros(0, np.int64), np.zeros((0, 4)), 0.0)
+    return CreasePlanes(np.zeros(0, np.int32), np.zeros(1, np.int64), np.zeros(0, np.int64),
+                        np.zeros((0, 4)), 0.0)
 
 
 def face_planes(vertices: np.ndarray, faces: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
@@ -145,9 +149,8 @@ def crease_planes(vertices: np.ndarray, faces: np.ndarray, values: np.ndarray,
     offsets = np.concatenate([[0], np.cumsum(counts)]).astype(np.int64)
     index = np.full(slot.size, -1, np.int32)
     index[cells] = np.arange(len(cells), dtype=np.int32)
-    return CreasePlanes(cells.astype(np.int64), index, offsets,
-                        flat_ids.ravel().astype(np.int64), np.ascontiguousarray(planes[used]),
-                        float(reach))
+    return CreasePlanes(index, offsets, flat_ids.ravel().astype(np.int64),
+                        np.ascontiguousarray(planes[used]), float(reach))
 
 
 @njit(cache=True)
@@ -175,11 +178,8 @@ def _cell_planes(vertices, faces, plane_of, origin, h, reach, slot, n_slots):
         vb = vertices[faces[f, 1]]
         vc = vertices[faces[f, 2]]
         for ax in range(3):
-            a = vertices[faces[f, 0], ax]
-            b = vertices[faces[f, 1], ax]
-            c = vertices[faces[f, 2], ax]
-            mn = (min(a, b, c) - reach - origin[ax]) / h
-            mx = (max(a, b, c) + reach - origin[ax]) / h
+            mn = (min(va[ax], vb[ax], vc[ax]) - reach - origin[ax]) / h
+            mx = (max(va[ax], vb[ax], vc[ax]) + reach - origin[ax]) / h
             lo[ax] = max(0, int(np.floor(mn)) - 1)
             hi[ax] = min(n[ax] - 1, int(np.floor(mx)))
         for i in range(lo[0], hi[0] + 1):
