@@ -5,6 +5,7 @@ tests/conftest.py."""
 from __future__ import annotations
 
 import importlib.util
+import os
 import sys
 from pathlib import Path
 from types import ModuleType
@@ -46,6 +47,13 @@ def bench_module(stem: str, siblings: bool = False) -> ModuleType:
         sys.modules[name] = module
         spec.loader.exec_module(module)
     return sys.modules[name]
+
+
+def warm_cache_env(folder: str) -> dict:
+    """For a bench's `fresh_cache_env`: this session's numba cache (its kernels already
+    compiled; a fresh one costs each test a 40 s compile) and an empty approximation cache
+    under `folder`."""
+    return dict(os.environ, JAMPACKED_CACHE=os.path.join(folder, "jampacked"))
 
 
 class UlpUp:

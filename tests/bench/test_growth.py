@@ -5,13 +5,14 @@ from __future__ import annotations
 import json
 
 import pytest
-from testdata import MESHES, bench_module
+from testdata import MESHES, bench_module, warm_cache_env
 
 growth = bench_module("growth", siblings=True)
 
 
 def test_budgeted_runs_the_whole_method_with_each_sizes_budget(tmp_path, monkeypatch):
     monkeypatch.setattr(growth, "RESULTS", tmp_path)
+    monkeypatch.setattr(growth, "fresh_cache_env", warm_cache_env)
     assert growth.main(["--method", "budgeted", "--counts", "12", "--budgets", "1.5",
                         "--seed", "2", "--out", "growth_seed2",
                         "--meshes", str(MESHES)]) == 0

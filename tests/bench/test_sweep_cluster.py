@@ -10,7 +10,7 @@ import threading
 
 import distributed
 from dask_workers import kill_a_busy_worker, task_starts, transitions
-from testdata import MESHES, bench_module
+from testdata import MESHES, bench_module, warm_cache_env
 
 #: a tiny scene (about six objects, seconds per run), no bars: warm runs only
 TINY = {"container": "box:22x20x21",
@@ -29,8 +29,7 @@ def _run(monkeypatch, tmp_path):
     monkeypatch.setitem(run.SCENES, "tiny", TINY)
     monkeypatch.setattr(run, "RESULTS", tmp_path)
     # the warm runs' numba cache: this test session's (already compiled), not a fresh one
-    monkeypatch.setattr(run, "fresh_cache_env", lambda folder: dict(
-        os.environ, JAMPACKED_CACHE=os.path.join(folder, "jampacked")))
+    monkeypatch.setattr(run, "fresh_cache_env", warm_cache_env)
     return run
 
 
