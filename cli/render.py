@@ -94,12 +94,12 @@ def container_of(packing_path: str | os.PathLike) -> tuple[np.ndarray, np.ndarra
 def on_the_wall(points: np.ndarray, container: tuple[np.ndarray, np.ndarray]) -> np.ndarray:
     """(M,) True for points on or outside the container's surface (within a cell of its
     distance grid, 1/150 of its size): where a shell is, not a packed object."""
-    from jampacked.core.container import build_container
+    from jampacked.core.container import container_grid
     from jampacked.core.kernels import sample_grid_many
 
     v, f = container
     h = float(np.ptp(v, axis=0).max()) / 150.0
-    grid = build_container(v, f, 1.0, h).grid
+    grid = container_grid(v, f, h)
     depth = sample_grid_many(grid.values, grid.origin, grid.spacing,
                              np.ascontiguousarray(points, np.float64))
     return depth < grid.spacing

@@ -23,10 +23,11 @@ import numpy as np
 
 from .certify import Certifier
 from .cluster import AttemptJob, client_for, cluster_threads, place_on_cluster
-from .container import Container, build_container
+from .container import Container, container_grid, container_on
 from .cost import TypeSize, check_cost, check_sizes, estimate_cost
 from .errors import InputError, PackingError
 from .fidelity import PRESETS, Fidelity, choose_fidelity, preset
+from .grid_size import finest_spacing
 from .margins import Margins, contact_margins
 from .mesh_geometry import inner_room
 from .meshes import MeshData, box_mesh, load_mesh, parse_box_spec
@@ -347,11 +348,13 @@ def _approximate(scene: _Scene, q: np.ndarray, inputs: PackInputs,
     fid = PRESETS["medium"] if inputs.fidelity == "auto" else preset(inputs.fidelity,
                                                                      clearance)
     cmesh = scene.container
-    cont = build_container(scene.vertices, cmesh.faces, scene.volume,
-                           f_min / fid.container_cells)
-    depth = float(cont.grid.values.max())
+    # grids alone until the spacing is chosen: the solver's arrays beside the grid
+    # (`container_on`) cost as much again on a thin tray's fine grids
+    grid = container_grid(scene.vertices, cmesh.faces, f_min / fid.container_cells)
+    depth = float(grid.values.max())
     live = [i for i, share in enumerate(q) if share > 0]
     measured = None  # the depth on a grid fine across the container, once measured
+    fine_grid = None  # ... and that grid
     # an object's inscribed radius is at most half its thinnest extent: below that depth
     # some type may not fit, and its inner room (a lower bound of that radius) decides
     if depth < min(float(sizes[i].extents.min()) for i in live) / 2 + clearance:
@@ -359,8 +362,8 @@ def _approximate(scene: _Scene, q: np.ndarray, inputs: PackInputs,
                                                           scene.types[i].faces) * type_scale)
                       for i in live]
         if depth < min(t.room for t in live_sizes) + clearance:  # measured again, finer
-            depth, spacing = measured_depth(scene.vertices, cmesh.faces, scene.volume, cont)
-            measured = depth
+            depth, fine_grid = measured_depth(scene.vertices, cmesh.faces, grid)
+            measured, spacing = depth, fine_grid.spacing
             # the grid's depth is within a cell of the true depth
             if depth + spacing < min(t.room for t in live_sizes) + clearance:
                 refuse_no_room(scene.label, scene.vertices, live_sizes, depth, spacing,
@@ -374,20 +377,23 @@ def _approximate(scene: _Scene, q: np.ndarray, inputs: PackInputs,
     fid = _with_overrides(fid, inputs.options.fidelity)
     spacing = f_min / fid.container_cells
     if inputs.options.fidelity.container_cells is None:
-        fine = tight_fit_spacing(scene.vertices, cmesh.faces, scene.volume, scene.types, sizes,
-                                 live, cont, depth, spacing, clearance, type_scale, measured)
+        fine = tight_fit_spacing(scene.vertices, cmesh.faces, scene.types, sizes, live, grid,
+                                 depth, spacing, clearance, type_scale, measured)
         if fine < spacing:
-            spacing = fine
-            cont = build_container(scene.vertices, cmesh.faces, scene.volume, spacing)
-            # the grid's cap on cells per axis may keep it coarser than asked
-            spacing = cont.grid.spacing
+            # the grid's cap on cells per axis may keep it coarser than asked: then a thin
+            # tray's depth was measured on that same grid already
+            capped_at = max(fine, finest_spacing(np.ptp(scene.vertices, axis=0)))
+            same = fine_grid is not None and fine_grid.spacing == capped_at
+            grid = fine_grid if same else container_grid(scene.vertices, cmesh.faces, fine)
+            spacing = grid.spacing
             cells = f_min / spacing
             capped = " (the most the container's size allows)" if spacing > fine else ""
             fid = replace(fid, container_cells=cells, reasons=fid.reasons + (
                 f"an object only just fits: {cells:.3g} container grid cells per "
                 f"radius{capped}",))
-    if cont.grid.spacing != spacing:
-        cont = build_container(scene.vertices, cmesh.faces, scene.volume, spacing)
+    if grid.spacing != spacing:
+        grid = container_grid(scene.vertices, cmesh.faces, spacing)
+    cont = container_on(scene.vertices, cmesh.faces, scene.volume, grid)
     return _Approximation(cont, fid, f_min, volumes, [])
 
 
@@ -476,8 +482,8 @@ def _assemble(container: MeshSource, scene: _Scene, approx: _Approximation, run:
     idx = state.alive_indices()
     clearance = inputs.clearance
     if len(idx) == 0 and not stop.reason:
-        depth, _ = measured_depth(scene.vertices, scene.container.faces, scene.volume,
-                                  approx.container)  # the grid's nodes can miss it
+        depth = measured_depth(scene.vertices, scene.container.faces,
+                               approx.container.grid)[0]  # the grid's nodes can miss it
         raise PackingError(nothing_placed_message(depth, objtypes, run.margins,
                                                   approx.container, scene.vertices, clearance,
                                                   approx.fidelity.name))

@@ -60,12 +60,27 @@ class Container:
 
 def build_container(vertices: np.ndarray, faces: np.ndarray, volume: float,
                     spacing: float) -> Container:
-    """Distance grid of the container at about `spacing` (coarsened if too many cells)."""
+    """The container with its distance grid at about `spacing` (`container_grid`)."""
+    return container_on(vertices, faces, volume, container_grid(vertices, faces, spacing))
+
+
+def container_grid(vertices: np.ndarray, faces: np.ndarray, spacing: float) -> DistanceGrid:
+    """The container's signed distance grid (positive inside) at about `spacing`, coarsened
+    if too many cells (`grid_size.finest_spacing`), lowered where its interpolant sees room
+    beyond the wall (`tighten_to_surface`). vertices (V,3), faces (F,3): the container mesh
+    (container frame and units)."""
     vertices = np.ascontiguousarray(vertices, np.float64)
     spacing = max(float(spacing), finest_spacing(np.ptp(vertices, axis=0)))
-    grid = tighten_to_surface(distance_grid(vertices, faces, spacing, pad=2 * spacing,
+    return tighten_to_surface(distance_grid(vertices, faces, spacing, pad=2 * spacing,
                                               band=GRID_BAND),
                               vertices, faces)
+
+
+def container_on(vertices: np.ndarray, faces: np.ndarray, volume: float,
+                 grid: DistanceGrid) -> Container:
+    """The container on a grid of `container_grid`'s: with what the solver reads beside it
+    (the grid's block minima and the crease cells' face planes)."""
+    vertices = np.ascontiguousarray(vertices, np.float64)
     faces = np.ascontiguousarray(faces, np.int64)
     return Container(vertices, faces, float(volume), grid, min_pyramid(grid.values),
                      crease_planes(vertices, faces, grid.values, grid.origin, grid.spacing))

@@ -13,8 +13,9 @@ from collections.abc import Sequence
 
 import numpy as np
 
-from .container import Container, build_container
+from .container import Container, container_grid
 from .cost import TypeSize
+from .distance import DistanceGrid
 from .errors import PackingError
 from .grid_size import finest_spacing
 from .margins import Margins
@@ -28,19 +29,20 @@ from .objects import ObjectType
 DEPTH_CELLS = 64
 
 
-def measured_depth(vertices: np.ndarray, faces: np.ndarray, volume: float,
-                   cont: Container) -> tuple[float, float]:
-    """The container's deepest interior distance and the spacing of the grid it was measured
-    on: DEPTH_CELLS cells across the container's thinnest extent, or as many as the
-    container grid's cap allows (the approximation's grid follows the objects' size and is
-    coarser than the container when they are far larger: its nodes may all lie outside, or
-    a thin tray's few). vertices (V, 3), faces (F, 3): the container mesh."""
+def measured_depth(vertices: np.ndarray, faces: np.ndarray,
+                   grid: DistanceGrid) -> tuple[float, DistanceGrid]:
+    """The container's deepest interior distance and the grid it was measured on:
+    DEPTH_CELLS cells across the container's thinnest extent, or as many as the container
+    grid's cap allows (the approximation's grid follows the objects' size and is coarser
+    than the container when they are far larger: its nodes may all lie outside, or a thin
+    tray's few). vertices (V, 3), faces (F, 3): the container mesh; grid: its distance
+    grid so far (`container.container_grid`), returned when it is as fine."""
     extents = np.ptp(vertices, axis=0)
     spacing = max(float(extents.min()) / DEPTH_CELLS, finest_spacing(extents))
-    if cont.grid.spacing <= spacing * (1 + 1e-12):  # as fine already: the same grid
-        return float(cont.grid.values.max()), cont.grid.spacing
-    fine = build_container(vertices, faces, volume, spacing)
-    return max(float(fine.grid.values.max()), 0.0), fine.grid.spacing
+    if grid.spacing <= spacing * (1 + 1e-12):  # as fine already: the same grid
+        return float(grid.values.max()), grid
+    fine = container_grid(vertices, faces, spacing)
+    return max(float(fine.values.max()), 0.0), fine
 
 
 def refuse_no_room(label: str, vertices: np.ndarray, sizes: list[TypeSize], depth: float,
@@ -105,10 +107,10 @@ def refuse_too_long(label: str, vertices: np.ndarray, sizes: Sequence[TypeSize],
         f"{', or lower the clearance' if clearance else ''}.")
 
 
-def tight_fit_spacing(vertices: np.ndarray, faces: np.ndarray, volume: float,
-                      types: Sequence[MeshData], sizes: list[TypeSize], live: list[int],
-                      cont: Container, depth: float, spacing: float, clearance: float,
-                      type_scale: float, measured: float | None = None) -> float:
+def tight_fit_spacing(vertices: np.ndarray, faces: np.ndarray, types: Sequence[MeshData],
+                      sizes: list[TypeSize], live: list[int], grid: DistanceGrid,
+                      depth: float, spacing: float, clearance: float, type_scale: float,
+                      measured: float | None = None) -> float:
     """The container grid's spacing, finer where a type only just fits: at most a third of the
     room its deepest point leaves around the type's inner room (container units).
 
@@ -116,15 +118,15 @@ def tight_fit_spacing(vertices: np.ndarray, faces: np.ndarray, volume: float,
     true distance where the wall's distance peaks (the medial axis: the middle of a box),
     so an object with less room to spare than a cell fitted nowhere for the solver: a
     radius-2 ball in a 4.2 box, a 9 mm cube in a 9.5 mm or a 10 mm one, refused as "no
-    object could be placed" (docs/notes-robustness.md). vertices, faces, volume: the
-    container mesh; types: the object meshes (their files' units, scaled by type_scale);
-    ``depth``: the container's depth on the first grid; ``spacing``: the fidelity's;
-    ``measured``: the fine grid's depth (`measured_depth`) when the caller has it already."""
+    object could be placed" (docs/notes-robustness.md). vertices, faces: the container
+    mesh; grid: its distance grid so far; types: the object meshes (their files' units,
+    scaled by type_scale); ``depth``: the container's depth on the first grid;
+    ``spacing``: the fidelity's; ``measured``: the fine grid's depth (`measured_depth`)
+    when the caller has it already."""
     near = [i for i in live if float(sizes[i].extents.min()) / 2 + clearance > depth - spacing]
     if not near:
         return spacing
-    deepest = measured if measured is not None else measured_depth(vertices, faces, volume,
-                                                                   cont)[0]
+    deepest = measured if measured is not None else measured_depth(vertices, faces, grid)[0]
     slack = []
     for i in near:
         room = inner_room(types[i].vertices, types[i].faces) * type_scale
