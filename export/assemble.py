@@ -118,6 +118,15 @@ def export_packing(packing: Packing | str | os.PathLike,
     out = ExportReport(mode=options.mode, paths=paths, bodies=0, objects=packing.n,
                        triangles=0, clearance=clearance)
     scene = place(packing, container, types, source, labels)
+    check_scale(options, scene.hi - scene.lo, smallest_object(packing))
+    out.warnings += print_size_warning(scene.hi - scene.lo)
+    scene.make_type_solids(packing, options.resolution)
+    # refused here, before an edited packing's certification and before the objects are
+    # made solid, when the machine cannot hold it
+    cost = estimate_export(options.mode, [s.num_tri() for s in scene.type_solids],
+                           packing.type_index,
+                           2 * len(scene.container_faces) if options.shell is not None else 0)
+    check_export_cost(cost)
     why = uncertified_since(packing)
     if why is not None:
         report(0.01, f"the packing {why}: certifying it")
@@ -127,14 +136,6 @@ def export_packing(packing: Packing | str | os.PathLike,
         if note:
             out.warnings.append(note)
         check_cancel()
-    check_scale(options, scene.hi - scene.lo, smallest_object(packing))
-    out.warnings += print_size_warning(scene.hi - scene.lo)
-    scene.make_type_solids(packing, options.resolution)
-    # refused here, before the objects are made solid, when the machine cannot hold it
-    cost = estimate_export(options.mode, [s.num_tri() for s in scene.type_solids],
-                           packing.type_index,
-                           2 * len(scene.container_faces) if options.shell is not None else 0)
-    check_export_cost(cost)
     report(0.05, f"exporting ~{cost.triangles:,.0f} triangles (estimated peak memory "
                  f"{cost.memory / 2**30:.2g} GiB)")
     scene.place_solids(packing, source)

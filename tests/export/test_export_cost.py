@@ -13,6 +13,7 @@ from jampacked.core.errors import InputError
 from jampacked.core.meshes import load_mesh
 from jampacked.core.packing import Packing, TypeRecord
 from jampacked.core.report import PackInputs
+from jampacked.export import assemble
 from jampacked.export.assemble import export_packing
 from jampacked.export.cost import (
     BASE_BYTES,
@@ -71,9 +72,12 @@ def test_100k_objects_are_refused_before_any_solid_is_placed(tmp_path, monkeypat
     monkeypatch.setattr(cost_module, "machine_memory", lambda: 16 * GiB)
 
     def no_work(*args, **kwargs):
-        raise AssertionError("objects were made solid before the refusal")
+        raise AssertionError("objects were made solid or certified before the refusal")
 
     monkeypatch.setattr(PlacedScene, "place_solids", no_work)
+    # the lemons carry no certificate: a certification of 100,000 objects took 11 s here
+    # before the refusal (minutes for a real packing's)
+    monkeypatch.setattr(assemble, "certify_edited", no_work)
     out = tmp_path / "big.3mf"
     with pytest.raises(InputError) as err:
         export_packing(_lemons(100_000), out, ExportOptions(mode=mode))
