@@ -131,9 +131,11 @@ def crease_depth(px, py, pz, d, gx, gy, gz, nx, ny, nz, ox, oy, oz, h, index, of
                  planes, reach):
     """The wall depth at (px, py, pz): the grid's (d, gx, gy, gz), or where the point's
     cell is a crease cell and its planes read more room, and some (the point is inside),
-    their least depth (at most reach) and that plane's inward normal. Outside, a plane
-    reads a corner's depth short (-0.35 for -0.6), so there the grid's reading stays.
-    Returns (depth, gx, gy, gz)."""
+    their least depth (at most reach) with the grid's gradient. Outside, a plane reads a
+    corner's depth short (-0.35 for -0.6), so there the grid's reading stays. The nearest
+    plane's normal flips across a crease's bisector: pushed along it, an object in a
+    corner cleared one wall at a time and grew into its room less often than on the
+    grid's blended slope (docs/notes-core.md). Returns (depth, gx, gy, gz)."""
     if index.shape[0] == 0 or d >= reach or d <= -h:
         return d, gx, gy, gz
     fx = (px - ox) / h
@@ -148,18 +150,14 @@ def crease_depth(px, py, pz, d, gx, gy, gz, nx, ny, nz, ox, oy, oz, h, index, of
     if at < 0:
         return d, gx, gy, gz
     best = reach
-    arg = -1
     for u in range(offsets[at], offsets[at + 1]):
         pl = ids[u]
         v = planes[pl, 0] * px + planes[pl, 1] * py + planes[pl, 2] * pz + planes[pl, 3]
         if v < best:
             best = v
-            arg = pl
     if best <= d or best <= 0.0:
         return d, gx, gy, gz
-    if arg < 0:
-        return best, gx, gy, gz
-    return best, planes[arg, 0], planes[arg, 1], planes[arg, 2]
+    return best, gx, gy, gz
 
 
 @njit(cache=True, inline="always")

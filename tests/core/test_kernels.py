@@ -156,8 +156,8 @@ def pair_contact_ref(a, b, table, grids, typ, pos, quat, scale, margin, clearanc
 def wall_depth_ref(container, pts: np.ndarray):
     """The wall depth (M,) and gradient (M,3) at points (M,3): the grid's interpolant, or in
     a crease cell whose planes read more and some room (where the grid reads between -1
-    cell and their reach), the least of its planes' depths, at most the reach, and that
-    plane's normal."""
+    cell and their reach), the least of its planes' depths, at most the reach; the
+    gradient is the grid's everywhere."""
     g, cp = container.grid, container.creases
     d, grad = trilinear_ref(g.values, g.origin, g.spacing, pts)
     n = np.array(g.values.shape)
@@ -174,8 +174,6 @@ def wall_depth_ref(container, pts: np.ndarray):
         best = min(float(depth.min()), cp.reach)
         if best > max(d[m], 0.0):
             d[m] = best
-            if depth.min() < cp.reach:
-                grad[m] = planes[int(np.argmin(depth)), :3]
     return d, grad
 
 
