@@ -19,7 +19,7 @@ from jampacked.core.batch_file import SceneSpec
 
 P1 = str(mesh_path("polyhedra/convex5/polytope1.obj"))
 P3 = str(mesh_path("polyhedra/convex5/polytope3.obj"))
-SPEC = SceneSpec(id="x-s1", container="box:24x24x24", types=(P1, P3), seed=1,
+SPEC = SceneSpec(id="x-s2", container="box:24x24x24", types=(P1, P3), seed=2,
                  fidelity="low")
 
 
@@ -108,10 +108,10 @@ def test_a_rerun_packs_an_edited_file_again_and_says_why(copy):
 
 def test_each_scenes_warnings_are_printed_and_in_the_summary(packed, tmp_path):
     # this scene ends with its mix off the tolerance: pack warns, so does batch
-    shutil.copy(packed, tmp_path / "x-s1.json")
+    shutil.copy(packed, tmp_path / "x-s2.json")
     path = tmp_path / "b.toml"
     path.write_text(f'[[scene]]\nname = "x"\ncontainer = "box:24x24x24"\n'
-                    f'types = ["{P1}", "{P3}"]\nseed = 1\nfidelity = "low"\n')
+                    f'types = ["{P1}", "{P3}"]\nseed = 2\nfidelity = "low"\n')
     err = io.StringIO()
     with contextlib.redirect_stdout(io.StringIO()), contextlib.redirect_stderr(err):
         assert main(["batch", str(path), "-o", str(tmp_path), "-q"]) == 0

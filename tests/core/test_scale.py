@@ -20,7 +20,7 @@ def test_a_thousand_objects_run_the_extra_passes_to_their_end():
         "phase1_iterations": 10, "phase1_growth_steps": 10, "phase2_iterations": 10,
         "extra_iterations": 8, "extra_growth_steps": 2, "extra_patience": 4,
         "extra_passes": [0.8], "repair_rounds": 1, "tune_threads": False})
-    p = pack("box:7x7x7", POLY, seed=2, fidelity="low", type_scale=1.0 / EXTENT,
+    p = pack("box:7x7x7", POLY, seed=1, fidelity="low", type_scale=1.0 / EXTENT,
              options=opts)
     assert p.n >= 1000
     passes = p.report.extra_passes
