@@ -23,9 +23,11 @@ demo: $(STAMP)
 		--window +y@45 --drain 3 -o out/spot.3mf -o out/spot.stl --render out/spot.png
 	$(BIN)/jampacked validate out/spot.3mf out/spot.stl
 
+# the test files on two processes (pytest-xdist), each file's tests on one of them, so that
+# a module's shared fixtures are made once
 test: $(STAMP)
 	$(BIN)/ruff check core export cli addon tests bench
-	$(BIN)/python -m pytest -q
+	$(BIN)/python -m pytest -q -n 2 --dist loadfile
 
 bench: $(STAMP)
 	$(BIN)/python bench/run.py
