@@ -23,11 +23,13 @@ demo: $(STAMP)
 		--window +y@45 --drain 3 -o out/spot.3mf -o out/spot.stl --render out/spot.png
 	$(BIN)/jampacked validate out/spot.3mf out/spot.stl
 
-# the test files on two processes (pytest-xdist), each file's tests on one of them, so that
-# a module's shared fixtures are made once
+# first, alone, the tests that bound seconds (marked serial: among them the first run's
+# compile, which fills numba's cache for the rest); then the rest on two processes
+# (pytest-xdist), each file's tests on one of them, so that a module's fixtures are made once
 test: $(STAMP)
 	$(BIN)/ruff check core export cli addon tests bench
-	$(BIN)/python -m pytest -q -n 2 --dist loadfile
+	$(BIN)/python -m pytest -q -m serial
+	$(BIN)/python -m pytest -q -n 2 --dist loadfile -m "not serial"
 
 bench: $(STAMP)
 	$(BIN)/python bench/run.py

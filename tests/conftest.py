@@ -24,9 +24,16 @@ def pytest_report_header(config) -> str:
 FIRST_RUN = "first_run"
 
 
+#: marks a test that bounds a phase's seconds or the main thread's waits: `make test` runs
+#: these (and the first_run test) on their own before the rest, which runs on two processes
+SERIAL = "serial"
+
+
 def pytest_configure(config) -> None:
     config.addinivalue_line("markers", f"{FIRST_RUN}: runs before every other test (it "
                                        "fills numba's empty cache on a fresh checkout)")
+    config.addinivalue_line("markers", f"{SERIAL}: bounds seconds; `make test` runs it "
+                                       "alone, not beside another test process")
 
 
 def pytest_collection_modifyitems(config, items) -> None:

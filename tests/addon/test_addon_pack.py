@@ -145,6 +145,7 @@ def test_modal_path_and_second_pack_blocked(bpy, addon, scene):
     assert not addon.worker.busy()
 
 
+@pytest.mark.serial
 def test_blender_stays_responsive_while_packing(bpy, addon, scene):
     """The main thread (Blender's UI) gets its turns while the engine runs in the thread."""
     scene.box.scale = BIG_BOX

@@ -10,6 +10,7 @@ from testdata import MESHES, bench_module, warm_cache_env
 growth = bench_module("growth", siblings=True)
 
 
+@pytest.mark.serial
 def test_budgeted_runs_the_whole_method_with_each_sizes_budget(tmp_path, monkeypatch):
     monkeypatch.setattr(growth, "RESULTS", tmp_path)
     monkeypatch.setattr(growth, "fresh_cache_env", warm_cache_env)

@@ -210,6 +210,7 @@ def test_in_memory_container_round_trips_without_a_missing_file(tmp_path):
     assert back.container_path == name and verify_sources(back) == []
 
 
+@pytest.mark.serial
 @pytest.mark.first_run
 def test_fresh_install_compiles_before_the_time_budget_starts(tmp_path):
     """With an empty numba cache, compiling takes longer than a short budget; the budget

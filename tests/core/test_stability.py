@@ -247,6 +247,7 @@ def test_thin_features_hand_is_certified_nothing_outside():
     assert 0.1 < p.metrics["density"] < 0.6
 
 
+@pytest.mark.serial
 def test_tiny_budget_with_thousands_expected_ends_certified_with_what_it_placed():
     """About 26000 strawberries (x45, 2 mm) start in phase 1's lattice of a 60 mm box; with
     a 1 s budget the run stops on the deadline with most of them ungrown (phase 1 grew
@@ -264,6 +265,7 @@ def test_tiny_budget_with_thousands_expected_ends_certified_with_what_it_placed(
     assert p.timings["total"] < 60.0, p.timings
 
 
+@pytest.mark.serial
 def test_tens_of_thousands_of_lattice_objects_keep_the_budget():
     """46000 strawberries (x20) start in phase 1's lattice of a flat box: settling them used to
     cost (objects x objects), 4.5 s past a 1 s budget with nothing placed; only objects near

@@ -112,7 +112,7 @@ def test_the_push_by_an_edge_turns_smoothly_across_its_bisector():
     cont = build_container(m.vertices, m.faces, float(m.volume), 1.551)
     g = cont.grid
     nx, ny, nz = g.values.shape
-    # 1 mm from the x and y walls' edge, across its bisector, in 0.02 mm steps
+    # 1 mm from the x and y walls' edge, across its bisector, in steps of 0.028 mm
     t = np.linspace(-0.3, 0.3, 31)
     pts = np.stack([49.5 + t, 29.5 - t, np.full_like(t, 3.0)], axis=1)
     assert cont.creases.index[_cell(g, pts[15])] >= 0  # the planes read there
