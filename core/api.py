@@ -23,11 +23,10 @@ import numpy as np
 
 from .certify import Certifier
 from .cluster import AttemptJob, client_for, cluster_threads, place_on_cluster
-from .container import Container, container_grid, container_on
+from .container import Container, container_grid, container_on, grid_spacing
 from .cost import TypeSize, check_cost, check_sizes, estimate_cost
 from .errors import InputError, PackingError
 from .fidelity import PRESETS, Fidelity, choose_fidelity, preset
-from .grid_size import finest_spacing
 from .margins import Margins, contact_margins
 from .mesh_geometry import inner_room
 from .meshes import MeshData, box_mesh, load_mesh, parse_box_spec
@@ -353,8 +352,7 @@ def _approximate(scene: _Scene, q: np.ndarray, inputs: PackInputs,
     grid = container_grid(scene.vertices, cmesh.faces, f_min / fid.container_cells)
     depth = float(grid.values.max())
     live = [i for i, share in enumerate(q) if share > 0]
-    measured = None  # the depth on a grid fine across the container, once measured
-    fine_grid = None  # ... and that grid
+    measured = None  # (depth, grid) on a grid fine across the container, once measured
     # an object's inscribed radius is at most half its thinnest extent: below that depth
     # some type may not fit, and its inner room (a lower bound of that radius) decides
     if depth < min(float(sizes[i].extents.min()) for i in live) / 2 + clearance:
@@ -362,8 +360,8 @@ def _approximate(scene: _Scene, q: np.ndarray, inputs: PackInputs,
                                                           scene.types[i].faces) * type_scale)
                       for i in live]
         if depth < min(t.room for t in live_sizes) + clearance:  # measured again, finer
-            depth, fine_grid = measured_depth(scene.vertices, cmesh.faces, grid)
-            measured, spacing = depth, fine_grid.spacing
+            measured = measured_depth(scene.vertices, cmesh.faces, grid)
+            depth, spacing = measured[0], measured[1].spacing
             # the grid's depth is within a cell of the true depth
             if depth + spacing < min(t.room for t in live_sizes) + clearance:
                 refuse_no_room(scene.label, scene.vertices, live_sizes, depth, spacing,
@@ -377,14 +375,15 @@ def _approximate(scene: _Scene, q: np.ndarray, inputs: PackInputs,
     fid = _with_overrides(fid, inputs.options.fidelity)
     spacing = f_min / fid.container_cells
     if inputs.options.fidelity.container_cells is None:
-        fine = tight_fit_spacing(scene.vertices, cmesh.faces, scene.types, sizes, live, grid,
-                                 depth, spacing, clearance, type_scale, measured)
+        fine, measured = tight_fit_spacing(scene.vertices, cmesh.faces, scene.types, sizes,
+                                           live, grid, depth, spacing, clearance,
+                                           type_scale, measured)
         if fine < spacing:
             # the grid's cap on cells per axis may keep it coarser than asked: then a thin
             # tray's depth was measured on that same grid already
-            capped_at = max(fine, finest_spacing(np.ptp(scene.vertices, axis=0)))
-            same = fine_grid is not None and fine_grid.spacing == capped_at
-            grid = fine_grid if same else container_grid(scene.vertices, cmesh.faces, fine)
+            same = (measured is not None
+                    and measured[1].spacing == grid_spacing(scene.vertices, fine))
+            grid = measured[1] if same else container_grid(scene.vertices, cmesh.faces, fine)
             spacing = grid.spacing
             cells = f_min / spacing
             capped = " (the most the container's size allows)" if spacing > fine else ""

@@ -70,10 +70,16 @@ def container_grid(vertices: np.ndarray, faces: np.ndarray, spacing: float) -> D
     beyond the wall (`tighten_to_surface`). vertices (V,3), faces (F,3): the container mesh
     (container frame and units)."""
     vertices = np.ascontiguousarray(vertices, np.float64)
-    spacing = max(float(spacing), finest_spacing(np.ptp(vertices, axis=0)))
+    spacing = grid_spacing(vertices, spacing)
     return tighten_to_surface(distance_grid(vertices, faces, spacing, pad=2 * spacing,
                                               band=GRID_BAND),
                               vertices, faces)
+
+
+def grid_spacing(vertices: np.ndarray, spacing: float) -> float:
+    """The spacing `container_grid` builds for a requested one: no finer than the cap on
+    cells (`grid_size.finest_spacing`) for the container's vertices (V,3)."""
+    return max(float(spacing), finest_spacing(np.ptp(vertices, axis=0)))
 
 
 def container_on(vertices: np.ndarray, faces: np.ndarray, volume: float,

@@ -110,7 +110,8 @@ def refuse_too_long(label: str, vertices: np.ndarray, sizes: Sequence[TypeSize],
 def tight_fit_spacing(vertices: np.ndarray, faces: np.ndarray, types: Sequence[MeshData],
                       sizes: list[TypeSize], live: list[int], grid: DistanceGrid,
                       depth: float, spacing: float, clearance: float, type_scale: float,
-                      measured: float | None = None) -> float:
+                      measured: tuple[float, DistanceGrid] | None = None
+                      ) -> tuple[float, tuple[float, DistanceGrid] | None]:
     """The container grid's spacing, finer where a type only just fits: at most a third of the
     room its deepest point leaves around the type's inner room (container units).
 
@@ -121,12 +122,14 @@ def tight_fit_spacing(vertices: np.ndarray, faces: np.ndarray, types: Sequence[M
     object could be placed" (docs/notes-robustness.md). vertices, faces: the container
     mesh; grid: its distance grid so far; types: the object meshes (their files' units,
     scaled by type_scale); ``depth``: the container's depth on the first grid;
-    ``spacing``: the fidelity's; ``measured``: the fine grid's depth (`measured_depth`)
-    when the caller has it already."""
+    ``spacing``: the fidelity's; ``measured``: the fine grid's depth and that grid
+    (`measured_depth`) when the caller has them already. Returns (the spacing, the
+    measured depth and grid, or None where no type only just fits and none was given)."""
     near = [i for i in live if float(sizes[i].extents.min()) / 2 + clearance > depth - spacing]
     if not near:
-        return spacing
-    deepest = measured if measured is not None else measured_depth(vertices, faces, grid)[0]
+        return spacing, measured
+    measured = measured if measured is not None else measured_depth(vertices, faces, grid)
+    deepest = measured[0]
     slack = []
     for i in near:
         room = inner_room(types[i].vertices, types[i].faces) * type_scale
@@ -136,7 +139,7 @@ def tight_fit_spacing(vertices: np.ndarray, faces: np.ndarray, types: Sequence[M
         left = deepest - room - clearance
         if 0.0 < left < spacing:
             slack.append(left)
-    return min(spacing, min(slack) / 3.0) if slack else spacing
+    return (min(spacing, min(slack) / 3.0) if slack else spacing), measured
 
 
 def check_types_fit(objtypes: list[ObjectType], cont: Container, clearance: float) -> None:
