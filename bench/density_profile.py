@@ -14,7 +14,8 @@ density as a check. For reference it draws the fraction a hexagonal layer of tou
 spheres of radius r fills against a flat wall, in the band 0-r (60.5% over the band), and
 how dense that band would have to be, the rest unchanged, for the density to reach
 --target (issue 5's bar for fruit-in-bunny: 55%). Writes
-bench/results/density_profile.json and density_profile.png.
+bench/results/density_profile.json and density_profile.png, or --out and the chart beside
+it (so that profiling a packing of one's own keeps the bench's record).
 """
 
 from __future__ import annotations
@@ -162,6 +163,9 @@ def main(argv: list[str] | None = None) -> int:
     ap.add_argument("--meshes", type=Path, default=MESHES)
     ap.add_argument("--target", type=float, default=0.55,
                     help="density to say the first band's requirement for (default 0.55)")
+    ap.add_argument("--out", type=Path, default=RESULTS / "density_profile.json",
+                    help="where to write the profile's JSON; its chart goes beside it as .png "
+                    "(default: the bench's own, bench/results/density_profile.json)")
     a = ap.parse_args(argv)
     path = a.packing
     if path is None:
@@ -169,8 +173,8 @@ def main(argv: list[str] | None = None) -> int:
         _pack_scene(a.scene, a.seed, a.meshes, path)
     data = profile(path, a.target)
     data["packing"] = path.name if a.packing is None else str(path)
-    write_json(RESULTS / "density_profile.json", data)
-    chart(data, RESULTS / "density_profile.png")
+    write_json(a.out, data)
+    chart(data, a.out.with_suffix(".png"))
     fb = data["first_band"]
     print(f"estimate {data['estimate']:.1%} (certified {data['density']:.1%}); band 0-r: "
           f"{fb['volume_share']:.0%} of the volume at {fb['density']:.1%} (hexagonal sphere "

@@ -33,9 +33,8 @@ def test_hex_layer_reference():
     assert dp.hex_layer_fraction(0.0, r) == 0.0
 
 
-def test_profile_of_a_known_packing(tmp_path):
-    """Eight 10-unit cubes filling the central 20-unit cube of a 40-unit box: occupied
-    exactly where the depth from the wall is >= 10, 1/8 of the volume."""
+def _cubes_packing(tmp_path):
+    """Eight 10-unit cubes filling the central 20-unit cube of a 40-unit box, saved."""
     cube = tmp_path / "cube.obj"
     trimesh.creation.box(extents=(10.0, 10.0, 10.0)).export(cube)
     m = load_mesh(cube)
@@ -49,7 +48,13 @@ def test_profile_of_a_known_packing(tmp_path):
                 metrics={"density": 8000 / 64000})
     path = tmp_path / "cubes.json"
     save_packing(p, path)
-    data = dp.profile(path, target=0.2, samples=100_000)
+    return path
+
+
+def test_profile_of_a_known_packing(tmp_path):
+    """The cubes are there exactly where the depth from the wall is >= 10, 1/8 of the
+    volume."""
+    data = dp.profile(_cubes_packing(tmp_path), target=0.2, samples=100_000)
     r = (3 * 1000 / (4 * np.pi)) ** (1 / 3)
     assert data["mean_equivalent_radius"] == pytest.approx(r)
     assert data["estimate"] == pytest.approx(0.125, abs=0.005)
@@ -69,3 +74,15 @@ def test_profile_of_a_known_packing(tmp_path):
     rest = 1.0 - fb["volume_share"]
     assert data["first_band_density_for_target"] == pytest.approx(
         (0.2 - data["beyond_first_band_density"] * rest) / fb["volume_share"], rel=1e-6)
+
+
+def test_a_packing_of_ones_own_keeps_the_benchs_record(tmp_path, monkeypatch):
+    """--out takes the profile and its chart; the bench's own files are not written."""
+    results = tmp_path / "results"
+    results.mkdir()
+    monkeypatch.setattr(dp, "RESULTS", results)
+    mine = tmp_path / "mine" / "profile.json"
+    mine.parent.mkdir()
+    assert dp.main(["--packing", str(_cubes_packing(tmp_path)), "--out", str(mine)]) == 0
+    assert mine.is_file() and mine.with_suffix(".png").is_file()
+    assert list(results.iterdir()) == []
