@@ -42,7 +42,7 @@ def run_warnings(names: Sequence[str], shares: np.ndarray, counts: np.ndarray, t
         placed = ", ".join(f"{n} {c / counts.sum():.0%} (asked {s:.0%})"
                            for n, c, s in zip(names, counts, shares, strict=True))
         out.append(f"the type mix is off: TVD {tvd:.3f} against the tolerance {max_tvd:g}; "
-                   f"placed {placed}.")
+                   f"placed {placed}. " + _mix_advice(names, shares, counts, tvd, max_tvd))
     if phase1.stopped == "deadline":
         out.append(
             f"the time budget ({time_budget:g} s) ended while the first objects were still "
@@ -87,3 +87,22 @@ def slow_certification(seconds: float, time_budget: float | None, names: Sequenc
             f"{faces[heavy]:,} faces, and the exact checks' time grows with them. A copy "
             "simplified to a few thousand faces (Blender: Decimate modifier) certifies far "
             "faster and looks the same in print at most sizes."]
+
+
+def _mix_advice(names: Sequence[str], shares: np.ndarray, counts: np.ndarray, tvd: float,
+                max_tvd: float) -> str:
+    """How to bring an off mix back, by its cause: with few objects the cavity passes may
+    take one object beyond the best mix the count allows (`metrics.mix_cap`), which a zero
+    tolerance does not; otherwise the types short of their share found no room."""
+    n = int(counts.sum())
+    if max_tvd > 0 and tvd <= best_tvd(shares, n) + 1.0 / n + 1e-9:
+        return (f"With {n} objects one object moves the mix by about {1.0 / n:.2f}, and the "
+                "cavity passes may take one more object of a type to fill a hole; a mix "
+                "tolerance of 0 (--mix-tolerance 0 / mix_tolerance=0) keeps the mix as close "
+                f"as {n} objects allow, which can cost an object or two.")
+    short = [names[i] for i in np.flatnonzero(counts / n < shares - 1e-12)]
+    return (f"The types short of their share ({', '.join(short)}) found no more room: "
+            "smaller objects of those types (--type-scale / type_scale) or a larger "
+            "container (--container-size / container_size) fit more of them, and a mix "
+            "tolerance of 0 (--mix-tolerance 0 / mix_tolerance=0) holds the other types "
+            "back to the shares, with fewer objects.")

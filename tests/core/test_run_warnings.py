@@ -37,6 +37,17 @@ def test_a_type_never_placed_is_named():
 def test_a_mix_far_from_the_shares_is_reported():
     (w,) = _warn([30, 70], tvd=0.2)
     assert "TVD 0.200" in w and "apple 30% (asked 50%)" in w
+    # and how to bring it back: the short type named, what makes room for it
+    assert "short of their share (apple)" in w and "--type-scale" in w
+    assert "--mix-tolerance 0" in w
+
+
+def test_a_small_scenes_mix_one_object_off_says_why_and_what_keeps_it():
+    """4 and 7 of 11 objects: one object beyond the best mix 11 allow (5 and 6), which the
+    passes' one-object slack permits and a zero tolerance does not."""
+    (w,) = _warn([4, 7], tvd=0.5 * (abs(4 / 11 - 0.5) + abs(7 / 11 - 0.5)))
+    assert "With 11 objects one object moves the mix by about 0.09" in w
+    assert "--mix-tolerance 0 / mix_tolerance=0" in w and "short of" not in w
 
 
 def test_a_budget_ending_in_phase_1_and_attempts_cut_short():
