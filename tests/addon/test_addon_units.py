@@ -189,6 +189,23 @@ def test_engine_messages_in_blender_words():
         "scale, 0.5)"
 
 
+def test_the_mix_warnings_in_blender_words():
+    """Both kinds of advice an off mix gets name only what a Blender user changes."""
+    from jampacked.core.report import PhaseStats
+    from jampacked.core.run_warnings import run_warnings
+
+    half = np.array([0.5, 0.5])
+    for counts in ([4, 7], [30, 70]):  # few objects, one beyond the best mix; far off
+        c = np.array(counts)
+        tvd = 0.5 * float(np.abs(c / c.sum() - half).sum())
+        (w,) = run_warnings(["apple", "plum"], half, c, tvd, 0.04, PhaseStats(), None, None,
+                            None, 1)
+        words = summary.in_blender_words(w)
+        assert "Mix Tolerance 0" in words
+        for cli in ("--", "mix_tolerance", "type_scale", "container_size"):
+            assert cli not in words, (cli, words)
+
+
 def test_the_drain_warning_in_blender_words(monkeypatch):
     # the add-on exports with +z up: the advice to give another up axis is left out
     from types import SimpleNamespace
