@@ -9,6 +9,7 @@ from __future__ import annotations
 import argparse
 import contextlib
 import json
+from pathlib import Path
 
 from rich.markup import escape
 
@@ -152,6 +153,14 @@ def _json_failure(args: argparse.Namespace, exc: Exception) -> None:
                           "error": " ".join(str(exc).split())}, indent=1))
 
 
+def _check_render(render: str) -> None:
+    """--render names a PNG: so it is none of the -o files (it would replace the mesh just
+    validated) and none of the packing's input meshes, which are all mesh formats."""
+    if Path(render).suffix.lower() != ".png":
+        raise UsageError(f"--render {render}: the render is a PNG image and would replace "
+                         "that file; give it a .png name, e.g. render.png")
+
+
 def cmd_export(args: argparse.Namespace) -> int:
     """Run ``jampacked export``; returns the exit status."""
     from jampacked.export.assemble import export_packing
@@ -161,6 +170,8 @@ def cmd_export(args: argparse.Namespace) -> int:
         for path in args.output + ([args.render] if args.render else []):
             check_output(path, "-o" if path != args.render else "--render", [args.packing],
                          "packing file")
+        if args.render:
+            _check_render(args.render)
         try:
             options = ExportOptions(mode=args.mode, shell=args.shell,
                                     opening=args.open_plane or args.window, drain=args.drain,

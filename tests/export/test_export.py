@@ -689,6 +689,21 @@ def test_cli_export_with_shell_render_and_up(apart, tmp_path, capsys):
     assert v.passed and v.bbox_max[1] < 40 - 2.0 - 10  # the +y wall is cut away
 
 
+def test_cli_render_over_a_mesh_is_refused_and_nothing_written(apart, tmp_path, capsys):
+    """--render wrote its PNG over whatever it named, exit 0: the -o mesh just validated,
+    or an input mesh. It must be a .png of its own; nothing is written when it is not."""
+    from jampacked.cli.main import main
+
+    out = tmp_path / "s.3mf"
+    rc = main(["export", str(apart), "-o", str(out), "--render", str(out)])
+    assert rc == 2 and ".png name" in capsys.readouterr().err and not out.exists()
+    mesh = tmp_path / "container.obj"
+    mesh.write_bytes(P1.read_bytes())
+    rc = main(["export", str(apart), "-o", str(out), "--render", str(mesh)])
+    assert rc == 2 and ".png name" in capsys.readouterr().err
+    assert mesh.read_bytes() == P1.read_bytes() and not out.exists()
+
+
 # --------------------------------------------------------------------------- cleanup
 
 
