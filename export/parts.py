@@ -19,7 +19,7 @@ import numpy as np
 from scipy.spatial import cKDTree
 
 from jampacked.core.errors import InputError, MeshError
-from jampacked.core.solids import solid_arrays
+from jampacked.core.solids import solid_arrays, to_solid
 
 __all__ = ["box_gaps", "near_pairs", "require_gap", "separate_parts", "smallest_gap"]
 
@@ -115,7 +115,7 @@ def smallest_gap(gap: Callable[[int, int, float], float], pairs: np.ndarray,
     return None, None
 
 
-def separate_parts(solids: list[m3.Manifold], clearance: float
+def separate_parts(solids: list[m3.Manifold], clearance: float, *, float32: bool = False
                    ) -> tuple[list[tuple[np.ndarray, np.ndarray]], float | None]:
     """Each solid its own body: (bodies as (vertices, faces), smallest gap between near
     parts or None when no two parts are near). ``clearance`` > 0 (see :func:`require_gap`).
@@ -123,9 +123,13 @@ def separate_parts(solids: list[m3.Manifold], clearance: float
     Near parts: those whose bounding boxes come within the clearance (plus SEARCH_MARGIN) of
     each other, and each part's NEIGHBOURS nearest by their boxes' centres. Every pair that
     could be closer than the clearance is checked exactly (manifold3d ``min_gap``).
+    float32: a file that stores 32-bit positions (STL, PLY) is among the outputs; where
+    that rounding (half a float32 step at the parts' largest coordinate, on each side) could
+    take the smallest gap below the clearance, the gaps are measured again on the positions
+    rounded as such a file stores them, and those are the ones reported.
 
     Raises MeshError when two parts are closer than ``clearance`` (a coarse resolution can
-    move surfaces by up to its value).
+    move surfaces by up to its value; 32-bit positions far from the origin by their step).
     """
     bodies = [solid_arrays(s) for s in solids]
     if len(bodies) < 2:
@@ -134,19 +138,50 @@ def separate_parts(solids: list[m3.Manifold], clearance: float
     hi = np.array([b[0].max(axis=0) for b in bodies])
     pairs = near_pairs(lo, hi, clearance * (1.0 + SEARCH_MARGIN))
     pairs = np.unique(np.concatenate([pairs, _neighbours(0.5 * (lo + hi))]), axis=0)
-    def gap(i: int, j: int, search: float) -> float:
-        return float(solids[i].min_gap(solids[j], search))
-
     farthest = float(np.linalg.norm(np.maximum(hi[pairs[:, 0]], hi[pairs[:, 1]])
                                     - np.minimum(lo[pairs[:, 0]], lo[pairs[:, 1]]),
                                     axis=1).max())
-    worst, where = smallest_gap(gap, pairs, box_gaps(lo, hi, pairs), farthest, clearance)
-    if worst is not None and where is not None and worst < clearance * (1 - GAP_TOLERANCE):
-        raise MeshError(f"parts closer than the packing's clearance {clearance:g}: objects "
-                        f"{where[0]} and {where[1]} are {worst:.4g} apart. A coarse "
-                        "--resolution can move surfaces by up to its value: use a finer one, "
-                        "or pack with a larger clearance.")
+    lower = box_gaps(lo, hi, pairs)
+
+    def gap(i: int, j: int, search: float) -> float:
+        return float(solids[i].min_gap(solids[j], search))
+
+    worst, where = smallest_gap(gap, pairs, lower, farthest, clearance)
+    _require(worst, where, clearance, "")
+    # each vertex moves by at most half a float32 step per coordinate: |x| 2^-24 each
+    shift = 2.0 * np.sqrt(3.0) * float(np.abs(np.concatenate([lo, hi])).max()) * 2.0 ** -24
+    if float32 and worst is not None and worst - shift < clearance * (1 - GAP_TOLERANCE):
+        rounded: dict[int, m3.Manifold] = {}
+
+        def solid32(i: int) -> m3.Manifold:
+            if i not in rounded:
+                rounded[i] = to_solid(*bodies[i], double=False)
+            return rounded[i]
+
+        def gap32(i: int, j: int, search: float) -> float:
+            return float(solid32(i).min_gap(solid32(j), search))
+
+        worst, where = smallest_gap(gap32, pairs, lower - shift, farthest, clearance)
+        reach = float(np.abs(np.concatenate([lo, hi])).max())
+        _require(worst, where, clearance, (
+            f" as an STL or PLY file stores them: 32-bit positions are "
+            f"{float(np.spacing(np.float32(reach))):.2g} apart at coordinates up to "
+            f"{reach:.4g}. Write .3mf, which keeps the positions' full precision, or pack "
+            "the container nearer the origin"))
     return bodies, worst
+
+
+def _require(worst: float | None, where: tuple[int, int] | None, clearance: float,
+             stored: str) -> None:
+    """Raise MeshError if the smallest gap ``worst`` (between parts ``where``) is below the
+    clearance; ``stored`` says how the positions were stored, and what to do, when they
+    were rounded."""
+    if worst is None or where is None or worst >= clearance * (1 - GAP_TOLERANCE):
+        return
+    advice = stored or (". A coarse --resolution can move surfaces by up to its value: use "
+                        "a finer one, or pack with a larger clearance")
+    raise MeshError(f"parts closer than the packing's clearance {clearance:g}: objects "
+                    f"{where[0]} and {where[1]} are {worst:.4g} apart{advice}.")
 
 
 def _neighbours(centres: np.ndarray) -> np.ndarray:

@@ -120,3 +120,28 @@ def test_separate_parts_reports_the_exact_smallest_gap_of_real_solids():
     want = min(a.min_gap(b, 10 * size) for a, b in itertools.combinations(solids, 2))
     assert len(bodies) == 4
     assert gap == pytest.approx(want, rel=1e-12) and 1.0 < gap < 10 * size
+
+
+def test_parts_far_from_the_origin_keep_the_clearance_as_stl_stores_them():
+    """Two cubes 0.2028 apart at x = 3e6 (a packing 3 km from the origin in mm): the 3MF keeps
+    the gap, but an STL's 32-bit positions (a step of 0.25 there) closed it, and the export
+    reported 0.2028 and PASS. With a 32-bit output the gaps are measured as stored."""
+    import manifold3d as m3
+
+    from jampacked.core.errors import MeshError
+    from jampacked.export.parts import separate_parts
+
+    x = 3e6
+    a = m3.Manifold.cube((5.0, 5.0, 5.0)).translate((x + 10.13 - 5.0, 0.0, 0.0))
+    b = m3.Manifold.cube((5.0, 5.0, 5.0)).translate((x + 10.3328, 0.0, 0.0))
+    # what an STL stores: the faces 0.2028 apart round onto the same float32 value
+    assert np.float32(x + 10.13) == np.float32(x + 10.3328)
+    bodies, gap = separate_parts([a, b], 0.2)
+    assert gap == pytest.approx(0.2028, abs=1e-6)
+    with pytest.raises(MeshError, match="STL or PLY") as err:
+        separate_parts([a, b], 0.2, float32=True)
+    assert ".3mf" in str(err.value)
+    # near the origin the 32-bit step is far below the clearance: the same gap, no second
+    # measurement needed
+    near = [s.translate((-x, 0.0, 0.0)) for s in (a, b)]
+    assert separate_parts(near, 0.2, float32=True)[1] == pytest.approx(0.2028, abs=1e-5)
