@@ -288,9 +288,12 @@ def _drain_warning(packing: Packing, scene: PlacedScene, options: ExportOptions,
     more = f" and {len(covered) - 3} more" if len(covered) > 3 else ""
     where = ", ".join(f"{c:.4g}" for c in at)
     sit = "sits" if len(covered) == 1 else "sit"
-    return [f"the drain hole at ({where}) is covered: {names}{more} {sit} within its radius "
-            f"above it, so liquid or powder may not reach it. Open the shell with "
-            f"--open-plane or --window{DRAIN_UP_ADVICE}."]
+    head = (f"the drain hole at ({where}) is covered: {names}{more} {sit} within its radius "
+            f"above it, so liquid or powder may not reach it.")
+    if options.opening is not None:  # the shell is open already: say so, not to open it
+        what = "plane cut" if options.opening.kind == "plane" else "window"
+        return [f"{head} It can leave through the shell's {what} instead{DRAIN_UP_ADVICE}."]
+    return [f"{head} Open the shell with --open-plane or --window{DRAIN_UP_ADVICE}."]
 
 
 #: filled sealed voids more than this share of the print's volume are said: the space

@@ -222,6 +222,15 @@ def test_the_drain_warning_in_blender_words(monkeypatch):
         "The drain hole at (0, 0, -38) is covered: lemon #0 sits within its radius above "
         "it, so liquid or powder may not reach it. Open the shell with an Opening (Plane or "
         "Window).")
+    # a shell opened already is not told to open: the opening lets the liquid out
+    from jampacked.export.options import Opening
+
+    opened = ExportOptions(mode="union", shell=2.0, drain=3.0,
+                           opening=Opening(axis="+z", at=0.75))
+    text, = assemble._drain_warning(packing, SimpleNamespace(solids=[]), opened, (0, 0, -38))
+    assert "--open-plane" not in text and "through the shell's plane cut instead" in text
+    assert summary.in_blender_words(text).endswith(
+        "may not reach it. It can leave through the shell's plane cut instead.")
 
 
 def test_export_options_from_the_panel():
