@@ -22,6 +22,7 @@ from jampacked.core.errors import InputError
 from jampacked.core.mesh_files import MESH_EXTENSIONS
 from jampacked.core.meshes import parse_box_spec
 from jampacked.core.packing import is_spec
+from jampacked.core.packing_types import distinct_names
 
 #: the bundled default scene (inside the installed jampacked.core package)
 DEFAULT_SCENE = ("data", "default_scene")
@@ -103,14 +104,15 @@ def resolve_shares(shares: Sequence[float | None], labels: Sequence[str]) -> lis
 def shares_note(shares: Sequence[float] | None, labels: Sequence[str]) -> str | None:
     """A note when every type's share is a fraction or a percent (none a weight above 1)
     and they do not add up to 100% (within half a point): they are then read as
-    proportions, which a typo (40% + 40% + 40%) would silently change."""
+    proportions, which a typo (40% + 40% + 40%) would silently change. labels: the types'
+    names."""
     if not shares or any(s > 1.0 for s in shares):
         return None
     total = float(sum(shares))
     if abs(total - 1.0) <= 0.005:
         return None
     # one decimal where a whole percent would not add up (50% and 30%: 62.5% and 37.5%)
-    scaled = ", ".join(f"{Path(lab).stem} {f'{100 * s / total:.1f}'.removesuffix('.0')}%"
+    scaled = ", ".join(f"{lab} {f'{100 * s / total:.1f}'.removesuffix('.0')}%"
                        for lab, s in zip(labels, shares, strict=True))
     return (f"the shares add up to {_percent(total)}, not 100%; they are taken as proportions: "
             f"{scaled}")
@@ -222,8 +224,26 @@ def resolve_scene(args: argparse.Namespace, stack: contextlib.ExitStack) -> Scen
         if os.path.abspath(args.preview) == os.path.abspath(args.output):
             raise UsageError("--preview and -o name the same file; give the preview its own "
                              "name, e.g. preview.png")
-    note = shares_note(shares, paths)
+    labels = names or distinct_names([Path(p).stem for p in paths])
+    notes = [n for n in (twice_note(paths, labels), shares_note(shares, labels)) if n]
     return Scene(container=container, types=paths, shares=shares, names=names,
                  container_size=container_size,
                  type_scale=1.0 if type_scale is None else type_scale,
-                 notes=[note] if note else [])
+                 notes=notes)
+
+
+def twice_note(paths: Sequence[str], labels: Sequence[str]) -> str | None:
+    """A note when one mesh file is given as more than one type (the types' files and
+    names): that packs as that many types, each with its own share and spread (two colours
+    of one bead), which a repeated --type by mistake would silently do."""
+    seen: dict[str, list[int]] = {}
+    for i, p in enumerate(paths):
+        seen.setdefault(os.path.normcase(os.path.realpath(p)), []).append(i)
+    twice = [idx for idx in seen.values() if len(idx) > 1]
+    if not twice:
+        return None
+    said = "; ".join(f"{paths[idx[0]]} as {', '.join(labels[i] for i in idx)}"
+                     for idx in twice)
+    return (f"a mesh file is given more than once: {said}. Each copy packs as a type of its "
+            "own, with its own share and spread (as for two colours of one object); to pack "
+            "it as one type, give it once with the sum of the shares.")

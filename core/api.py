@@ -35,7 +35,7 @@ from .numba_cache import COMPILE_MESSAGE, cache_is_cold
 from .objects import ObjectType, build_type
 from .options import FidelityOverrides, PackOptions
 from .packing_digest import record_digest
-from .packing_types import Packing, TypeRecord
+from .packing_types import Packing, TypeRecord, distinct_names
 from .phases import Stop
 from .placement import Attempt, Snapshots, place
 from .repair import certify_and_repair
@@ -268,15 +268,8 @@ def _type_names(scene: _Scene, names: Sequence[str] | None) -> list[str]:
     b/fruit.obj must be told apart in the summary, the packing file and the exports."""
     if names is not None:
         return list(names)
-    out: list[str] = []
-    for i, m in enumerate(scene.types):
-        stem = Path(m.path).stem if m.path else (m.name or f"type{i}")
-        name, k = stem, 1
-        while name in out:
-            k += 1
-            name = f"{stem}-{k}"
-        out.append(name)
-    return out
+    return distinct_names([Path(m.path).stem if m.path else (m.name or f"type{i}")
+                           for i, m in enumerate(scene.types)])
 
 
 def _type_sizes(scene: _Scene, type_scale: float, names: Sequence[str] | None

@@ -161,3 +161,16 @@ def container_mesh(packing: Packing, action: str = "load"):
                              "and mesh files are known")
         return box_mesh(box)
     return load_mesh(spec, role="container")
+
+
+def distinct_names(stems: list[str]) -> list[str]:
+    """The type names given these file stems: a stem that repeats an earlier name followed
+    by "-2", "-3"... (the names `pack` gives types read from files)."""
+    out: list[str] = []
+    for stem in stems:
+        name, k = stem, 1
+        while name in out:
+            k += 1
+            name = f"{stem}-{k}"
+        out.append(name)
+    return out

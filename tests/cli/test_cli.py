@@ -488,7 +488,7 @@ def test_shares_note_when_percents_do_not_add_up():
     assert shares_note([0.4, 0.6], ["a", "b"]) is None
     assert shares_note([1 / 3, 1 / 3, 0.333], ["a", "b", "c"]) is None  # rounding
     assert shares_note([2.0, 1.0], ["a", "b"]) is None  # weights: proportions meant
-    note = shares_note([0.4, 0.4, 0.4], ["dir/a.obj", "b.stl", "c.ply"])
+    note = shares_note([0.4, 0.4, 0.4], ["a", "b", "c"])
     assert note is not None and "120%" in note and "a 33.3%, b 33.3%, c 33.3%" in note
     assert "60%" in shares_note([0.3, 0.3], ["a", "b"])
     # 50% and 30% are 62.5% and 37.5% (whole percents read 62% and 37%: 99%)
@@ -509,6 +509,24 @@ def test_pack_warns_when_percents_do_not_add_up(tmp_path):
                      "--fidelity", "low", "--time-budget", "1", "--seed", "1", "-q",
                      "-o", str(out)])
     assert rc == 0 and "add up" not in se
+
+
+def test_one_file_given_as_two_types_is_said_with_the_names_they_get(tmp_path):
+    """The same polytope twice (60% and 20%) packed as two types without a word, and the
+    shares' note named both "polytope1"."""
+    args = build_parser().parse_args(["pack", "box:30x30x30", "--type", f"{P1}=60%",
+                                      "--type", f"{P1}=20%", "--type", f"{P3}=30%",
+                                      "-o", str(tmp_path / "p.json")])
+    with contextlib.ExitStack() as stack:
+        scene = resolve_scene(args, stack)
+    twice, shares = scene.notes
+    assert "given more than once" in twice and "as polytope1, polytope1-2" in twice
+    assert "give it once with the sum of the shares" in twice
+    assert shares.endswith("polytope1 54.5%, polytope1-2 18.2%, polytope3 27.3%")
+    args = build_parser().parse_args(["pack", "box:30x30x30", "--type", str(P1), "--type",
+                                      str(P3), "-o", str(tmp_path / "p.json")])
+    with contextlib.ExitStack() as stack:
+        assert resolve_scene(args, stack).notes == []
 
 
 def test_default_scene_resolves_bundled_files(tmp_path):
