@@ -55,20 +55,31 @@ def refuse_no_room(label: str, vertices: np.ndarray, sizes: list[TypeSize], dept
     dims = " x ".join(f"{x:.4g}" for x in c_ext)
     most = depth + spacing  # the deepest the container can be
     big = sorted([t for t in sizes if t.room + clearance >= most], key=lambda t: t.room)
+    def needs(t: TypeSize) -> str:
+        if not clearance:
+            return (f"{t.room:.4g} units of depth (equivalent radius "
+                    f"{t.equivalent_radius:.4g})")
+        return (f"{t.room + clearance:.4g} units of depth ({t.room:.4g} of its own, "
+                f"equivalent radius {t.equivalent_radius:.4g}, and the clearance "
+                f"{clearance:g})")
+
     listed = "; ".join(
-        f"{t.label}: needs at least {t.room:.4g} units of depth (equivalent radius "
-        f"{t.equivalent_radius:.4g}), {' x '.join(f'{x:.4g}' for x in t.extents)} units "
-        "across" for t in big[:5])
+        f"{t.label}: needs at least {needs(t)}, "
+        f"{' x '.join(f'{x:.4g}' for x in t.extents)} units across" for t in big[:5])
     more = f"; and {len(big) - 5} more" if len(big) > 5 else ""
     room = most - clearance
     factor = (f"by a factor of at least {big[0].room / room:.3g}"
               if room > 0 else "after lowering the clearance")
     plus = f" plus the clearance {clearance:g}" if clearance else ""
+    # a clearance deeper than the container: most likely given in mm for a file in metres
+    alone = (f" The clearance alone is more than that depth: it is in the container's "
+             f"units, and this container is {float(c_ext.max()):.4g} units across "
+             f"(--container-size sets that size)." if room <= 0 else "")
     raise PackingError(
         f"no object fits: the container {label} ({dims} units) is {depth:.4g} units "
         f"deep at its deepest interior point (within {spacing:.2g}), and each object needs "
-        f"a depth of at least its own inner room{plus} there. Too large: {listed}{more}. "
-        f"Scale the objects down (--type-scale / "
+        f"a depth of at least its own inner room{plus} there. Too large: {listed}{more}."
+        f"{alone} Scale the objects down (--type-scale / "
         f"type_scale, {factor}) or the container up (--container-size / container_size)"
         f"{', or lower the clearance' if clearance else ''}.")
 

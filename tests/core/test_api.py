@@ -412,6 +412,21 @@ def test_a_type_far_larger_than_the_container_is_named_with_its_file():
     assert "--type-scale" in text and "factor of at least 7.55" in text
 
 
+def test_a_clearance_deeper_than_the_container_is_counted_in_the_depth_said():
+    """A 0.3 clearance for a container 0.1 deep (a file in metres, the clearance meant in
+    mm): each type was said to need its own depth only (0.026, less than the 0.1 there),
+    with the clearance in a clause before; now the sum, and that the clearance alone is
+    more than the depth, in the container's units."""
+    with pytest.raises(PackingError, match="no object fits") as err:
+        pack("box:0.8x0.6x0.2", POLY[:1], type_scale=0.002, clearance=0.3, fidelity="low")
+    text = str(err.value)
+    own = float(text.split("units of depth (")[1].split(" of its own")[0])
+    needed = float(text.split("needs at least ")[1].split(" units")[0])
+    assert needed == pytest.approx(own + 0.3, abs=1e-3), text
+    assert "The clearance alone is more than that depth" in text
+    assert "this container is 0.8 units across" in text
+
+
 def test_flat_objects_in_a_thin_tray_are_not_refused_up_front():
     # 10 mm coins 1 mm thick in a 2 mm tray were refused: "no object fits ... 0.6729 units
     # deep", as if an object needed half its equivalent radius (1.33) of depth; a coin
