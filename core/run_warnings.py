@@ -99,7 +99,8 @@ def _mix_advice(names: Sequence[str], shares: np.ndarray, counts: np.ndarray, tv
         return (f"With {n} objects one object moves the mix by about {1.0 / n:.2f}, and the "
                 "cavity passes may take one more object of a type to fill a hole; a mix "
                 "tolerance of 0 (--mix-tolerance 0 / mix_tolerance=0) keeps the mix as close "
-                f"as {n} objects allow, which can cost an object or two.")
+                "as the count allows, at the cost of the objects the mix cannot take (in a "
+                "small scene, maybe several).")
     short = [names[i] for i in np.flatnonzero(counts / n < shares - 1e-12)]
     return (f"The types short of their share ({', '.join(short)}) found no more room: "
             "smaller objects of those types (--type-scale / type_scale) or a larger "
