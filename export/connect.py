@@ -3,9 +3,11 @@
 Frames: the packing's container frame, container units. The plan:
 
 1. Proximity graph: candidate pairs from the Delaunay triangulation of the object centres
-   (it contains the Euclidean minimum spanning tree) plus the k nearest centres, and one edge
+   (it contains the Euclidean minimum spanning tree) plus the k nearest centres and the
+   pairs whose bounding boxes meet, and one edge
    from every object to each body of the shell (an opening can cut it into several). Each
-   edge's weight is the nearest-vertex distance.
+   edge's weight is the nearest-vertex distance, and 0 between objects that overlap by a
+   positive volume (the union fuses them, tree edge or not).
 2. Minimum spanning tree over that graph (scipy). Tree edges whose two solids overlap by a
    positive volume (exact gap from manifold3d ``min_gap``, then the intersection) are fused
    by the union and need no strut.
@@ -27,9 +29,11 @@ from scipy.sparse.csgraph import connected_components, minimum_spanning_tree
 from scipy.spatial import Delaunay, QhullError, cKDTree
 
 from jampacked.core.phases import equivalent_radius
+from jampacked.core.separation import apart_pairs, hull_points, hull_table
 from jampacked.core.solids import solid_arrays
 
 from .closest import Surface
+from .parts import near_pairs
 from .scene import PlacedScene, transform_points
 
 #: a strut poking out of the container by more than this fraction of its volume is refused
@@ -109,6 +113,23 @@ def _link_components(n: int, pairs: np.ndarray, centres: np.ndarray) -> np.ndarr
         pairs = np.concatenate([pairs, new[None]]).astype(np.int64)
 
 
+def _overlapping(objects: Sequence[PlacedObject], pairs: np.ndarray, scale: float
+                 ) -> np.ndarray:
+    """(E,) which object pairs (E, 2) overlap by a positive volume (as `_judge_edge` calls
+    fused): pairs whose vertices' convex hulls a plane proves apart
+    (`core.separation.apart_pairs`) are not, and only the others are measured exactly."""
+    if len(pairs) == 0:
+        return np.zeros(0, bool)
+    pts, off = hull_table([hull_points(o.vertices) for o in objects])
+    unproven = ~apart_pairs(pts, off, np.arange(len(objects)),
+                            np.tile(np.eye(4), (len(objects), 1, 1)), pairs, 0.0)
+    out = np.zeros(len(pairs), bool)
+    for k in np.flatnonzero(unproven):
+        a, b = objects[pairs[k, 0]].solid, objects[pairs[k, 1]].solid
+        out[k] = (_gap(a, b, 0.0) <= 0.0 and (a ^ b).volume() > 1e-9 * scale ** 3)
+    return out
+
+
 def _gap(a: m3.Manifold, b: m3.Manifold, upper: float) -> float:
     """Exact gap between two solids, given an upper bound (0 when they touch or overlap)."""
     search = upper * 1.001 + 1e-6
@@ -182,7 +203,12 @@ def plan_connectors(objects: Sequence[PlacedObject], diameter: float, *,
     cancel = should_cancel or (lambda: False)
     centres = np.array([o.vertices.mean(axis=0) for o in objects])
     trees = [cKDTree(o.vertices) for o in objects]
-    pairs = _link_components(n, candidate_pairs(centres), centres)
+    # pairs whose boxes meet too: an overlapping pair must be an edge of the graph (the
+    # Delaunay edges and nearest centres can miss one), or the tree cannot take it fused
+    boxes = near_pairs(np.array([o.vertices.min(axis=0) for o in objects]),
+                       np.array([o.vertices.max(axis=0) for o in objects]), 0.0)
+    pairs = _link_components(n, np.unique(np.concatenate([candidate_pairs(centres), boxes]),
+                                          axis=0), centres)
 
     # edge list: (a, b, weight, start vertex on a). The weight is the nearest-vertex distance
     # (an upper bound of the gap, close to it for fine meshes); exact gaps are measured only
@@ -212,6 +238,11 @@ def plan_connectors(objects: Sequence[PlacedObject], diameter: float, *,
     gap_arr = np.maximum(np.asarray(gaps), 0.0)
     nodes = n + len(shells)
     scale = float(np.ptp(centres, axis=0).max()) + 1.0
+    # objects that overlap are fused by the union whether or not the tree holds their edge:
+    # weighed by their vertices' distance they were left out, and a strut elsewhere closed
+    # a loop around them. Their edges weigh 0 (so the tree takes them, "fused")
+    between = np.flatnonzero(eb_arr[: len(pairs)] < n)
+    gap_arr[between[_overlapping(objects, pairs[between], scale)]] = 0.0
     allowed = np.ones(len(gap_arr), dtype=bool)
     report(0.4, "connect: spanning tree")
 

@@ -216,6 +216,31 @@ def test_connect_fuses_touching_objects_without_struts(overlapping, tmp_path):
     assert rep.fused >= 1 and rep.connectors + rep.fused == 7
 
 
+@pytest.mark.parametrize("step", [12.0, 13.0])
+def test_connect_adds_no_strut_where_overlapping_objects_already_join(tmp_path, step):
+    """Struts only join what overlaps do not: as many as the overlap graph's components less
+    one. The tree weighed every pair by its vertices' distance, so an overlapping pair whose
+    vertices lay apart was left out for a strut elsewhere, which closed a loop through it
+    (a real packing: 83 struts, 0 fused, genus 9, where 9 pairs overlapped). At step 12
+    one overlapping pair was no Delaunay edge nor among the nearest centres: the graph
+    takes the pairs whose boxes meet too (13 struts before, 7 with the weights alone, now 6
+    for the 7 components)."""
+    from scipy.sparse.csgraph import connected_components as components
+
+    rng = np.random.default_rng(5)
+    centres = _grid(step, 3) + rng.uniform(-1.2, 1.2, (27, 3))
+    packing = _packing(tmp_path, centres, list(rng.integers(0, 2, 27)))
+    solids = _solids(packing)
+    scale = float(np.ptp(centres, axis=0).max()) + 1.0
+    over = [(i, j) for i, j in itertools.combinations(range(27), 2)
+            if (solids[i] ^ solids[j]).volume() > 1e-9 * scale ** 3]
+    graph = coo_matrix((np.ones(len(over)), tuple(np.array(over).T)), shape=(27, 27))
+    joined, _ = components(graph, directed=False)
+    rep = export_packing(packing, tmp_path / "c.3mf", ExportOptions(mode="connect"))
+    assert rep.passed and rep.bodies == 1
+    assert 1 < joined < 27 and rep.connectors == joined - 1, (joined, rep.connectors, rep.fused)
+
+
 def test_parts_keep_clearance_one_object_per_part(apart, tmp_path):
     out = tmp_path / "parts.3mf"
     rep = export_packing(apart, out, ExportOptions(mode="parts"))
