@@ -43,6 +43,8 @@ def run_warnings(names: Sequence[str], shares: np.ndarray, counts: np.ndarray, t
                            for n, c, s in zip(names, counts, shares, strict=True))
         out.append(f"the type mix is off: TVD {tvd:.3f} against the tolerance {max_tvd:g}; "
                    f"placed {placed}. " + _mix_advice(names, shares, counts, tvd, max_tvd))
+    elif not missing and counts.sum() > 0:
+        out += _types_far_short(names, shares, counts, tvd, max_tvd)
     if phase1.stopped == "deadline":
         out.append(
             f"the time budget ({time_budget:g} s) ended while the first objects were still "
@@ -87,6 +89,31 @@ def slow_certification(seconds: float, time_budget: float | None, names: Sequenc
             f"{faces[heavy]:,} faces, and the exact checks' time grows with them. A copy "
             "simplified to a few thousand faces (Blender: Decimate modifier) certifies far "
             "faster and looks the same in print at most sizes."]
+
+
+#: a type placed at less than this fraction of its share is said even where the TVD is
+#: within the tolerance (a small share far short moves the TVD little) ...
+SHORT_SHARE = 0.5
+#: ... when its share of the count is at least this many objects
+SHORT_OBJECTS = 4
+
+
+def _types_far_short(names: Sequence[str], shares: np.ndarray, counts: np.ndarray,
+                     tvd: float, max_tvd: float) -> list[str]:
+    """A warning naming the types whose share of the placed objects is below SHORT_SHARE of
+    their target share, where the mix as a whole (its TVD) is within the tolerance."""
+    n = int(counts.sum())
+    short = [i for i, (s, c) in enumerate(zip(shares, counts, strict=True))
+             if s * n >= SHORT_OBJECTS and c < SHORT_SHARE * s * n]
+    if not short:
+        return []
+    said = ", ".join(f"{names[i]} {counts[i] / n:.1%} ({int(counts[i])} of {n:,}) against "
+                     f"the {shares[i]:.1%} asked" for i in short)
+    return [f"{'a type is' if len(short) == 1 else 'types are'} placed far below the share "
+            f"asked: {said}. The mix as a whole is within the tolerance (TVD {tvd:.3f}, "
+            f"tolerance {max_tvd:g}), as the other types make up the count. A smaller mix "
+            "tolerance (--mix-tolerance / mix_tolerance) holds the other types back to their "
+            "shares, with fewer objects (far fewer where the short types find little room)."]
 
 
 def _mix_advice(names: Sequence[str], shares: np.ndarray, counts: np.ndarray, tvd: float,

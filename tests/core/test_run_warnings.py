@@ -50,6 +50,26 @@ def test_a_small_scenes_mix_one_object_off_says_why_and_what_keeps_it():
     assert "--mix-tolerance 0 / mix_tolerance=0" in w and "short of" not in w
 
 
+def test_a_small_share_far_short_is_named_though_the_tvd_is_within_the_tolerance():
+    """5% of big objects asked, 27 of 2,426 placed (1.1%): the TVD (0.039) is within the
+    tolerance, as the small types make up the count, and nothing was said."""
+    shares = np.array([0.05, 0.90, 0.05])
+    counts = np.array([27, 2275, 124])
+    tvd = 0.5 * float(np.abs(counts / counts.sum() - shares).sum())
+    assert tvd < 0.04
+    (w,) = run_warnings(["big", "small", "mid"], shares, counts, tvd, 0.04, PhaseStats(),
+                        None, None, None, 1)
+    assert "placed far below the share asked: big 1.1% (27 of 2,426) against the 5.0%" in w
+    assert "mid" not in w and "--mix-tolerance / mix_tolerance" in w
+    # a share of a few objects only (3 of 300 asked), or one more than half met, is not said
+    for share, placed in ((0.01, 1), (0.05, 9)):
+        counts = np.array([placed, 300 - placed])
+        shares = np.array([share, 1 - share])
+        tvd = 0.5 * float(np.abs(counts / 300 - shares).sum())
+        assert run_warnings(["big", "small"], shares, counts, tvd, 0.04, PhaseStats(), None,
+                            None, None, 1) == []
+
+
 def test_a_budget_ending_in_phase_1_and_attempts_cut_short():
     cut = PhaseStats(inserted=1724, grown=217, stopped="deadline")
     w = _warn([100, 101], phase1=cut, budget=30.0, stopped="deadline", asked=3, ran=1)
