@@ -156,7 +156,7 @@ def export_packing(packing: Packing | str | os.PathLike,
     t = time.perf_counter()
     instances = None
     if options.mode == "parts":
-        bodies, out.min_gap = separate_parts(scene.solids, clearance, float32=bool(float32))
+        bodies, out.min_gap = separate_parts(scene.solids, clearance, float32=float32)
         names = [f"{packing.types[k].name}_{i:03d}" for i, k in enumerate(packing.type_index)]
         # a 3MF stores each type's mesh once and each part as that mesh and its placement
         instances = Instances([solid_arrays(s) for s in scene.type_solids],

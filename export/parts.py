@@ -12,7 +12,7 @@ smallest gap found so far.
 
 from __future__ import annotations
 
-from collections.abc import Callable
+from collections.abc import Callable, Sequence
 
 import manifold3d as m3
 import numpy as np
@@ -25,6 +25,10 @@ __all__ = ["box_gaps", "near_pairs", "require_gap", "separate_parts", "smallest_
 
 #: a gap within this fraction below the clearance is accepted (manifold3d's rounding)
 GAP_TOLERANCE = 1e-6
+#: ... and within this fraction as an STL or PLY stores it (0.2 um of a 0.2 mm clearance,
+#: far below what a printer resolves): 32-bit positions 1 m from the origin move a gap by
+#: up to 2e-4 mm, and a packing's smallest gap sits just above its clearance
+F32_TOLERANCE = 1e-3
 #: the exact checks search this much beyond the clearance, so that the smallest gap of a
 #: dense packing (whose neighbours sit just beyond the clearance) comes out exactly
 SEARCH_MARGIN = 0.2
@@ -115,7 +119,8 @@ def smallest_gap(gap: Callable[[int, int, float], float], pairs: np.ndarray,
     return None, None
 
 
-def separate_parts(solids: list[m3.Manifold], clearance: float, *, float32: bool = False
+def separate_parts(solids: list[m3.Manifold], clearance: float, *,
+                   float32: Sequence[str] = ()
                    ) -> tuple[list[tuple[np.ndarray, np.ndarray]], float | None]:
     """Each solid its own body: (bodies as (vertices, faces), smallest gap between near
     parts or None when no two parts are near). ``clearance`` > 0 (see :func:`require_gap`).
@@ -123,10 +128,11 @@ def separate_parts(solids: list[m3.Manifold], clearance: float, *, float32: bool
     Near parts: those whose bounding boxes come within the clearance (plus SEARCH_MARGIN) of
     each other, and each part's NEIGHBOURS nearest by their boxes' centres. Every pair that
     could be closer than the clearance is checked exactly (manifold3d ``min_gap``).
-    float32: a file that stores 32-bit positions (STL, PLY) is among the outputs; where
-    that rounding (half a float32 step at the parts' largest coordinate, on each side) could
-    take the smallest gap below the clearance, the gaps are measured again on the positions
-    rounded as such a file stores them, and those are the ones reported.
+    float32: the outputs that store 32-bit positions (STL, PLY). Rounding to them moves
+    each vertex by half a float32 step at most (at the parts' largest coordinate); where
+    that could take a gap more than F32_TOLERANCE of the clearance below it, the near pairs
+    reach that much further and their gaps are measured again on the positions rounded as
+    those files store them, and those are the ones reported.
 
     Raises MeshError when two parts are closer than ``clearance`` (a coarse resolution can
     move surfaces by up to its value; 32-bit positions far from the origin by their step).
@@ -136,7 +142,12 @@ def separate_parts(solids: list[m3.Manifold], clearance: float, *, float32: bool
         return bodies, None
     lo = np.array([b[0].min(axis=0) for b in bodies])
     hi = np.array([b[0].max(axis=0) for b in bodies])
-    pairs = near_pairs(lo, hi, clearance * (1.0 + SEARCH_MARGIN))
+    reach = float(np.abs(np.concatenate([lo, hi])).max())
+    # each of a gap's two ends moves by at most |x| 2^-24 per coordinate
+    shift = 2.0 * np.sqrt(3.0) * reach * 2.0 ** -24
+    rounded_too = bool(float32) and shift > F32_TOLERANCE * clearance
+    pairs = near_pairs(lo, hi, clearance * (1.0 + SEARCH_MARGIN) + (shift if rounded_too
+                                                                   else 0.0))
     pairs = np.unique(np.concatenate([pairs, _neighbours(0.5 * (lo + hi))]), axis=0)
     farthest = float(np.linalg.norm(np.maximum(hi[pairs[:, 0]], hi[pairs[:, 1]])
                                     - np.minimum(lo[pairs[:, 0]], lo[pairs[:, 1]]),
@@ -147,10 +158,8 @@ def separate_parts(solids: list[m3.Manifold], clearance: float, *, float32: bool
         return float(solids[i].min_gap(solids[j], search))
 
     worst, where = smallest_gap(gap, pairs, lower, farthest, clearance)
-    _require(worst, where, clearance, "")
-    # each vertex moves by at most half a float32 step per coordinate: |x| 2^-24 each
-    shift = 2.0 * np.sqrt(3.0) * float(np.abs(np.concatenate([lo, hi])).max()) * 2.0 ** -24
-    if float32 and worst is not None and worst - shift < clearance * (1 - GAP_TOLERANCE):
+    _require(worst, where, clearance, GAP_TOLERANCE, "")
+    if rounded_too and worst is not None:
         rounded: dict[int, m3.Manifold] = {}
 
         def solid32(i: int) -> m3.Manifold:
@@ -162,26 +171,26 @@ def separate_parts(solids: list[m3.Manifold], clearance: float, *, float32: bool
             return float(solid32(i).min_gap(solid32(j), search))
 
         worst, where = smallest_gap(gap32, pairs, lower - shift, farthest, clearance)
-        reach = float(np.abs(np.concatenate([lo, hi])).max())
-        _require(worst, where, clearance, (
-            f" as an STL or PLY file stores them: 32-bit positions are "
+        files = ", ".join(float32)
+        _require(worst, where, clearance, F32_TOLERANCE, (
+            f" as {files} would store them: 32-bit positions are "
             f"{float(np.spacing(np.float32(reach))):.2g} apart at coordinates up to "
-            f"{reach:.4g}. Write .3mf, which keeps the positions' full precision, or pack "
-            "the container nearer the origin"))
+            f"{reach:.4g}. Drop {files} and write .3mf, which keeps the positions' full "
+            "precision, or move the container mesh near the origin and pack again"))
     return bodies, worst
 
 
 def _require(worst: float | None, where: tuple[int, int] | None, clearance: float,
-             stored: str) -> None:
-    """Raise MeshError if the smallest gap ``worst`` (between parts ``where``) is below the
-    clearance; ``stored`` says how the positions were stored, and what to do, when they
-    were rounded."""
-    if worst is None or where is None or worst >= clearance * (1 - GAP_TOLERANCE):
+             tolerance: float, stored: str) -> None:
+    """Raise MeshError if the smallest gap ``worst`` (between parts ``where``) is more than
+    ``tolerance`` of the clearance below it; ``stored`` says how the positions were stored,
+    and what to do, when they were rounded."""
+    if worst is None or where is None or worst >= clearance * (1 - tolerance):
         return
     advice = stored or (". A coarse --resolution can move surfaces by up to its value: use "
                         "a finer one, or pack with a larger clearance")
     raise MeshError(f"parts closer than the packing's clearance {clearance:g}: objects "
-                    f"{where[0]} and {where[1]} are {worst:.4g} apart{advice}.")
+                    f"{where[0]} and {where[1]} are {worst:.6g} apart{advice}.")
 
 
 def _neighbours(centres: np.ndarray) -> np.ndarray:

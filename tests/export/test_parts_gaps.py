@@ -138,10 +138,42 @@ def test_parts_far_from_the_origin_keep_the_clearance_as_stl_stores_them():
     assert np.float32(x + 10.13) == np.float32(x + 10.3328)
     bodies, gap = separate_parts([a, b], 0.2)
     assert gap == pytest.approx(0.2028, abs=1e-6)
-    with pytest.raises(MeshError, match="STL or PLY") as err:
-        separate_parts([a, b], 0.2, float32=True)
-    assert ".3mf" in str(err.value)
-    # near the origin the 32-bit step is far below the clearance: the same gap, no second
-    # measurement needed
-    near = [s.translate((-x, 0.0, 0.0)) for s in (a, b)]
-    assert separate_parts(near, 0.2, float32=True)[1] == pytest.approx(0.2028, abs=1e-5)
+    with pytest.raises(MeshError, match="as out.stl would store them") as err:
+        separate_parts([a, b], 0.2, float32=["out.stl"])
+    assert "Drop out.stl and write .3mf" in str(err.value)
+
+
+def test_a_pair_the_rounding_closes_is_checked_though_not_among_the_near_ones():
+    """0.248 apart at 3e6, each cube with seven small ones nearer its centre: the pair was
+    neither within the clearance's reach nor among each part's nearest, so it was never
+    measured as stored (both faces at 3000000.25 in 32 bits)."""
+    import manifold3d as m3
+
+    from jampacked.core.errors import MeshError
+    from jampacked.export.parts import separate_parts
+
+    x = 3e6
+    a = m3.Manifold.cube((5.0, 5.0, 5.0)).translate((x - 5.0 + 0.126, 0.0, 0.0))
+    b = m3.Manifold.cube((5.0, 5.0, 5.0)).translate((x + 0.374, 0.0, 0.0))
+    assert np.float32(x + 0.126) == np.float32(x + 0.374)
+    # seven small cubes 0.3 above each, nearer its centre than the other cube's
+    small = [m3.Manifold.cube((0.5, 0.5, 0.5)).translate((x + cx - 0.25, 5.3, 0.8 * k))
+             for cx in (-2.374, 2.874) for k in range(7)]
+    assert separate_parts([a, b] + small, 0.2)[1] >= 0.2  # kept at full precision
+    with pytest.raises(MeshError, match="would store them"):
+        separate_parts([a, b] + small, 0.2, float32=["out.stl"])
+
+
+def test_near_the_origin_a_gap_just_above_the_clearance_is_kept_as_stored():
+    """A dense packing's smallest gap sits just above its clearance (0.20017 for 0.2 in a
+    bench run): rounding to 32 bits 128 mm from the origin moves it by far less than a
+    printer resolves, and such exports were refused."""
+    import manifold3d as m3
+
+    from jampacked.export.parts import separate_parts
+
+    for gap in (0.2000001, 0.200003):
+        a = m3.Manifold.cube((5.0, 5.0, 5.0)).translate((128.0 - 5.0, 0.0, 0.0))
+        b = m3.Manifold.cube((5.0, 5.0, 5.0)).translate((128.0 + gap, 0.0, 0.0))
+        assert separate_parts([a, b], 0.2, float32=["out.stl"])[1] == pytest.approx(
+            gap, abs=1e-5)
