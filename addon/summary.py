@@ -109,8 +109,6 @@ _BLENDER_WORDS = (
     ("--container-size", "the container object's scale"),
     ("--time-budget / time_budget", "Time Budget"),
     ("--time-budget", "Time Budget"),
-    ("--mix-tolerance 0 / mix_tolerance=0", "Mix Tolerance 0"),
-    ("--mix-tolerance / mix_tolerance", "Mix Tolerance"),
     ("--mix-tolerance", "Mix Tolerance"),
     ("--clearance", "Clearance"),
     ("--fidelity high / fidelity='high'", "Fidelity High"),

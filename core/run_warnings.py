@@ -101,7 +101,7 @@ SHORT_OBJECTS = 4
 def _types_far_short(names: Sequence[str], shares: np.ndarray, counts: np.ndarray,
                      tvd: float, max_tvd: float) -> list[str]:
     """A warning naming the types whose share of the placed objects is below SHORT_SHARE of
-    their target share, where the mix as a whole (its TVD) is within the tolerance."""
+    their target share, where the mix as a whole (its TVD) is not reported off."""
     n = int(counts.sum())
     short = [i for i, (s, c) in enumerate(zip(shares, counts, strict=True))
              if s * n >= SHORT_OBJECTS and c < SHORT_SHARE * s * n]
@@ -109,11 +109,21 @@ def _types_far_short(names: Sequence[str], shares: np.ndarray, counts: np.ndarra
         return []
     said = ", ".join(f"{names[i]} {counts[i] / n:.1%} ({int(counts[i])} of {n:,}) against "
                      f"the {shares[i]:.1%} asked" for i in short)
+    near = "within" if tvd <= max_tvd + 1e-12 else "close to"
     return [f"{'a type is' if len(short) == 1 else 'types are'} placed far below the share "
-            f"asked: {said}. The mix as a whole is within the tolerance (TVD {tvd:.3f}, "
-            f"tolerance {max_tvd:g}), as the other types make up the count. A smaller mix "
-            "tolerance (--mix-tolerance / mix_tolerance) holds the other types back to their "
-            "shares, with fewer objects (far fewer where the short types find little room)."]
+            f"asked: {said}. The mix as a whole is {near} the tolerance (TVD {tvd:.3f}, "
+            f"tolerance {max_tvd:g}), as the other types make up the count. "
+            + _room_advice(max_tvd)]
+
+
+def _room_advice(max_tvd: float) -> str:
+    """What fits more of the types short of their share, and (with a tolerance above 0)
+    what holds the others back."""
+    hold = ("; a smaller mix tolerance (--mix-tolerance) holds the other types back to "
+            "their shares, with fewer objects (far fewer where the short types find little "
+            "room)" if max_tvd > 0 else "")
+    return ("Smaller objects of the short types (--type-scale / type_scale) or a larger "
+            f"container (--container-size / container_size) fit more of them{hold}.")
 
 
 def _mix_advice(names: Sequence[str], shares: np.ndarray, counts: np.ndarray, tvd: float,
@@ -125,12 +135,9 @@ def _mix_advice(names: Sequence[str], shares: np.ndarray, counts: np.ndarray, tv
     if max_tvd > 0 and tvd <= best_tvd(shares, n) + 1.0 / n + 1e-9:
         return (f"With {n} objects one object moves the mix by about {1.0 / n:.2f}, and the "
                 "cavity passes may take one more object of a type to fill a hole; a mix "
-                "tolerance of 0 (--mix-tolerance 0 / mix_tolerance=0) keeps the mix as close "
-                "as the count allows, at the cost of the objects the mix cannot take (in a "
-                "small scene, maybe several).")
+                "tolerance of 0 (--mix-tolerance 0) keeps the mix as close as the count "
+                "allows, at the cost of the objects the mix cannot take (in a small scene, "
+                "maybe several).")
     short = [names[i] for i in np.flatnonzero(counts / n < shares - 1e-12)]
-    return (f"The types short of their share ({', '.join(short)}) found no more room: "
-            "smaller objects of those types (--type-scale / type_scale) or a larger "
-            "container (--container-size / container_size) fit more of them, and a mix "
-            "tolerance of 0 (--mix-tolerance 0 / mix_tolerance=0) holds the other types "
-            "back to the shares, with fewer objects.")
+    return f"The types short of their share ({', '.join(short)}) found no more room. " \
+        + _room_advice(max_tvd)

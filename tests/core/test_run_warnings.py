@@ -39,7 +39,11 @@ def test_a_mix_far_from_the_shares_is_reported():
     assert "TVD 0.200" in w and "apple 30% (asked 50%)" in w
     # and how to bring it back: the short type named, what makes room for it
     assert "short of their share (apple)" in w and "--type-scale" in w
-    assert "--mix-tolerance 0" in w
+    assert "a smaller mix tolerance (--mix-tolerance)" in w
+    # with a tolerance of 0 already, it is not advised
+    (w,) = run_warnings(NAMES, HALF, np.array([30, 70]), 0.2, 0.0, PhaseStats(), None, None,
+                        None, 1)
+    assert "--type-scale" in w and "mix tolerance" not in w
 
 
 def test_a_small_scenes_mix_one_object_off_says_why_and_what_keeps_it():
@@ -47,7 +51,7 @@ def test_a_small_scenes_mix_one_object_off_says_why_and_what_keeps_it():
     passes' one-object slack permits and a zero tolerance does not."""
     (w,) = _warn([4, 7], tvd=0.5 * (abs(4 / 11 - 0.5) + abs(7 / 11 - 0.5)))
     assert "With 11 objects one object moves the mix by about 0.09" in w
-    assert "--mix-tolerance 0 / mix_tolerance=0" in w and "short of" not in w
+    assert "a mix tolerance of 0 (--mix-tolerance 0)" in w and "short of" not in w
 
 
 def test_a_small_share_far_short_is_named_though_the_tvd_is_within_the_tolerance():
@@ -60,7 +64,19 @@ def test_a_small_share_far_short_is_named_though_the_tvd_is_within_the_tolerance
     (w,) = run_warnings(["big", "small", "mid"], shares, counts, tvd, 0.04, PhaseStats(),
                         None, None, None, 1)
     assert "placed far below the share asked: big 1.1% (27 of 2,426) against the 5.0%" in w
-    assert "mid" not in w and "--mix-tolerance / mix_tolerance" in w
+    assert "mid" not in w and "The mix as a whole is within the tolerance" in w
+    assert "--type-scale" in w and "a smaller mix tolerance (--mix-tolerance)" in w
+    # above the tolerance but not off (within its 0.01 slack): "close to"; with a tolerance
+    # of 0, no tolerance to advise
+    for max_tvd, placed, share in ((0.04, [4, 96], 0.09), (0.0, [1, 999], 0.005)):
+        counts = np.array(placed)
+        shares = np.array([share, 1 - share])
+        tvd = 0.5 * float(np.abs(counts / counts.sum() - shares).sum())
+        near = "close to"
+        (w,) = run_warnings(["big", "small"], shares, counts, tvd, max_tvd, PhaseStats(),
+                            None, None, None, 1) or [""]
+        assert f"is {near} the tolerance" in w, w
+        assert ("mix tolerance" in w) == (max_tvd > 0)
     # a share of a few objects only (3 of 300 asked), or one more than half met, is not said
     for share, placed in ((0.01, 1), (0.05, 9)):
         counts = np.array([placed, 300 - placed])
