@@ -14,8 +14,8 @@ density as a check. For reference it draws the fraction a hexagonal layer of tou
 spheres of radius r fills against a flat wall, in the band 0-r (60.5% over the band), and
 how dense that band would have to be, the rest unchanged, for the density to reach
 --target (issue 5's bar for fruit-in-bunny: 55%). Writes
-bench/results/density_profile.json and density_profile.png, or --out and the chart beside
-it (so that profiling a packing of one's own keeps the bench's record).
+bench/results/density_profile.json and density_profile.png; for a --packing of one's own,
+PACKING-profile.json and .png beside it (the bench's record is kept), or --out.
 """
 
 from __future__ import annotations
@@ -163,18 +163,28 @@ def main(argv: list[str] | None = None) -> int:
     ap.add_argument("--meshes", type=Path, default=MESHES)
     ap.add_argument("--target", type=float, default=0.55,
                     help="density to say the first band's requirement for (default 0.55)")
-    ap.add_argument("--out", type=Path, default=RESULTS / "density_profile.json",
-                    help="where to write the profile's JSON; its chart goes beside it as .png "
-                    "(default: the bench's own, bench/results/density_profile.json)")
+    ap.add_argument("--out", type=Path,
+                    help="where to write the profile's JSON (a .json name); its chart goes "
+                    "beside it as .png (default: with --packing, PACKING-profile.json beside "
+                    "it; else the bench's own, bench/results/density_profile.json)")
     a = ap.parse_args(argv)
     path = a.packing
+    out = a.out
+    if out is None:
+        out = (RESULTS / "density_profile.json" if path is None
+               else path.with_name(f"{path.stem}-profile.json"))
+    if out.suffix.lower() != ".json":
+        ap.error(f"--out {out}: the profile is JSON; give a .json name (its chart goes "
+                 "beside it as .png)")
+    if path is not None and out.resolve() == path.resolve():
+        ap.error(f"--out {out} is the packing read; give another name")
     if path is None:
         path = RESULTS / f"packing-{a.scene}-seed{a.seed}.json"
         _pack_scene(a.scene, a.seed, a.meshes, path)
     data = profile(path, a.target)
     data["packing"] = path.name if a.packing is None else str(path)
-    write_json(a.out, data)
-    chart(data, a.out.with_suffix(".png"))
+    write_json(out, data)
+    chart(data, out.with_suffix(".png"))
     fb = data["first_band"]
     print(f"estimate {data['estimate']:.1%} (certified {data['density']:.1%}); band 0-r: "
           f"{fb['volume_share']:.0%} of the volume at {fb['density']:.1%} (hexagonal sphere "

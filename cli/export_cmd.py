@@ -138,7 +138,8 @@ def add_export_parser(sub: argparse._SubParsersAction) -> None:
                    help="--mode parts: write one file per part (NAME_<type>_<i>.EXT, i: "
                         "the object's index among the packing's placements)")
     p.add_argument("--render", metavar="PNG",
-                   help="also draw the first file written, as read back, in two shaded views")
+                   help="also draw the first file written, as read back, in two shaded "
+                        "views, to this .png file")
     p.add_argument("--json", action="store_true",
                    help="print the export report as JSON instead of tables")
     p.add_argument("-q", "--quiet", action="store_true", help="no progress bar or summary")
@@ -157,8 +158,8 @@ def _check_render(render: str) -> None:
     """--render names a PNG: so it is none of the -o files (it would replace the mesh just
     validated) and none of the packing's input meshes, which are all mesh formats."""
     if Path(render).suffix.lower() != ".png":
-        raise UsageError(f"--render {render}: the render is a PNG image and would replace "
-                         "that file; give it a .png name, e.g. render.png")
+        raise UsageError(f"--render {render}: the render is a PNG image; give it a .png "
+                         "name, e.g. render.png")
 
 
 def cmd_export(args: argparse.Namespace) -> int:

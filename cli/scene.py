@@ -236,14 +236,19 @@ def twice_note(paths: Sequence[str], labels: Sequence[str]) -> str | None:
     """A note when one mesh file is given as more than one type (the types' files and
     names): that packs as that many types, each with its own share and spread (two colours
     of one bead), which a repeated --type by mistake would silently do."""
-    seen: dict[str, list[int]] = {}
+    seen: dict[object, list[int]] = {}
     for i, p in enumerate(paths):
-        seen.setdefault(os.path.normcase(os.path.realpath(p)), []).append(i)
+        try:  # the file itself: through links, hard links and case-blind volumes
+            st = os.stat(p)
+            key: object = (st.st_dev, st.st_ino)
+        except OSError:
+            key = os.path.normcase(os.path.realpath(p))
+        seen.setdefault(key, []).append(i)
     twice = [idx for idx in seen.values() if len(idx) > 1]
     if not twice:
         return None
-    said = "; ".join(f"{paths[idx[0]]} as {', '.join(labels[i] for i in idx)}"
-                     for idx in twice)
+    said = "; ".join(f"{' and '.join(dict.fromkeys(paths[i] for i in idx))} as "
+                     f"{', '.join(labels[i] for i in idx)}" for idx in twice)
     return (f"a mesh file is given more than once: {said}. Each copy packs as a type of its "
             "own, with its own share and spread (as for two colours of one object); to pack "
-            "it as one type, give it once with the sum of the shares.")
+            "it as one type, give it once (with the sum of their shares, if given).")

@@ -72,9 +72,10 @@ def refuse_no_room(label: str, vertices: np.ndarray, sizes: list[TypeSize], dept
               if room > 0 else "after lowering the clearance")
     plus = f" plus the clearance {clearance:g}" if clearance else ""
     # a clearance deeper than the container: most likely given in mm for a file in metres
-    alone = (f" The clearance alone is more than that depth: it is in the container's "
-             f"units, and this container is {float(c_ext.max()):.4g} units across "
-             f"(--container-size sets that size)." if room <= 0 else "")
+    alone = (f" The clearance alone is more than the container's depth ({depth:.4g}): it is "
+             f"in the container's units, and this container is {float(c_ext.max()):.4g} "
+             "units across (--container-size / container_size sets that size)."
+             if room <= 0 else "")
     raise PackingError(
         f"no object fits: the container {label} ({dims} units) is {depth:.4g} units "
         f"deep at its deepest interior point (within {spacing:.2g}), and each object needs "

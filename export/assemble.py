@@ -292,7 +292,8 @@ def _drain_warning(packing: Packing, scene: PlacedScene, options: ExportOptions,
             f"above it, so liquid or powder may not reach it.")
     if options.opening is not None:  # the shell is open already: say so, not to open it
         what = "plane cut" if options.opening.kind == "plane" else "window"
-        return [f"{head} It can leave through the shell's {what} instead{DRAIN_UP_ADVICE}."]
+        return [f"{head} The liquid or powder can leave through the shell's {what} instead"
+                f"{DRAIN_UP_ADVICE}."]
     return [f"{head} Open the shell with --open-plane or --window{DRAIN_UP_ADVICE}."]
 
 

@@ -113,11 +113,12 @@ def _link_components(n: int, pairs: np.ndarray, centres: np.ndarray) -> np.ndarr
         pairs = np.concatenate([pairs, new[None]]).astype(np.int64)
 
 
-def _overlapping(objects: Sequence[PlacedObject], pairs: np.ndarray, scale: float
-                 ) -> np.ndarray:
+def _overlapping(objects: Sequence[PlacedObject], pairs: np.ndarray, scale: float,
+                 cancel: Callable[[], bool]) -> np.ndarray:
     """(E,) which object pairs (E, 2) overlap by a positive volume (as `_judge_edge` calls
     fused): pairs whose vertices' convex hulls a plane proves apart
-    (`core.separation.apart_pairs`) are not, and only the others are measured exactly."""
+    (`core.separation.apart_pairs`) are not, and only the others are measured exactly
+    (until cancel() says so)."""
     if len(pairs) == 0:
         return np.zeros(0, bool)
     pts, off = hull_table([hull_points(o.vertices) for o in objects])
@@ -125,6 +126,8 @@ def _overlapping(objects: Sequence[PlacedObject], pairs: np.ndarray, scale: floa
                             np.tile(np.eye(4), (len(objects), 1, 1)), pairs, 0.0)
     out = np.zeros(len(pairs), bool)
     for k in np.flatnonzero(unproven):
+        if cancel():
+            break
         a, b = objects[pairs[k, 0]].solid, objects[pairs[k, 1]].solid
         out[k] = (_gap(a, b, 0.0) <= 0.0 and (a ^ b).volume() > 1e-9 * scale ** 3)
     return out
@@ -241,8 +244,9 @@ def plan_connectors(objects: Sequence[PlacedObject], diameter: float, *,
     # objects that overlap are fused by the union whether or not the tree holds their edge:
     # weighed by their vertices' distance they were left out, and a strut elsewhere closed
     # a loop around them. Their edges weigh 0 (so the tree takes them, "fused")
-    between = np.flatnonzero(eb_arr[: len(pairs)] < n)
-    gap_arr[between[_overlapping(objects, pairs[between], scale)]] = 0.0
+    gap_arr[: len(pairs)][_overlapping(objects, pairs, scale, cancel)] = 0.0
+    if cancel():
+        return plan
     allowed = np.ones(len(gap_arr), dtype=bool)
     report(0.4, "connect: spanning tree")
 

@@ -232,7 +232,8 @@ def test_the_drain_warning_in_blender_words(monkeypatch):
     text, = assemble._drain_warning(packing, SimpleNamespace(solids=[]), opened, (0, 0, -38))
     assert "--open-plane" not in text and "through the shell's plane cut instead" in text
     assert summary.in_blender_words(text).endswith(
-        "may not reach it. It can leave through the shell's plane cut instead.")
+        "may not reach it. The liquid or powder can leave through the shell's plane cut "
+        "instead.")
 
 
 def test_export_options_from_the_panel():

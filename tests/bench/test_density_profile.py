@@ -86,3 +86,11 @@ def test_a_packing_of_ones_own_keeps_the_benchs_record(tmp_path, monkeypatch):
     assert dp.main(["--packing", str(_cubes_packing(tmp_path)), "--out", str(mine)]) == 0
     assert mine.is_file() and mine.with_suffix(".png").is_file()
     assert list(results.iterdir()) == []
+    # without --out, beside the packing; never over it, nor a .png for the JSON
+    packing = _cubes_packing(tmp_path)
+    assert dp.main(["--packing", str(packing)]) == 0
+    assert (tmp_path / "cubes-profile.json").is_file()
+    assert (tmp_path / "cubes-profile.png").is_file() and list(results.iterdir()) == []
+    for bad in (packing, tmp_path / "p.png"):
+        with pytest.raises(SystemExit):
+            dp.main(["--packing", str(packing), "--out", str(bad)])

@@ -521,7 +521,15 @@ def test_one_file_given_as_two_types_is_said_with_the_names_they_get(tmp_path):
         scene = resolve_scene(args, stack)
     twice, shares = scene.notes
     assert "given more than once" in twice and "as polytope1, polytope1-2" in twice
-    assert "give it once with the sum of the shares" in twice
+    assert "give it once (with the sum of their shares, if given)" in twice
+    # the same file through a link is the same file
+    link = tmp_path / "again.obj"
+    link.symlink_to(P1)
+    args = build_parser().parse_args(["pack", "box:30x30x30", "--type", str(P1), "--type",
+                                      str(link), "-o", str(tmp_path / "p.json")])
+    with contextlib.ExitStack() as stack:
+        (note,) = resolve_scene(args, stack).notes
+    assert f"{P1} and {link} as polytope1, again" in note
     assert shares.endswith("polytope1 54.5%, polytope1-2 18.2%, polytope3 27.3%")
     args = build_parser().parse_args(["pack", "box:30x30x30", "--type", str(P1), "--type",
                                       str(P3), "-o", str(tmp_path / "p.json")])

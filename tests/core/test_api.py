@@ -423,7 +423,7 @@ def test_a_clearance_deeper_than_the_container_is_counted_in_the_depth_said():
     own = float(text.split("units of depth (")[1].split(" of its own")[0])
     needed = float(text.split("needs at least ")[1].split(" units")[0])
     assert needed == pytest.approx(own + 0.3, abs=1e-3), text
-    assert "The clearance alone is more than that depth" in text
+    assert "The clearance alone is more than the container's depth" in text
     assert "this container is 0.8 units across" in text
 
 
