@@ -303,6 +303,16 @@ def test_write_mesh_names_float32_rounding_as_the_cause(tmp_path):
 # --------------------------------------------------------------------------- Ctrl-C at the end
 
 
+@pytest.fixture
+def python_ctrl_c():
+    """Python's own Ctrl-C handler (KeyboardInterrupt) for the test, whatever an earlier
+    test in this process left (a test process of `make test` runs many files, and one that
+    left SIGINT ignored made the test below pass or fail by the files' order)."""
+    before = signal.signal(signal.SIGINT, signal.default_int_handler)
+    yield
+    signal.signal(signal.SIGINT, before)
+
+
 def _ctrl_c_on_first_rename(monkeypatch) -> None:
     """A Ctrl-C (SIGINT to this process) just as the first file is renamed into place."""
     real = os.replace
@@ -317,7 +327,8 @@ def _ctrl_c_on_first_rename(monkeypatch) -> None:
     monkeypatch.setattr(os, "replace", replace)
 
 
-def test_ctrl_c_while_files_are_put_in_place_waits_until_all_are(tmp_path, monkeypatch):
+def test_ctrl_c_while_files_are_put_in_place_waits_until_all_are(tmp_path, monkeypatch,
+                                                                  python_ctrl_c):
     """A KeyboardInterrupt between two renames would leave a mixed pair: it is held back
     until every file is in place, then raised naming them."""
     from jampacked.export.io import MeshOutput, write_meshes
