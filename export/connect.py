@@ -26,10 +26,10 @@ import manifold3d as m3
 import numpy as np
 from scipy.sparse import coo_matrix
 from scipy.sparse.csgraph import connected_components, minimum_spanning_tree
-from scipy.spatial import Delaunay, QhullError, cKDTree
+from scipy.spatial import ConvexHull, Delaunay, QhullError, cKDTree
 
 from jampacked.core.phases import equivalent_radius
-from jampacked.core.separation import apart_pairs, hull_points, hull_table
+from jampacked.core.separation import apart_pairs, hull_table
 from jampacked.core.solids import solid_arrays
 
 from .closest import Surface
@@ -121,7 +121,15 @@ def _overlapping(objects: Sequence[PlacedObject], pairs: np.ndarray, scale: floa
     (until cancel() says so)."""
     if len(pairs) == 0:
         return np.zeros(0, bool)
-    pts, off = hull_table([hull_points(o.vertices) for o in objects])
+    # a rigid placement keeps which vertices make the hull: found once per type (its surface)
+    rows: dict[int, np.ndarray] = {}
+    for o in objects:
+        if id(o.surface) not in rows:
+            try:
+                rows[id(o.surface)] = ConvexHull(o.vertices).vertices
+            except (QhullError, ValueError):  # flat or tiny: every vertex
+                rows[id(o.surface)] = np.arange(len(o.vertices))
+    pts, off = hull_table([o.vertices[rows[id(o.surface)]] for o in objects])
     unproven = ~apart_pairs(pts, off, np.arange(len(objects)),
                             np.tile(np.eye(4), (len(objects), 1, 1)), pairs, 0.0)
     out = np.zeros(len(pairs), bool)
