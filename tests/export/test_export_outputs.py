@@ -306,8 +306,9 @@ def test_write_mesh_names_float32_rounding_as_the_cause(tmp_path):
 @pytest.fixture
 def python_ctrl_c():
     """Python's own Ctrl-C handler (KeyboardInterrupt) for the test, whatever an earlier
-    test in this process left (a test process of `make test` runs many files, and one that
-    left SIGINT ignored made the test below pass or fail by the files' order)."""
+    test in this process left: a test process of `make test` runs many files, and Blender
+    (the add-on tests' bpy) leaves SIGINT ignored, so the test below passed or failed by
+    the files' order (as `test_cli.py`'s Ctrl-C tests already allow for)."""
     before = signal.signal(signal.SIGINT, signal.default_int_handler)
     yield
     signal.signal(signal.SIGINT, before)
