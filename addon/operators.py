@@ -279,12 +279,13 @@ class PackRunner(JobRunner):
 
     def apply(self, context: bpy.types.Context, result: engine.PackOutcome) -> set[str]:
         bridge.check_unchanged(context, self._request)
+        last = context.scene.jampacked.result
         coll = bridge.build_result(context, self._request, result)
         # an earlier result holding an input (a placed object picked as a type) is kept
         kept = 0
         if not (context.scene.jampacked.keep_previous
                 or bridge.inputs_in_results(context.scene, self._request)):
-            kept = results.replace_previous(context.scene, coll)
+            kept = results.replace_previous(context.scene, coll, last)
         p = result.packing
         m, cert = p.metrics, p.certificate
         nni = m.get("nni_mean")

@@ -71,13 +71,17 @@ def remove_result(coll: bpy.types.Collection, keep_in: bpy.types.Collection) -> 
     return kept_count
 
 
-def replace_previous(scene: bpy.types.Scene, new: bpy.types.Collection) -> int:
-    """Remove the other results of ``new``'s container in the scene, then give ``new`` and
-    its type meshes and materials the names the removed ones had (no ".001" suffixes).
-    What the artist put in a removed result moves to ``new``. Returns the number of
+def replace_previous(scene: bpy.types.Scene, new: bpy.types.Collection,
+                     last: bpy.types.Collection | None = None) -> int:
+    """Remove the last result of ``new``'s container in the scene: ``last`` (the scene's
+    result before this Pack) where it is one, else the one made last (linked last); the
+    results kept side by side with Keep Previous stay. Then give ``new`` and its type meshes
+    and materials the names the removed one had (no ".001" suffixes) where they are free.
+    What the artist put in the removed result moves to ``new``. Returns the number of
     objects and collections so moved."""
     container = str(new.get(summary.PREFIX + "container", ""))
     old = [c for c in previous_results(scene, container) if c != new]
+    old = [last] if last is not None and last in old else old[-1:]
     kept = 0
     for coll in old:
         kept += remove_result(coll, new)

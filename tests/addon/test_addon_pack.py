@@ -380,6 +380,21 @@ def test_keep_previous_keeps_both(bpy, addon, scene):
     assert scene.settings.result.name == "Jampacked Box.001"
 
 
+def test_results_kept_side_by_side_stay_when_keep_previous_is_off_again(bpy, addon, scene):
+    """Two results kept with Keep Previous, then a Pack without it: it replaces the last
+    result, as its tooltip says; it removed both kept ones."""
+    scene.settings.keep_previous = True
+    assert bpy.ops.jampacked.pack() == {'FINISHED'}
+    scene.settings.seed = 2
+    assert bpy.ops.jampacked.pack() == {'FINISHED'}
+    scene.settings.keep_previous = False
+    scene.settings.seed = 3
+    assert bpy.ops.jampacked.pack() == {'FINISHED'}
+    seeds = sorted(_packing(addon, c).seed for c in _results(bpy))
+    assert seeds == [1, 3]
+    assert _packing(addon, scene.settings.result).seed == 3
+
+
 def test_background_pack_prints_throttled_progress(bpy, addon, scene, capsys):
     """Blender in background mode (as here) has no panel: a blocking Pack prints progress
     lines to stdout, the fraction rising, at most one per 5% or 2 s."""
