@@ -9,7 +9,6 @@ from __future__ import annotations
 import argparse
 import contextlib
 import json
-from pathlib import Path
 
 from rich.markup import escape
 
@@ -17,7 +16,7 @@ from jampacked.cli.args import UsageError, add_command, positive_float
 from jampacked.cli.exits import EXIT_ERROR, EXIT_INTERRUPTED, print_error
 from jampacked.cli.interrupt import CancelOnInterrupt
 from jampacked.cli.reports import consoles, print_export, print_validation, progress_bar
-from jampacked.cli.scene import check_output
+from jampacked.cli.scene import check_output, require_png
 from jampacked.core.errors import Cancelled, InputError, JampackedError, OutputError
 from jampacked.export.options import AXES, MODES, ExportOptions, Opening
 
@@ -154,14 +153,6 @@ def _json_failure(args: argparse.Namespace, exc: Exception) -> None:
                           "error": " ".join(str(exc).split())}, indent=1))
 
 
-def _check_render(render: str) -> None:
-    """--render names a PNG: so it is none of the -o files (it would replace the mesh just
-    validated) and none of the packing's input meshes, which are all mesh formats."""
-    if Path(render).suffix.lower() != ".png":
-        raise UsageError(f"--render {render}: the render is a PNG image; give it a .png "
-                         "name, e.g. render.png")
-
-
 def cmd_export(args: argparse.Namespace) -> int:
     """Run ``jampacked export``; returns the exit status."""
     from jampacked.export.assemble import export_packing
@@ -171,8 +162,8 @@ def cmd_export(args: argparse.Namespace) -> int:
         for path in args.output + ([args.render] if args.render else []):
             check_output(path, "-o" if path != args.render else "--render", [args.packing],
                          "packing file")
-        if args.render:
-            _check_render(args.render)
+        if args.render:  # a .png: none of the -o meshes, nor the packing's input meshes
+            require_png(args.render, "--render", "render")
         try:
             options = ExportOptions(mode=args.mode, shell=args.shell,
                                     opening=args.open_plane or args.window, drain=args.drain,

@@ -137,6 +137,14 @@ def check_mesh_file(path: str, role: str) -> None:
         raise UsageError(f"{role} mesh file '{path}' is not a file")
 
 
+def require_png(path: str, option: str, what: str) -> None:
+    """Raise UsageError unless ``path`` (given to ``option``, a ``what`` image) is a .png
+    name: no mesh or JSON the command reads or writes is one."""
+    if Path(path).suffix.lower() != ".png":
+        raise UsageError(f"{option} {path}: the {what} is a PNG image; give it a .png name, "
+                         f"e.g. {what}.png")
+
+
 def check_output(path: str, option: str, inputs: Sequence[str],
                  what: str = "input mesh") -> None:
     """Raise UsageError unless ``path`` can be written by ``option``: its folder exists and
@@ -218,9 +226,7 @@ def resolve_scene(args: argparse.Namespace, stack: contextlib.ExitStack) -> Scen
                          f"'jampacked export PACKING.json -o {Path(args.output).name}'")
     if args.preview:
         check_output(args.preview, "--preview", inputs)
-        if Path(args.preview).suffix.lower() != ".png":
-            raise UsageError(f"--preview {args.preview}: the preview is a PNG image; give "
-                             "it a .png name")
+        require_png(args.preview, "--preview", "preview")
         if os.path.abspath(args.preview) == os.path.abspath(args.output):
             raise UsageError("--preview and -o name the same file; give the preview its own "
                              "name, e.g. preview.png")

@@ -27,10 +27,16 @@ def hull_points(vertices: np.ndarray) -> np.ndarray:
     """The vertices (V, 3) of a solid's convex hull, float64, local frame; all of them
     where the hull is degenerate (flat or fewer than four points)."""
     v = np.asarray(vertices, np.float64)
+    return np.ascontiguousarray(v[hull_rows(v)])
+
+
+def hull_rows(vertices: np.ndarray) -> np.ndarray:
+    """Which of the vertices (V, 3) make their convex hull (indices); all of them where
+    the hull is degenerate. A rigid motion keeps them."""
     try:
-        return np.ascontiguousarray(v[ConvexHull(v).vertices])
+        return ConvexHull(np.asarray(vertices, np.float64)).vertices
     except (QhullError, ValueError):
-        return np.ascontiguousarray(v)
+        return np.arange(len(vertices))
 
 
 def hull_table(hulls: list[np.ndarray]) -> tuple[np.ndarray, np.ndarray]:

@@ -26,10 +26,10 @@ import manifold3d as m3
 import numpy as np
 from scipy.sparse import coo_matrix
 from scipy.sparse.csgraph import connected_components, minimum_spanning_tree
-from scipy.spatial import ConvexHull, Delaunay, QhullError, cKDTree
+from scipy.spatial import Delaunay, QhullError, cKDTree
 
 from jampacked.core.phases import equivalent_radius
-from jampacked.core.separation import apart_pairs, hull_table
+from jampacked.core.separation import apart_pairs, hull_rows, hull_table
 from jampacked.core.solids import solid_arrays
 
 from .closest import Surface
@@ -125,10 +125,7 @@ def _overlapping(objects: Sequence[PlacedObject], pairs: np.ndarray, scale: floa
     rows: dict[int, np.ndarray] = {}
     for o in objects:
         if id(o.surface) not in rows:
-            try:
-                rows[id(o.surface)] = ConvexHull(o.vertices).vertices
-            except (QhullError, ValueError):  # flat or tiny: every vertex
-                rows[id(o.surface)] = np.arange(len(o.vertices))
+            rows[id(o.surface)] = hull_rows(o.vertices)
     pts, off = hull_table([o.vertices[rows[id(o.surface)]] for o in objects])
     unproven = ~apart_pairs(pts, off, np.arange(len(objects)),
                             np.tile(np.eye(4), (len(objects), 1, 1)), pairs, 0.0)
@@ -136,9 +133,14 @@ def _overlapping(objects: Sequence[PlacedObject], pairs: np.ndarray, scale: floa
     for k in np.flatnonzero(unproven):
         if cancel():
             break
-        a, b = objects[pairs[k, 0]].solid, objects[pairs[k, 1]].solid
-        out[k] = (_gap(a, b, 0.0) <= 0.0 and (a ^ b).volume() > 1e-9 * scale ** 3)
+        out[k] = _fused(objects[pairs[k, 0]].solid, objects[pairs[k, 1]].solid, 0.0, scale)
     return out
+
+
+def _fused(a: m3.Manifold, b: m3.Manifold, upper: float, scale: float) -> bool:
+    """Whether two solids overlap by a positive volume (more than 1e-9 of the scene's
+    size cubed, ``scale``), which the union fuses; ``upper``: a bound on their gap."""
+    return _gap(a, b, upper) <= 0.0 and (a ^ b).volume() > 1e-9 * scale ** 3
 
 
 def _gap(a: m3.Manifold, b: m3.Manifold, upper: float) -> float:
@@ -252,7 +254,8 @@ def plan_connectors(objects: Sequence[PlacedObject], diameter: float, *,
     # objects that overlap are fused by the union whether or not the tree holds their edge:
     # weighed by their vertices' distance they were left out, and a strut elsewhere closed
     # a loop around them. Their edges weigh 0 (so the tree takes them, "fused")
-    gap_arr[: len(pairs)][_overlapping(objects, pairs, scale, cancel)] = 0.0
+    fused = np.flatnonzero(_overlapping(objects, pairs, scale, cancel))
+    gap_arr[fused] = 0.0
     if cancel():
         return plan
     allowed = np.ones(len(gap_arr), dtype=bool)
@@ -265,7 +268,7 @@ def plan_connectors(objects: Sequence[PlacedObject], diameter: float, *,
     # is judged once, and every refused edge of a tree goes before the next tree: judging
     # the whole tree again after each refusal grew as refusals x objects
     # (docs/notes-export.md)
-    verdicts: dict[int, tuple[m3.Manifold, float] | str] = {}
+    verdicts: dict[int, tuple[m3.Manifold, float] | str] = dict.fromkeys(fused, "fused")
     while True:
         # scipy drops zero weights: shift every weight by a tiny positive amount
         w = gap_arr[allowed] + 1e-9 * scale
@@ -310,8 +313,7 @@ def _judge_edge(objects: Sequence[PlacedObject], shells: Sequence[tuple[m3.Manif
     two objects would leave the container, else (the strut, its length)."""
     n = len(objects)
     upper = gap + (shells[b - n][1].radius if b >= n else 0.0)
-    if (_gap(solid(a), solid(b), upper) <= 0.0
-            and (solid(a) ^ solid(b)).volume() > 1e-9 * scale ** 3):
+    if _fused(solid(a), solid(b), upper, scale):
         return "fused"
     target = shells[b - n][1] if b >= n else objects[b]
     pa, pb = _closest_pair(objects[a], target, start)
