@@ -283,8 +283,9 @@ class PackRunner(JobRunner):
         coll = bridge.build_result(context, self._request, result)
         # an earlier result holding an input (a placed object picked as a type) is kept
         kept = 0
-        if not (context.scene.jampacked.keep_previous
-                or bridge.inputs_in_results(context.scene, self._request)):
+        if context.scene.jampacked.keep_previous:
+            coll[results.KEPT] = True
+        elif not bridge.inputs_in_results(context.scene, self._request):
             kept = results.replace_previous(context.scene, coll, last)
         p = result.packing
         m, cert = p.metrics, p.certificate

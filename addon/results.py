@@ -10,6 +10,9 @@ import bpy
 
 from . import instances, summary
 
+#: a result made with Keep Previous: a later Pack without it leaves it (but the last)
+KEPT = summary.PREFIX + "kept"
+
 
 def is_result(coll: bpy.types.Collection) -> bool:
     """True for a collection made by Pack (it holds the packing JSON)."""
@@ -73,15 +76,16 @@ def remove_result(coll: bpy.types.Collection, keep_in: bpy.types.Collection) -> 
 
 def replace_previous(scene: bpy.types.Scene, new: bpy.types.Collection,
                      last: bpy.types.Collection | None = None) -> int:
-    """Remove the last result of ``new``'s container in the scene: ``last`` (the scene's
-    result before this Pack) where it is one, else the one made last (linked last); the
-    results kept side by side with Keep Previous stay. Then give ``new`` and its type meshes
-    and materials the names the removed one had (no ".001" suffixes) where they are free.
-    What the artist put in the removed result moves to ``new``. Returns the number of
-    objects and collections so moved."""
+    """Remove the earlier results of ``new``'s container in the scene but those made with
+    Keep Previous (marked ``jampacked_kept``), which stay side by side, and of them only the
+    last: ``last`` (the scene's result before this Pack) where it is one, else the one
+    linked last. Then give ``new`` and its type meshes and materials the names the removed
+    ones had (no ".001" suffixes) where they are free. What the artist put in a removed
+    result moves to ``new``. Returns the number of objects and collections so moved."""
     container = str(new.get(summary.PREFIX + "container", ""))
-    old = [c for c in previous_results(scene, container) if c != new]
-    old = [last] if last is not None and last in old else old[-1:]
+    others = [c for c in previous_results(scene, container) if c != new]
+    newest = last if last is not None and last in others else (others or [None])[-1]
+    old = [c for c in others if c == newest or not c.get(KEPT, False)]
     kept = 0
     for coll in old:
         kept += remove_result(coll, new)
