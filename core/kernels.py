@@ -127,28 +127,27 @@ def sample_grid_many(vals3, origin, h, pts):
 
 
 @njit(cache=True, inline="always")
-def crease_depth(px, py, pz, d, gx, gy, gz, nx, ny, nz, ox, oy, oz, h, index, offsets, ids,
-                 planes, reach):
-    """The wall depth at (px, py, pz): the grid's (d, gx, gy, gz), or where the point's
-    cell is a crease cell and its planes read more room, and some (the point is inside),
-    their least depth (at most reach) with the grid's gradient. Outside, a plane reads a
-    corner's depth short (-0.35 for -0.6), so there the grid's reading stays. The nearest
-    plane's normal flips across a crease's bisector: pushed along it, an object in a
-    corner cleared one wall at a time and grew into its room less often than on the
-    grid's blended slope (docs/notes-core.md). Returns (depth, gx, gy, gz)."""
+def crease_depth(px, py, pz, d, nx, ny, nz, ox, oy, oz, h, index, offsets, ids, planes,
+                 reach):
+    """The wall depth at (px, py, pz): the grid's d, or where the point's cell is a crease
+    cell and its planes read more room, and some (the point is inside), their least depth
+    (at most reach). Outside, a plane reads a corner's depth short (-0.35 for -0.6), so
+    there the grid's reading stays. The push keeps the grid's gradient: the nearest plane's
+    normal flips across a crease's bisector, and an object in a corner pushed along it
+    cleared one wall at a time (docs/notes-core.md)."""
     if index.shape[0] == 0 or d >= reach or d <= -h:
-        return d, gx, gy, gz
+        return d
     fx = (px - ox) / h
     fy = (py - oy) / h
     fz = (pz - oz) / h
     if fx < 0.0 or fy < 0.0 or fz < 0.0 or fx > nx - 1.0 or fy > ny - 1.0 or fz > nz - 1.0:
-        return d, gx, gy, gz
+        return d
     i = min(int(fx), nx - 2)
     j = min(int(fy), ny - 2)
     k = min(int(fz), nz - 2)
     at = index[(i * (ny - 1) + j) * (nz - 1) + k]
     if at < 0:
-        return d, gx, gy, gz
+        return d
     best = reach
     for u in range(offsets[at], offsets[at + 1]):
         pl = ids[u]
@@ -156,8 +155,8 @@ def crease_depth(px, py, pz, d, gx, gy, gz, nx, ny, nz, ox, oy, oz, h, index, of
         if v < best:
             best = v
     if best <= d or best <= 0.0:
-        return d, gx, gy, gz
-    return best, gx, gy, gz
+        return d
+    return best
 
 
 @njit(cache=True, inline="always")
@@ -170,8 +169,8 @@ def wall_depth(c_flat, nx, ny, nz, c_origin, c_h, index, offsets, ids, planes, r
     cost more than the reading (docs/notes-core.md). Returns (d, gx, gy, gz)."""
     d, gx, gy, gz = trilinear(c_flat, 0, nx, ny, nz, c_origin[0], c_origin[1], c_origin[2],
                               c_h, px, py, pz)
-    return crease_depth(px, py, pz, d, gx, gy, gz, nx, ny, nz, c_origin[0], c_origin[1],
-                        c_origin[2], c_h, index, offsets, ids, planes, reach)
+    return (crease_depth(px, py, pz, d, nx, ny, nz, c_origin[0], c_origin[1], c_origin[2],
+                         c_h, index, offsets, ids, planes, reach), gx, gy, gz)
 
 
 @njit(cache=True)
