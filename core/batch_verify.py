@@ -113,10 +113,12 @@ def _changed_settings(spec: SceneSpec, p: Packing) -> str:
     for name, (made, asked) in given.items():
         if made != asked:
             return name
-    if spec.shares is not None:
-        q = np.asarray(spec.shares, float) / sum(spec.shares)
-        if not np.allclose([t.share for t in p.types], q, rtol=1e-9, atol=1e-12):
-            return "shares"
+    # no shares in the batch file: pack() gives every type an equal one
+    asked = spec.shares if spec.shares is not None else [1.0] * len(spec.types)
+    q = np.asarray(asked, float) / sum(asked)
+    made = [t.share for t in p.types]
+    if len(made) != len(q) or not np.allclose(made, q, rtol=1e-9, atol=1e-12):
+        return "shares"
     return ""
 
 

@@ -6,6 +6,7 @@ from __future__ import annotations
 
 import contextlib
 import csv
+import dataclasses
 import io
 import json
 import shutil
@@ -94,6 +95,18 @@ def test_an_edited_file_is_not_trusted(copy, change, reason):
     edit(copy, change)
     done, why = check_done(SPEC, copy)
     assert done is None and reason in why
+
+
+@pytest.mark.parametrize("shares", [(0.5, 0.5), None])
+def test_a_file_made_with_other_shares_is_packed_again(packed, tmp_path, shares):
+    # the batch file's shares changed, or were dropped (pack() then gives equal ones)
+    spec = dataclasses.replace(SPEC, shares=(0.8, 0.2))
+    [r] = run_batch([spec], tmp_path)
+    assert r.status == "packed"
+    assert check_done(spec, scene_file(tmp_path, spec))[0] is not None
+    done, why = check_done(dataclasses.replace(SPEC, shares=shares),
+                           scene_file(tmp_path, spec))
+    assert done is None and why == "made with another shares"
 
 
 def test_a_rerun_packs_an_edited_file_again_and_says_why(copy):
