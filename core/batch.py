@@ -240,17 +240,23 @@ def _run_on_cluster(client, todo: list[SceneSpec], finish, cancel: Callable[[], 
     pending = dict(futures)
     try:
         while pending:
-            if cancel():
-                return
+            stop = cancel()
+            # scenes that finished while the last one was written are kept, even on cancel
             for f in [f for f in pending if f.done()]:
                 spec = pending.pop(f)
                 try:
                     packing = f.result()
                 except JampackedError as exc:
                     finish(spec, None, str(exc))
+                except Exception as exc:  # noqa: BLE001 - the scene's worker failed
+                    # (Dask's KilledWorker after it died on every worker tried, a worker
+                    # out of memory): that scene fails, the others go on
+                    finish(spec, None, f"its worker failed: {type(exc).__name__}: {exc}")
                 else:
                     finish(spec, packing)
                 f.release()
+            if stop:
+                return
             time.sleep(POLL)
     finally:
         if pending:

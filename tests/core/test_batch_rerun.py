@@ -17,6 +17,7 @@ from testdata import mesh_path
 from jampacked.cli.main import main
 from jampacked.core.batch import DIGEST, check_done, run_batch, scene_file
 from jampacked.core.batch_file import SceneSpec
+from jampacked.core.packing_json import load_packing
 
 P1 = str(mesh_path("polyhedra/convex5/polytope1.obj"))
 P3 = str(mesh_path("polyhedra/convex5/polytope3.obj"))
@@ -132,3 +133,65 @@ def test_each_scenes_warnings_are_printed_and_in_the_summary(packed, tmp_path):
     with open(tmp_path / "summary.csv", newline="") as f:
         [row] = csv.DictReader(f)
     assert row["status"] == "skipped" and "type mix is off" in row["message"]
+
+
+class _Future:
+    """A Dask future's face as `run_batch` uses it, finished when `ready()` says so."""
+
+    def __init__(self, value, ready=lambda: True):
+        self.value, self.ready = value, ready
+
+    def done(self):
+        return self.ready()
+
+    def result(self):
+        if isinstance(self.value, Exception):
+            raise self.value
+        return self.value
+
+    def release(self):
+        pass
+
+
+class _Client:
+    """A cluster whose scenes' results are given up front (`results` by scene id)."""
+
+    def __init__(self, results):
+        self.results, self.cancelled = results, []
+
+    def submit(self, fn, spec, key=None, pure=None):
+        return self.results[spec.id]
+
+    def cancel(self, futures):
+        self.cancelled += futures
+
+
+def test_ctrl_c_on_a_cluster_keeps_the_scenes_that_finished_meanwhile(packed, tmp_path):
+    # scene "b" finishes on its worker while "a" is written, and Ctrl-C comes then
+    packing = load_packing(packed)
+    state = {"a written": False}
+    a, b, c = (dataclasses.replace(SPEC, id=i) for i in "abc")
+    client = _Client({"a": _Future(packing), "c": _Future(packing, lambda: False),
+                      "b": _Future(packing, lambda: state["a written"])})
+
+    def progress(done, total, message):
+        state["a written"] = state["a written"] or message.startswith("a:")
+
+    results = run_batch([a, b, c], tmp_path, client, progress, lambda: state["a written"])
+    assert [r.status for r in results] == ["packed", "packed", "cancelled"]
+    assert scene_file(tmp_path, b).is_file() and not scene_file(tmp_path, c).exists()
+    assert client.cancelled == [client.results["c"]]
+
+
+def test_a_scene_whose_worker_failed_fails_alone(packed, tmp_path):
+    packing = load_packing(packed)
+    a, b = (dataclasses.replace(SPEC, id=i) for i in "ab")
+    killed = type("KilledWorker", (Exception,), {})(
+        "Attempted to run task 'scene-a' on 3 different workers, but all those workers "
+        "died while running it.")
+    results = run_batch([a, b], tmp_path, _Client({"a": _Future(killed),
+                                                   "b": _Future(packing)}))
+    assert [r.status for r in results] == ["failed", "packed"]
+    assert results[0].message.startswith("its worker failed: KilledWorker: Attempted")
+    with open(tmp_path / "summary.csv", newline="") as f:
+        assert [row["status"] for row in csv.DictReader(f)] == ["failed", "packed"]
