@@ -34,6 +34,7 @@ from .options import CavityPassOptions, PackOptions
 from .packing_digest import DIGEST
 from .packing_json import save_packing
 from .packing_types import Packing
+from .summary import number
 
 SUMMARY = "summary.csv"
 COLUMNS = ("id", "status", "seed", "container", "types", "count", "density", "tvd",
@@ -135,7 +136,7 @@ def run_batch(scenes: list[SceneSpec], out_dir: str | os.PathLike, client=None,
             why_not[spec.id] = why
         if done is not None:
             results[spec.id] = SceneResult(spec, "skipped", str(path), done,
-                                           seconds=done.timings.get("total"))
+                                           seconds=number(done.timings.get("total")))
             _export(results[spec.id], out, cancel, stale_only=True)
         else:
             todo.append(spec)
@@ -157,7 +158,7 @@ def run_batch(scenes: list[SceneSpec], out_dir: str | os.PathLike, client=None,
                                  "scenes stay written. Free the folder and run the batch "
                                  "again.") from None
             results[spec.id] = SceneResult(spec, "packed", str(path), packing,
-                                           seconds=packing.timings.get("total"),
+                                           seconds=number(packing.timings.get("total")),
                                            repacked=why_not.get(spec.id, ""))
             _export(results[spec.id], out, cancel)
         report(len(results), total, f"{spec.id}: {results[spec.id].status}")

@@ -110,6 +110,18 @@ def test_a_file_made_with_other_shares_is_packed_again(packed, tmp_path, shares)
     assert done is None and why == "made with another shares"
 
 
+def test_a_verified_file_with_unreadable_timings_is_skipped_and_summarised(copy):
+    # the timings are not part of what was certified: the scene is done, its time unknown
+    doc = json.loads(copy.read_text())
+    doc["timings"]["total"] = "x"
+    copy.write_text(json.dumps(doc))
+    [r] = run_batch([SPEC], copy.parent)
+    assert r.status == "skipped" and r.seconds is None
+    with open(copy.parent / "summary.csv", newline="") as f:
+        [row] = csv.DictReader(f)
+    assert row["status"] == "skipped" and row["seconds"] == ""
+
+
 def test_a_rerun_packs_an_edited_file_again_and_says_why(copy):
     edit(copy, _density)
     [r] = run_batch([SPEC], copy.parent)
