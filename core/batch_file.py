@@ -45,6 +45,9 @@ EXPORT_MODES = ("union", "connect", "parts")
 SCENE_KEYS = ("name", "container", "containers", "types", "type_sets", "seed", "seeds",
               *SETTINGS)
 _ID_RE = re.compile(r"[^A-Za-z0-9_.-]+")
+#: the longest scene id: its files' names (the exports' record, the temporary name it is
+#: written under: 27 characters more) stay within the 255 bytes file systems allow
+MAX_ID = 200
 
 
 @dataclass(frozen=True)
@@ -75,7 +78,7 @@ def read_batch(path: str | os.PathLike) -> list[SceneSpec]:
     file, the scene and the key of the first problem."""
     path = Path(path)
     try:
-        text = path.read_text(encoding="utf-8")
+        text = path.read_text(encoding="utf-8-sig")  # editors on Windows may add a BOM
     except OSError as exc:
         raise InputError(f"cannot read batch file {path}: {exc.strerror or exc}") from None
     except UnicodeDecodeError:
@@ -104,16 +107,28 @@ def read_batch(path: str | os.PathLike) -> list[SceneSpec]:
     lines = _scene_lines(text)
     base = path.resolve().parent
     out: list[SceneSpec] = []
-    seen: dict[str, str] = {}
+    seen: dict[str, tuple[str, str]] = {}
     for k, scene in enumerate(scenes):
         where = f"scene {k + 1}" + (f" (line {lines[k]})" if k < len(lines) else "")
         for spec in _expand(scene, defaults, base, f"batch file {path}, {where}", k):
-            if spec.id in seen:
-                raise InputError(f"batch file {path}, {where}: scene id {spec.id!r} is also "
-                                 f"made by {seen[spec.id]}; give the scenes different names.")
-            seen[spec.id] = where
+            # case folded: "A" and "a" name one file on macOS and Windows
+            other = seen.get(spec.id.casefold())
+            if other is not None:
+                raise InputError(f"batch file {path}, {where}: {_same_id(spec.id, *other)}")
+            seen[spec.id.casefold()] = (spec.id, where)
             out.append(spec)
     return out
+
+
+def _same_id(new: str, old: str, where: str) -> str:
+    """Why scene id `new` may not follow `old` (made by `where`), and how to fix it."""
+    if new != old:
+        return (f"scene id {new!r} differs from {old!r} of {where} only in case, and they "
+                "would write one file on macOS and Windows; give the scenes different "
+                "names.")
+    return (f"scene id {new!r} is also made by {where}; give the scenes different names "
+            "(a name keeps its letters, digits, '_', '.' and '-', and any other characters "
+            "become '_', so 'a b' and 'a_b' are one name).")
 
 
 def _scene_lines(text: str) -> list[int]:
@@ -137,9 +152,12 @@ def _expand(scene: dict, defaults: dict, base: Path, where: str, k: int) -> list
     sets = _type_sets(merged, where)
     sets = [tuple(_mesh(t, base, f"{where}, types") for t in s) for s in sets]
     seeds = _one_or_many(merged, "seed", "seeds", where, int)
-    for s in seeds:
+    for i, s in enumerate(seeds):
         if s < 0:
             raise InputError(f"{where}: seeds must be whole numbers >= 0, got {s}.")
+        if s in seeds[:i]:
+            raise InputError(f"{where}: seed {s} is listed twice in 'seeds'; list each seed "
+                             "once.")
     settings = _settings(merged, where)
     _check_export(settings, where)
     shares = settings.pop("shares", None)
@@ -155,7 +173,13 @@ def _expand(scene: dict, defaults: dict, base: Path, where: str, k: int) -> list
             for seed in seeds:
                 parts = [name] + ([f"c{ci + 1}"] if len(containers) > 1 else []) + (
                     [f"t{ti + 1}"] if len(sets) > 1 else []) + [f"s{seed}"]
-                out.append(SceneSpec(id="-".join(parts), container=container,
+                scene_id = "-".join(parts)
+                if len(scene_id) > MAX_ID:
+                    most = MAX_ID - (len(scene_id) - len(name))
+                    raise InputError(f"{where}: 'name' is too long for a file name "
+                                     f"({len(name)} characters); give a name of at most "
+                                     f"{most}.")
+                out.append(SceneSpec(id=scene_id, container=container,
                                      types=types, seed=seed, shares=shares, where=where,
                                      **settings))
     return out
@@ -217,7 +241,12 @@ def _mesh(text: str, base: Path, where: str, container: bool = False) -> str:
             return text
     p = Path(text).expanduser()
     p = p if p.is_absolute() else base / p
-    if not p.is_file():
+    try:
+        found = p.is_file()
+    except OSError as exc:  # a name too long for the file system
+        raise InputError(f"{where}: mesh file {_shorten(text)!r} cannot be looked up: "
+                         f"{exc.strerror or exc}. Give a shorter path.") from None
+    if not found:
         raise InputError(f"{where}: mesh file {text!r} not found (looked for {p}); paths "
                          "are relative to the batch file's folder.")
     return str(p)
@@ -242,6 +271,10 @@ def _settings(d: dict, where: str) -> dict[str, Any]:
             if not isinstance(v, list) or not all(x in EXPORT_FORMATS for x in v):
                 raise InputError(f"{where}: 'export' must be a list of formats from "
                                  f"{', '.join(EXPORT_FORMATS)}, got {v!r}.")
+            twice = next((x for i, x in enumerate(v) if x in v[:i]), None)
+            if twice is not None:
+                raise InputError(f"{where}: 'export' lists {twice!r} twice; list each format "
+                                 "once.")
             v = tuple(v)
         elif key == "export_mode":
             if v not in EXPORT_MODES:
@@ -288,3 +321,7 @@ def _check_export(settings: dict[str, Any], where: str) -> None:
 
 def _real(v: Any) -> bool:
     return isinstance(v, int | float) and not isinstance(v, bool) and math.isfinite(v)
+
+
+def _shorten(text: str, most: int = 80) -> str:
+    return text if len(text) <= most else text[: most - 3] + "..."

@@ -91,8 +91,24 @@ def test_a_scene_expands_to_containers_times_sets_times_seeds(folder):
      r"'time_budget' must be a number > 0, got -3"),
     ("[[scene]]\ncontainer='box:9x9x9'\ntypes=['a.obj']\nseed=1\nexport=['step']\n",
      r"'export' must be a list of formats from 3mf, stl, obj, ply, got \['step'\]"),
-    ("[[scene]]\ncontainer='box:9x9x9'\ntypes=['a.obj']\nseeds=[1, 1]\n",
-     r"scene id 'scene1-s1' is also made by scene 1"),
+    ("[[scene]]\ncontainer='box:9x9x9'\ntypes=['a.obj']\nseeds=[1, 2, 1]\n",
+     r"scene 1 \(line 1\): seed 1 is listed twice in 'seeds'; list each seed once"),
+    ("[[scene]]\nname='a b'\ncontainer='box:9x9x9'\ntypes=['a.obj']\nseed=1\n\n[[scene]]\n"
+     "name='a_b'\ncontainer='box:9x9x9'\ntypes=['a.obj']\nseed=1\n",
+     r"scene 2 \(line 7\): scene id 'a_b-s1' is also made by scene 1 \(line 1\); give the "
+     r"scenes different names \(.*'a b' and 'a_b' are one name"),
+    ("[[scene]]\nname='Jar'\ncontainer='box:9x9x9'\ntypes=['a.obj']\nseed=1\n\n[[scene]]\n"
+     "name='jar'\ncontainer='box:9x9x9'\ntypes=['a.obj']\nseed=1\n",
+     r"scene 2 \(line 7\): scene id 'jar-s1' differs from 'Jar-s1' of scene 1 \(line 1\) "
+     "only in case"),
+    ("[[scene]]\ncontainer='box:9x9x9'\ntypes=['a.obj']\nseed=1\nexport=['stl', '3mf', 'stl']\n",
+     r"scene 1 \(line 1\): 'export' lists 'stl' twice; list each format once"),
+    (f"[[scene]]\nname='{'n' * 300}'\ncontainer='box:9x9x9'\ntypes=['a.obj']\nseed=1\n",
+     r"scene 1 \(line 1\): 'name' is too long for a file name \(300 characters\); give a "
+     "name of at most 197"),
+    (f"[[scene]]\ncontainer='box:9x9x9'\ntypes=['{'a' * 5000}.obj']\nseed=1\n",
+     r"scene 1 \(line 1\), types: mesh file 'a{77}\.\.\.' cannot be looked up: .*Give a "
+     "shorter path"),
     ("[[scene]]\ncontainer='box:20x20'\ntypes=['a.obj']\nseed=1\n",
      r"scenes.toml, scene 1 \(line 1\), container: box spec 'box:20x20' is malformed"),
     ("[defaults]\nexport=['stl']\nexport_mode='parts'\n\n[[scene]]\ncontainer='box:9x9x9'\n"
@@ -274,6 +290,13 @@ def test_scene_names_make_plain_visible_file_names(folder, name, scene_id):
     [spec] = read_batch(write(folder, f"[[scene]]\nname = {name!r}\ncontainer = 'box:9x9x9'\n"
                                       "types = ['a.obj']\nseed = 1\n"))
     assert spec.id == scene_id
+
+
+def test_a_batch_file_saved_with_a_byte_order_mark_reads(folder):
+    path = folder / "scenes.toml"
+    path.write_text("[[scene]]\ncontainer = 'box:9x9x9'\ntypes = ['a.obj']\nseed = 1\n",
+                    encoding="utf-8-sig")
+    assert [s.id for s in read_batch(path)] == ["scene1-s1"]
 
 
 def test_a_name_with_no_letter_or_digit_is_refused(folder):
