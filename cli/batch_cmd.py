@@ -53,7 +53,9 @@ sha256 still match, it is certified, its placements are the ones certified and i
 follow from them); any other file is packed again, saying why. Export files are made
 again when missing, changed since written, or made with other export settings (recorded
 in OUT/<scene>.exports.json). Each scene's warnings are printed and go in the summary's
-message column. Ctrl-C stops: finished scenes stay written (exit status 130). Exit status:
+message column. Ctrl-C stops: finished scenes stay written, and the scene being packed here
+writes its best certified packing so far, which the next run packs again (exit status
+130). Exit status:
 0 every scene packed or skipped, 1 a scene failed or the batch file is bad (the message
 names the scene and key), 2 bad arguments.
 """
@@ -108,6 +110,9 @@ def cmd_batch(args: argparse.Namespace) -> int:
         if r.status == "failed":
             err.print(f"[red]failed:[/] {escape(r.spec.id)}: {escape(r.message)}",
                       highlight=False, soft_wrap=True)
+        if r.status == "cancelled" and r.file:
+            err.print(f"note: {escape(r.spec.id)}: {escape(r.message)}", highlight=False,
+                      soft_wrap=True)
         if r.repacked:
             err.print(f"note: {escape(r.spec.id)} packed again: the earlier file was not "
                       f"trusted: {escape(r.repacked)}", highlight=False, soft_wrap=True)

@@ -9,8 +9,9 @@ module records the digest of what it certified when it saves a packing. A scene'
 are made again where their record does not vouch for them (`core/batch_exports.py`). On a
 cluster a worker runs `pack_scene` and returns the Packing; a worker that dies mid-scene
 has its scenes run again elsewhere by Dask's scheduler, and since only this process writes,
-by scene id, a scene is never lost nor written twice. Cancel (Ctrl-C) stops waiting:
-finished scenes stay written, unfinished ones are not written.
+by scene id, a scene is never lost nor written twice. Cancel (Ctrl-C) stops: finished
+scenes stay written; the scene packing here writes its best certified packing so far,
+which a rerun packs again (`check_done`); scenes on a cluster's workers are dropped.
 """
 
 from __future__ import annotations
@@ -39,6 +40,9 @@ from .summary import number
 SUMMARY = "summary.csv"
 COLUMNS = ("id", "status", "seed", "container", "types", "count", "density", "tvd",
            "nni_mean", "certified", "seconds", "file", "message")
+#: what a scene stopped by Ctrl-C while packing says in the summary
+CANCELLED_NOTE = ("stopped by Ctrl-C before the end: its best certified packing so far is "
+                  "written, not exported, and the next run packs it again")
 #: seconds between looks at the cluster's futures and the cancel callback
 POLL = 0.1
 
@@ -146,9 +150,9 @@ def run_batch(scenes: list[SceneSpec], out_dir: str | os.PathLike, client=None,
     def finish(spec: SceneSpec, packing: Packing | None, error: str = "") -> None:
         if packing is None:
             results[spec.id] = SceneResult(spec, "failed", message=error)
-        elif packing.report.stopped == "cancelled":
-            results[spec.id] = SceneResult(spec, "cancelled", packing=None,
-                                           message="stopped before the end; not written")
+        elif packing.report.stopped == "cancelled" and packing.n == 0:
+            results[spec.id] = SceneResult(spec, "cancelled", message=(
+                "stopped before any object was placed; not written"))
         else:
             path = scene_file(out, spec)
             try:
@@ -157,10 +161,15 @@ def run_batch(scenes: list[SceneSpec], out_dir: str | os.PathLike, client=None,
                 raise InputError(f"cannot write {path}: {exc.strerror or exc}; finished "
                                  "scenes stay written. Free the folder and run the batch "
                                  "again.") from None
-            results[spec.id] = SceneResult(spec, "packed", str(path), packing,
-                                           seconds=number(packing.timings.get("total")),
-                                           repacked=why_not.get(spec.id, ""))
-            _export(results[spec.id], out, cancel)
+            seconds = number(packing.timings.get("total"))
+            if packing.report.stopped == "cancelled":  # kept, not exported, packed again
+                results[spec.id] = SceneResult(spec, "cancelled", str(path), packing,
+                                               CANCELLED_NOTE, seconds)
+            else:
+                results[spec.id] = SceneResult(spec, "packed", str(path), packing,
+                                               seconds=seconds,
+                                               repacked=why_not.get(spec.id, ""))
+                _export(results[spec.id], out, cancel)
         report(len(results), total, f"{spec.id}: {results[spec.id].status}")
 
     try:

@@ -44,6 +44,8 @@ def check_done(spec: SceneSpec, path: Path) -> tuple[Packing | None, str]:
     problems = verify_sources(p)
     if problems:
         return None, problems[0]
+    if p.report.stopped == "cancelled":
+        return None, "stopped by Ctrl-C before the end"
     if p.certificate.get("certified") is not True:
         return None, "not certified"
     recorded = p.certificate.get(DIGEST)

@@ -7,6 +7,7 @@ import contextlib
 import csv
 import io
 import shutil
+import signal
 import textwrap
 
 import numpy as np
@@ -344,3 +345,33 @@ def test_a_rerun_exports_again_what_changed_settings_or_no_longer_matches(folder
     (out / "scene1-s1.exports.json").unlink()  # files without a record are not trusted
     err, _ = rerun("connect")
     assert "scene1-s1.obj: no record of how it was made" in err
+
+
+def test_ctrl_c_writes_the_scene_packing_here_and_a_rerun_packs_it_again(folder, monkeypatch):
+    from jampacked.core import batch
+
+    real_pack = batch.pack
+
+    def interrupted_pack(*args, should_cancel, **kwargs):
+        polls = iter(range(10**9))
+
+        def ctrl_c_once_objects_are_placed() -> bool:
+            if next(polls) == 300:
+                signal.raise_signal(signal.SIGINT)  # what Ctrl-C does
+            return should_cancel()
+
+        return real_pack(*args, should_cancel=ctrl_c_once_objects_are_placed, **kwargs)
+
+    monkeypatch.setattr(batch, "pack", interrupted_pack)
+    path = write(folder, "[[scene]]\nname = 'x'\ncontainer = 'box:30x30x30'\n"
+                         "types = ['a.obj']\nseed = 1\nfidelity = 'low'\n")
+    rc, _, err = run(["batch", str(path), "-o", str(folder / "out"), "-q"])
+    assert rc == 130
+    assert "note: x-s1: stopped by Ctrl-C before the end: its best certified packing so far " \
+        "is written" in " ".join(err.split())
+    p = load_packing(folder / "out" / "x-s1.json")
+    assert p.n > 0 and p.report.stopped == "cancelled" and p.certificate["certified"] is True
+    monkeypatch.undo()
+    rc, _, err = run(["batch", str(path), "-o", str(folder / "out"), "-q"])
+    assert rc == 0 and "x-s1 packed again: the earlier file was not trusted: stopped by " \
+        "Ctrl-C before the end" in " ".join(err.split())

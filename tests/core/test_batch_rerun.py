@@ -15,6 +15,7 @@ import pytest
 from testdata import mesh_path
 
 from jampacked.cli.main import main
+from jampacked.core import batch
 from jampacked.core.batch import DIGEST, check_done, run_batch, scene_file
 from jampacked.core.batch_file import SceneSpec
 from jampacked.core.packing_json import load_packing
@@ -207,3 +208,27 @@ def test_a_scene_whose_worker_failed_fails_alone(packed, tmp_path):
     assert results[0].message.startswith("its worker failed: KilledWorker: Attempted")
     with open(tmp_path / "summary.csv", newline="") as f:
         assert [row["status"] for row in csv.DictReader(f)] == ["failed", "packed"]
+
+
+def test_ctrl_c_writes_the_scenes_best_packing_and_a_rerun_packs_it_again(packed, tmp_path,
+                                                                          monkeypatch):
+    # Ctrl-C while a scene packs here: pack() returns its best certified packing so far
+    stopped = load_packing(packed)
+    stopped.report.stopped = "cancelled"
+    empty = dataclasses.replace(SPEC, id="empty")
+    nothing = load_packing(packed)
+    nothing.report.stopped = "cancelled"
+    nothing.type_index, nothing.rotations = nothing.type_index[:0], nothing.rotations[:0]
+    nothing.translations, nothing.scales = nothing.translations[:0], nothing.scales[:0]
+    monkeypatch.setattr(batch, "pack_scene",
+                        lambda spec, cancel: nothing if spec.id == "empty" else stopped)
+    results = run_batch([SPEC, empty], tmp_path)
+    assert [r.status for r in results] == ["cancelled", "cancelled"]
+    assert results[0].message == batch.CANCELLED_NOTE
+    assert "not written" in results[1].message and not scene_file(tmp_path, empty).exists()
+    assert check_done(SPEC, scene_file(tmp_path, SPEC)) == (
+        None, "stopped by Ctrl-C before the end")
+    monkeypatch.undo()
+    [again] = run_batch([SPEC], tmp_path)
+    assert again.status == "packed" and again.repacked == "stopped by Ctrl-C before the end"
+    assert check_done(SPEC, scene_file(tmp_path, SPEC))[0] is not None
