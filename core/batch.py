@@ -43,6 +43,9 @@ COLUMNS = ("id", "status", "seed", "container", "types", "count", "density", "tv
 #: what a scene stopped by Ctrl-C while packing says in the summary
 CANCELLED_NOTE = ("stopped by Ctrl-C before the end: its best certified packing so far is "
                   "written, not exported, and the next run packs it again")
+#: what a scene whose export Ctrl-C stopped says
+EXPORT_CANCELLED_NOTE = ("its packing is written; Ctrl-C stopped its export, which the next "
+                         "run makes")
 #: seconds between looks at the cluster's futures and the cancel callback
 POLL = 0.1
 
@@ -238,7 +241,9 @@ def _export(result: SceneResult, out: Path, cancel: Callable[[], bool],
     error, again = export_scene(result.spec, result.file, digest, out, cancel,
                                 stale_only)
     result.reexported += again
-    if error:
+    if error and cancel():
+        result.status, result.message = "cancelled", EXPORT_CANCELLED_NOTE
+    elif error:
         result.status, result.message = "failed", error
 
 

@@ -232,3 +232,21 @@ def test_ctrl_c_writes_the_scenes_best_packing_and_a_rerun_packs_it_again(packed
     [again] = run_batch([SPEC], tmp_path)
     assert again.status == "packed" and again.repacked == "stopped by Ctrl-C before the end"
     assert check_done(SPEC, scene_file(tmp_path, SPEC))[0] is not None
+
+
+def test_ctrl_c_during_an_export_keeps_the_packing_and_the_next_run_exports(packed, tmp_path,
+                                                                          monkeypatch):
+    spec = dataclasses.replace(SPEC, export=("stl",))
+    state = {"packed": False}
+
+    def pack_scene(spec, cancel):
+        state["packed"] = True  # Ctrl-C comes as the packing is done
+        return load_packing(packed)
+
+    monkeypatch.setattr(batch, "pack_scene", pack_scene)
+    [r] = run_batch([spec], tmp_path, should_cancel=lambda: state["packed"])
+    assert r.status == "cancelled" and r.message == batch.EXPORT_CANCELLED_NOTE
+    assert not (tmp_path / "x-s2.stl").exists()
+    [again] = run_batch([spec], tmp_path)
+    assert again.status == "skipped" and again.reexported == ["x-s2.stl: missing"]
+    assert (tmp_path / "x-s2.stl").is_file()
