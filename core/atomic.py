@@ -12,6 +12,18 @@ from collections.abc import Callable, Iterator
 from typing import IO
 
 
+def _umask() -> int:
+    # os.umask can only be read by setting it: done once, at import, before any thread of
+    # ours writes files
+    mask = os.umask(0o022)
+    os.umask(mask)
+    return mask
+
+
+#: the permission bits of a new file, as open() would give it (0o644 under umask 022)
+NEW_FILE_MODE = 0o666 & ~_umask()
+
+
 def write_refusal(folder: str | os.PathLike) -> str | None:
     """Why no new file can be made in ``folder`` (permissions, an immutable attribute, a
     read-only disk), or None when one can: a hidden probe file is created and removed, since
@@ -36,9 +48,9 @@ def refusal_advice(folder: str | os.PathLike) -> str:
 def staged_output(path: str | os.PathLike, mode: str = "wb", *, suffix: str = ".tmp"
                   ) -> Iterator[tuple[IO, str]]:
     """Open a temporary file in `path`'s folder, yielding it and its path; on success it is
-    complete on disk (fsynced) with an existing target's permission bits (0o644 for a new
-    one), and left for the caller to rename over `path` (or remove); on failure it is
-    removed. `path` itself is never touched."""
+    complete on disk (fsynced) with an existing target's permission bits (a new one's as
+    the umask gives: `NEW_FILE_MODE`), and left for the caller to rename over `path` (or
+    remove); on failure it is removed. `path` itself is never touched."""
     path = os.fspath(path)
     directory, name = os.path.split(path)
     fd, tmp = tempfile.mkstemp(prefix=f".{name}.", suffix=suffix, dir=directory or ".")
@@ -51,7 +63,7 @@ def staged_output(path: str | os.PathLike, mode: str = "wb", *, suffix: str = ".
         try:
             perm = os.stat(path).st_mode & 0o777
         except FileNotFoundError:
-            perm = 0o644
+            perm = NEW_FILE_MODE
         os.chmod(tmp, perm)
     except BaseException:
         with contextlib.suppress(FileNotFoundError):
@@ -65,9 +77,10 @@ def atomic_output(path: str | os.PathLike, mode: str = "wb", *, suffix: str = ".
     """Open a temporary file in `path`'s folder; on success fsync and rename it to `path`
     (`staged_output`, then the rename).
 
-    The file keeps an existing target's permission bits (0o644 for a new one). ``check``, if
-    given, is called with the temporary file's path once it is complete on disk and before
-    it is renamed (e.g. to read it back); whatever it raises leaves `path` as it was.
+    The file keeps an existing target's permission bits (a new one's follow the umask).
+    ``check``, if given, is called with the temporary file's path once it is complete on
+    disk and before it is renamed (e.g. to read it back); whatever it raises leaves `path`
+    as it was.
     """
     with staged_output(path, mode, suffix=suffix) as (f, tmp):
         yield f
