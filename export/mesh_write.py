@@ -184,9 +184,9 @@ def stage_mesh_file(
     """Write the mesh for ``path`` to a temporary file beside it and return the
     temporary's path; ``path`` itself is not touched (:func:`replace_files` puts it in
     place). The temporary is hidden (``.NAME.XXXX.tmp.EXT``), ends in the real extension so
-    it reads back, is flushed to disk and has the permissions ``path`` has (0o644 for a new
-    file). The path must have been checked (:func:`check_output_path`); other arguments and
-    errors as :func:`write_mesh_file`; on an error no temporary is left.
+    it reads back, is flushed to disk and has the permissions ``path`` has (a new file's
+    follow the umask). The path must have been checked (:func:`check_output_path`); other
+    arguments and errors as :func:`write_mesh_file`; on an error no temporary is left.
     """
     path_str = os.fspath(path)
     ext = write_format(path_str)
