@@ -31,13 +31,12 @@ import math
 import manifold3d as m3
 import numpy as np
 
-from jampacked.core.distance import band_distances, inside_mask
+from jampacked.core.distance import band_distances, inside_mask, surface_distance
 from jampacked.core.errors import InputError
 from jampacked.core.solids import solid_arrays, to_solid
 
 from .marching import march_tetrahedra
 from .validate import validate_arrays
-from .wall import surface_distance
 
 __all__ = ["MAX_GRID_NODES", "grid_spacing", "inner_solid", "offset_grid"]
 

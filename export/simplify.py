@@ -13,10 +13,10 @@ from __future__ import annotations
 import manifold3d as m3
 import numpy as np
 
+from jampacked.core.distance import surface_distance
 from jampacked.core.solids import solid_arrays
 
 from .union import crossing_pairs
-from .wall import surface_distance
 
 __all__ = ["simplify_within", "surface_deviation"]
 

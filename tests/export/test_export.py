@@ -19,7 +19,7 @@ from scipy.sparse import coo_matrix
 from scipy.sparse.csgraph import connected_components
 from testdata import DATA, mesh_path
 
-from jampacked.core.distance import point_triangle_distance
+from jampacked.core.distance import point_triangle_distance, surface_distance
 from jampacked.core.errors import Cancelled, InputError, MeshError
 from jampacked.core.meshes import load_mesh
 from jampacked.core.packing import Packing, TypeRecord
@@ -30,7 +30,6 @@ from jampacked.export.assemble import export_packing
 from jampacked.export.closest import Surface, closest_on_triangles
 from jampacked.export.options import ExportOptions, Opening, print_size_warning
 from jampacked.export.validate import validate_file
-from jampacked.export.wall import surface_distance
 
 P1 = mesh_path("polyhedra/convex5/polytope1.obj")
 P3 = mesh_path("polyhedra/convex5/polytope3.obj")

@@ -17,12 +17,13 @@ import pytest
 import trimesh
 from testdata import mesh_path
 
+from jampacked.core.distance import surface_distance
 from jampacked.core.errors import InputError
 from jampacked.export.marching import march_tetrahedra
 from jampacked.export.options import Opening
 from jampacked.export.shell import ShellReport, make_shell
 from jampacked.export.validate import validate_arrays
-from jampacked.export.wall import measure_wall_thickness, surface_distance
+from jampacked.export.wall import measure_wall_thickness
 
 
 def arrays(m: m3.Manifold) -> tuple[np.ndarray, np.ndarray]:
