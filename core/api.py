@@ -41,9 +41,11 @@ from .placement import Attempt, Snapshots, place
 from .repair import certify_and_repair
 from .report import NOTE_PREFIX, AttemptSummary, PackInputs, RepairStats, RunReport
 from .room import (
+    OutOfReach,
     check_types_fit,
     measured_depth,
     nothing_placed_message,
+    out_of_reach,
     refuse_no_room,
     refuse_too_long,
     tight_fit_spacing,
@@ -165,8 +167,8 @@ def pack(container: MeshSource, types: Sequence[MeshSource],
     t_place = time.perf_counter()
 
     report(0.9, "certifying on the real meshes")
-    cert, repair = _certify(run.best.solver, approx, q, inputs.clearance, inputs.options,
-                            stop, lambda f, m: report(0.9 + 0.09 * f, m))
+    cert, repair = _certify(run.best.solver, approx, run.shares, inputs.clearance,
+                            inputs.options, stop, lambda f, m: report(0.9 + 0.09 * f, m))
     t_cert = time.perf_counter()
 
     timings = {"load": t_load - t_start, "approximate": t_approx - t_load,
@@ -404,6 +406,9 @@ class _Placed:
     tuner: ThreadTuner | None
     phase1_spacing: float
     t_compile: float  # when the kernels were ready (perf_counter)
+    #: the shares the placement packed for: the asked ones, less the types left out
+    shares: np.ndarray
+    left_out: list[OutOfReach]
 
 
 def _place(scene: _Scene, approx: _Approximation, q: np.ndarray, seed: int,
@@ -417,6 +422,12 @@ def _place(scene: _Scene, approx: _Approximation, q: np.ndarray, seed: int,
     mo = opts.margins
     margins = contact_margins(objtypes, cont.grid, cont.vertices, cont.faces, mo.safety,
                               mo.safety_sharp, mo.wall_safety, mo.wall_safety_sharp, clearance)
+    # a type no point of the container can hold with its margins: the others pack without it
+    left_out = out_of_reach(objtypes, cont, margins, clearance)
+    if left_out:
+        q = q.copy()
+        q[[o.type for o in left_out]] = 0.0
+        q = q / q.sum()
     ph = opts.physics
     solver_params = SolverParams(
         clearance=clearance, tol=1e-6 * approx.f_min, k_obj=ph.k_obj, k_wall=ph.k_wall,
@@ -442,7 +453,7 @@ def _place(scene: _Scene, approx: _Approximation, q: np.ndarray, seed: int,
         best, attempts = place(new_solver, q, s1, approx.f_min, seed, stop, margins.objects,
                                opts, scene.volume, report,
                                None if snapshot is None else Snapshots(snapshot, table.radius))
-    return _Placed(best, attempts, margins, tuner, s1, t_compile)
+    return _Placed(best, attempts, margins, tuner, s1, t_compile, q, left_out)
 
 
 def _certify(solver: Solver, approx: _Approximation, q: np.ndarray, clearance: float,
@@ -502,7 +513,9 @@ def _assemble(container: MeshSource, scene: _Scene, approx: _Approximation, run:
                        float(metrics["tvd"]), inputs.options.cavity.max_tvd,
                        run.best.phase1, inputs.time_budget, stop.reason or None,
                        inputs.options.attempts.count, len(run.attempts),
-                       extra_passes_ran=bool(run.best.extra_passes))
+                       extra_passes_ran=bool(run.best.extra_passes),
+                       left_out=[(o.type, o.need, o.has, o.why) for o in run.left_out],
+                       clearance=clearance)
         + slow_certification(timings["certify"], inputs.time_budget,
                              [t.name for t in objtypes],
                              [len(t.faces) if np.any(typ == i) else 0

@@ -10,12 +10,13 @@ grid, which can fall short of the true depth by about half a cell at its peak.
 from __future__ import annotations
 
 from collections.abc import Sequence
+from dataclasses import dataclass
 
 import numpy as np
 
 from .container import Container, container_grid
 from .cost import TypeSize
-from .distance import DistanceGrid
+from .distance import DistanceGrid, surface_distance
 from .errors import PackingError
 from .grid_size import finest_spacing
 from .margins import Margins
@@ -155,20 +156,127 @@ def tight_fit_spacing(vertices: np.ndarray, faces: np.ndarray, types: Sequence[M
 
 
 def check_types_fit(objtypes: list[ObjectType], cont: Container, clearance: float) -> None:
-    """A type whose largest inscribed sphere (plus the clearance) is deeper than the
-    container fits nowhere: the grid's depth is within a cell of the true depth, the
-    spheres' radii never exceed the true inscribed radius."""
-    depth = float(cont.grid.values.max())
-    no_room = [f"{t.name} ({t.path})" if t.path else t.name for t in objtypes if t.share > 0
-               and float(t.sphere_radii.max()) + clearance > depth + cont.grid.spacing]
+    """A type whose inscribed radius (plus the clearance) is deeper than the container fits
+    nowhere, and is refused: its largest inner sphere and its inner room are lower bounds
+    of that radius; the grid's depth is within a cell of the true depth, and where that
+    leaves it open, `has_depth` settles it on the container mesh."""
+    grid = cont.grid
+    depth = float(grid.values.max())
+    no_room = []
+    for t in objtypes:
+        if t.share <= 0:
+            continue
+        need = max(float(t.sphere_radii.max()), inner_room(t.vertices, t.faces)) + clearance
+        if need > depth + grid.spacing:
+            no_room.append((f"{t.name} ({t.path})" if t.path else t.name, need, depth))
+        elif need > depth - grid.spacing:
+            found, deepest = has_depth(cont.vertices, cont.faces, grid, need)
+            if found is False:
+                no_room.append((f"{t.name} ({t.path})" if t.path else t.name, need,
+                                deepest))
     if no_room:
+        deepest = max(d for _, _, d in no_room)
+        names = ", ".join(n for n, _, _ in no_room)
+        needs = " and ".join(f"{need:.4g}" for _, need, _ in no_room)
         raise PackingError(
-            f"object type{'s' if len(no_room) > 1 else ''} {', '.join(no_room)} cannot fit: "
-            f"the container's deepest interior point is {depth:.4g} units from its wall, less "
-            f"than the type's largest inscribed sphere{' plus the clearance' if clearance else ''}"
-            ". Scale the container up (--container-size / container_size) or the objects down "
-            "(--type-scale / type_scale)"
-            f"{', lower the clearance' if clearance else ''}, or remove the type.")
+            f"object type{'s' if len(no_room) > 1 else ''} {names} cannot fit: the "
+            f"container's deepest interior point is about {deepest:.4g} units from its "
+            f"wall, and the type{'s need' if len(no_room) > 1 else ' needs'} {needs} (the "
+            "inscribed radius"
+            f"{' plus the clearance' if clearance else ''}). Scale the container up "
+            "(--container-size / container_size) or the objects down (--type-scale / "
+            f"type_scale){', lower the clearance' if clearance else ''}, or remove the type.")
+
+
+@dataclass(frozen=True)
+class OutOfReach:
+    """A type the approximation cannot place anywhere (`out_of_reach`): its index, and
+    what it needs against what the container has (container units): with `why` "depth",
+    the depth of its inscribed radius, the clearance and its contact margins against the
+    most the container grid reads; with "length", its length and the clearance at both
+    ends against the container box's diagonal."""
+
+    type: int
+    need: float
+    has: float
+    why: str = "depth"
+
+
+def out_of_reach(objtypes: Sequence[ObjectType], cont: Container, margins: Margins,
+                 clearance: float) -> list[OutOfReach]:
+    """The types (with a share) that the approximation can place nowhere: the depth each
+    needs, its inscribed radius (a lower bound: `check_types_fit`) plus the clearance and
+    the contact margins the solver keeps from the wall (its own and the wall's), is more
+    than the container grid reads anywhere (its interpolant never exceeds its largest
+    node, which can fall half a cell short of the true depth at a peak); or it is longer
+    than the container could hold in any direction (`refuse_too_long`). Run without them,
+    the others pack at their shares among themselves instead of starving while the mix
+    waits for a type that never grows. None where every type is out of reach (the run
+    then says why nothing was placed)."""
+    top = float(cont.grid.values.max())
+    across = float(np.linalg.norm(np.ptp(cont.vertices, axis=0)))
+    live = [i for i, t in enumerate(objtypes) if t.share > 0]
+    out = []
+    for i in live:
+        t = objtypes[i]
+        length = float(np.ptp(t.vertices, axis=0).max()) + 2.0 * clearance
+        need = (max(float(t.sphere_radii.max()), inner_room(t.vertices, t.faces)) + clearance
+                + float(margins.objects[i]) + float(margins.wall))
+        if length > across * (1 + 1e-9):
+            out.append(OutOfReach(i, length, across, "length"))
+        elif need > top:
+            out.append(OutOfReach(i, need, top))
+    return out if len(out) < len(live) else []
+
+
+#: `has_depth`'s limits: points measured in all, and halvings of the first cells
+DEPTH_SEARCH_POINTS = 2_000_000
+DEPTH_SEARCH_LEVELS = 12
+
+
+def has_depth(vertices: np.ndarray, faces: np.ndarray, grid: DistanceGrid,
+              depth: float) -> tuple[bool | None, float]:
+    """Whether some point inside the closed mesh (V, 3) / (F, 3) lies `depth` or more from
+    its surface: True (one was found), False (none can: proven) or None (not settled
+    within the search's limits, or `depth` under two cells); and the deepest distance
+    found (a lower bound of the mesh's depth; the grid's largest value where none was
+    measured). The distance to the surface changes by at most the distance moved, so a
+    cube of half side h whose centre is d from the surface holds no point deeper than
+    d + sqrt(3) h: the cells of the grid's nodes deep enough to matter are halved until
+    each either holds such a point or cannot (branch and bound on the mesh's exact
+    distances). grid: the mesh's distance grid (positive inside), whose nodes read at
+    least their distance, or within a cell of it."""
+    h = grid.spacing
+    deepest = float(grid.values.max())
+    if depth < 2.0 * h:  # a cell of a node inside may reach outside: not settled here
+        return None, deepest
+    root3 = float(np.sqrt(3.0))
+    # inside (positive) and no further below `depth` than a cell's reach and a cell's slack
+    nodes = np.argwhere(grid.values >= depth - (0.5 * root3 + 1.0) * h)
+    v = np.ascontiguousarray(vertices, np.float64)
+    f = np.ascontiguousarray(faces, np.int64)
+    centres = grid.origin + nodes * h
+    half = 0.5 * h
+    measured = 0
+    found = -np.inf
+    for _ in range(DEPTH_SEARCH_LEVELS):
+        if len(centres) == 0:
+            return False, found if np.isfinite(found) else deepest
+        measured += len(centres)
+        if measured > DEPTH_SEARCH_POINTS:
+            return None, deepest
+        # a kept cell's centre lies within sqrt(3)/2 h of a node inside: where it is
+        # outside, its (unsigned) distance is below a cell and its cell is dropped
+        d = surface_distance(centres, v, f)
+        found = max(found, float(d.max()))
+        if found >= depth:
+            return True, found
+        keep = d + root3 * half >= depth
+        half *= 0.5
+        offsets = np.array([[i, j, k] for i in (-1, 1) for j in (-1, 1) for k in (-1, 1)],
+                           float) * half
+        centres = (centres[keep][:, None, :] + offsets[None]).reshape(-1, 3)
+    return None, deepest
 
 
 def nothing_placed_message(depth: float, objtypes: list[ObjectType], margins: Margins,

@@ -21,17 +21,40 @@ MIX_WARN_SLACK = 0.01
 def run_warnings(names: Sequence[str], shares: np.ndarray, counts: np.ndarray, tvd: float,
                  max_tvd: float, phase1: PhaseStats, time_budget: float | None,
                  stopped: str | None, attempts_asked: int | None,
-                 attempts_run: int, extra_passes_ran: bool = True) -> list[str]:
+                 attempts_run: int, extra_passes_ran: bool = True,
+                 left_out: Sequence[tuple[int, float, float, str]] = (),
+                 clearance: float = 0.0) -> list[str]:
     """Warnings for a packing of counts (T,) objects per type against shares (T,) summing
     to 1, whose TVD is `tvd` (the mix tolerance `max_tvd`); `phase1` is the kept attempt's
     first phase and `extra_passes_ran` whether any of its extra cavity passes started;
     `stopped` the run's stop reason ("deadline", "cancelled" or None); `attempts_asked`
-    None when the count of attempts was left to the budget."""
+    None when the count of attempts was left to the budget; `left_out` the types the run
+    packed without, as (type, need, the container's, "depth" or "length")
+    (`room.out_of_reach`), with the run's `clearance` (container units)."""
     out = []
     missing = [i for i, (s, c) in enumerate(zip(shares, counts, strict=True))
                if s > 0 and c == 0]
+    plus = " and the clearance" if clearance > 0 else ""
+    for i, need, has, why in left_out:
+        scale = ("scale the objects down (--type-scale / type_scale), the container up "
+                 "(--container-size / container_size), or remove the type.")
+        if why == "length":
+            ends = " with the clearance at both ends" if clearance > 0 else ""
+            lacks = (f"it is {need:.4g} units long{ends}, longer than the container is across "
+                     f"({has:.4g}, its box's diagonal), so it fits in no orientation")
+            advice = scale[:1].upper() + scale[1:]
+        else:
+            lacks = (f"with its contact margins{plus} it needs {need:.4g} units of depth, and "
+                     f"the container's approximation reads at most {has:.4g} (up to half a "
+                     "grid cell below the true depth at its deepest point), so the engine can "
+                     "place it nowhere")
+            advice = ("--fidelity high / fidelity='high' (finer grids, smaller margins) may "
+                      f"place it; or {scale}")
+        out.append(f"type {names[i]} (share {shares[i]:.0%}) was left out: {lacks}; the other "
+                   f"types were packed at their shares among themselves. {advice}")
+    said = {i for i, *_ in left_out}
     if counts.sum() > 0:
-        for i in missing:
+        for i in [i for i in missing if i not in said]:
             out.append(
                 f"type {names[i]} (share {shares[i]:.0%}) was not placed at all: it may not "
                 "fit the container in any orientation, or only where the other types already "

@@ -110,7 +110,7 @@ def test_the_runs_warnings_reach_the_user(bpy, addon, scene):
     assert bpy.ops.jampacked.pack() == {'FINISHED'}
     coll = scene.settings.result
     (warning,) = addon.summary.warnings(coll)
-    assert warning.startswith("Type Rod (share 25%) was not placed at all")
+    assert warning.startswith("Type Rod (share 25%) was left out: it is 60")
     # in the words of the scene and the panel, not of the command line
     assert "the type objects' scale" in warning and "--" not in warning
     state = bpy.context.window_manager.jampacked_job
@@ -119,7 +119,7 @@ def test_the_runs_warnings_reach_the_user(bpy, addon, scene):
     calls: list = []
     addon.ui.JAMPACKED_PT_result.draw(SimpleNamespace(layout=Layout(calls)), bpy.context)
     shown = " ".join(kw.get("text", "") for name, _a, kw in calls if name == "label")
-    assert "Type Rod (share 25%) was not placed at all" in shown
+    assert "Type Rod (share 25%) was left out" in shown
 
 
 def test_modal_path_and_second_pack_blocked(bpy, addon, scene):

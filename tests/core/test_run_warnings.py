@@ -131,15 +131,20 @@ def test_pack_warns_when_the_budget_ends_before_the_cavity_passes(tmp_path, monk
 
 
 def test_pack_warns_when_a_type_fits_nowhere(tmp_path):
-    # an 80 mm rod passes the inscribed-sphere check of a 40 mm box but fits no orientation;
-    # it used to be left out of the packing without a word
-    rod, cube = tmp_path / "rod.stl", tmp_path / "cube.stl"
-    trimesh.creation.box((80.0, 4.0, 4.0)).export(rod)
-    trimesh.creation.box((5.0, 5.0, 5.0)).export(cube)
-    p = pack("box:40x40x40", [str(rod), str(cube)], seed=1, time_budget=3.0)
+    # a 40 mm rod passes the inscribed-sphere check of a 20 mm box but fits no orientation;
+    # it used to be left out of the packing without a word, and then kept in the mix, where
+    # the balls waited for it (in a 40 mm box: 3 balls where 517 fit)
+    rod, ball = tmp_path / "rod.stl", tmp_path / "ball.stl"
+    trimesh.creation.box((40.0, 3.0, 3.0)).export(rod)
+    trimesh.creation.icosphere(2, radius=2.5).export(ball)
+    p = pack("box:20x20x20", [str(rod), str(ball)], seed=1, fidelity="low")
     assert p.certificate["certified"]
-    assert np.all(p.type_index == 1)
-    assert any(w.startswith("type rod (share 50%) was not placed") for w in p.report.warnings)
+    assert np.all(p.type_index == 1) and p.n >= 50
+    [warned] = p.report.warnings
+    assert warned.startswith("type rod (share 50%) was left out: it is 40 units long, longer "
+                             "than the container is across (34.64, its box's diagonal), so "
+                             "it fits in no orientation; the other types were packed at their "
+                             "shares among themselves. Scale the objects down")
 
 
 def test_a_long_certification_of_a_heavy_mesh_names_its_faces():

@@ -345,10 +345,13 @@ def test_no_object_placed_names_the_depth_a_type_needs(tmp_path, monkeypatch):
         pack("box:9.5x9.5x40", [str(path)], seed=1, fidelity="high")
     assert "no object fitted anywhere" in str(err.value) and "fidelity" not in str(err.value)
     monkeypatch.undo()
-    # shallower than the cube needs (within a cell, so past the check up front)
+    # shallower than the cube needs, within a grid cell: the check up front settles it on
+    # the container mesh (`room.has_depth`; the run used to place nothing first)
     with pytest.raises(PackingError) as err:
         pack("box:8.9x8.9x8.9", [str(path)], seed=1)
-    assert "4.45 units from its wall" in str(err.value) and "so none fits" in str(err.value)
+    assert "cube (" in str(err.value) and "cannot fit" in str(err.value)
+    assert "deepest interior point is about 4.4" in str(err.value)
+    assert "needs 4.5 (the inscribed radius)" in str(err.value)
     assert "fidelity" not in str(err.value)
 
 

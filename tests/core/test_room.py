@@ -1,0 +1,69 @@
+"""Room for the types (`core/room.py`): the container's depth settled on the mesh where its
+grid leaves it open (`has_depth`, against a box's and a ball's own depths), a type no point can hold
+refused up front, and a type only the approximation cannot hold left out, the others packed
+as if it had not been asked for (it used to starve them: 5 objects in a box that holds 220).
+"""
+
+from __future__ import annotations
+
+import numpy as np
+import pytest
+import trimesh
+from testdata import mesh_path
+
+from jampacked.core.api import pack
+from jampacked.core.container import container_grid
+from jampacked.core.errors import PackingError
+from jampacked.core.metrics import compute_metrics
+from jampacked.core.room import has_depth
+
+P1 = str(mesh_path("polyhedra/convex7/polytope1.obj"))
+P6 = str(mesh_path("polyhedra/convex7/polytope6.obj"))
+
+
+@pytest.mark.parametrize("spacing", [0.7, 1.3])
+def test_has_depth_settles_a_box_and_a_ball_within_their_grid_cells(spacing):
+    box = trimesh.creation.box((40.0, 40.0, 40.0))
+    ball = trimesh.creation.icosphere(3, radius=20.0)
+    # a convex ball symmetric about its centre is deepest there: its nearest face plane
+    inradius = float(np.min(np.abs(np.sum(ball.face_normals * ball.triangles[:, 0], axis=1))))
+    for mesh, depth in ((box, 20.0), (ball, inradius)):
+        v, f = np.asarray(mesh.vertices, float), np.asarray(mesh.faces)
+        grid = container_grid(v, f, spacing)
+        assert abs(float(grid.values.max()) - depth) < spacing  # the grid alone: open
+        below, above = has_depth(v, f, grid, depth - 0.01), has_depth(v, f, grid, depth + 0.01)
+        assert below[0] is True and depth - 0.01 <= below[1] <= depth + 1e-9
+        assert above[0] is False and above[1] <= depth + 1e-9
+    assert has_depth(v, f, grid, 1.5 * spacing)[0] is None  # under two cells: not settled
+
+
+def test_a_type_no_point_of_the_container_holds_is_refused(tmp_path):
+    # its inscribed radius (20.11) is deeper than the box (20), by less than a grid cell
+    ball = tmp_path / "ball.stl"
+    trimesh.creation.icosphere(3, radius=20.2).export(ball)
+    with pytest.raises(PackingError, match=r"object type ball \(.*ball\.stl\) cannot fit: "
+                       r"the container's deepest interior point is about 19\.9\d units from "
+                       r"its wall, and the type needs 20\.1\d \(the inscribed radius\)"):
+        pack("box:40x40x40", [P1, P6, str(ball)], seed=1, time_budget=5.0)
+
+
+def test_a_type_the_approximation_cannot_hold_is_left_out_and_the_rest_packed(tmp_path):
+    # the ball (inscribed radius 19.96) fits the box (20) only at its centre, and not with
+    # the margins the solver keeps: it is left out, and the polytopes pack as they would
+    # alone (before, the mix waited for the ball: 5 objects, 1.3%)
+    ball = tmp_path / "ball.stl"
+    trimesh.creation.icosphere(3, radius=20.05).export(ball)
+    p = pack("box:40x40x40", [P1, P6, str(ball)], seed=1, fidelity="low")
+    counts = np.bincount(p.type_index, minlength=3)
+    assert p.certificate["certified"] is True
+    assert counts[2] == 0 and counts[0] + counts[1] >= 150, counts
+    assert abs(int(counts[0]) - int(counts[1])) <= 0.05 * counts.sum()  # their mix kept
+    [warned] = [w for w in p.report.warnings if "ball" in w]
+    assert warned.startswith("type ball (share 33%) was left out: with its contact margins "
+                             "it needs 20.0")
+    assert "the other types were packed at their shares among themselves" in warned
+    # the packing's numbers are against the shares asked, the ball's third included
+    again = compute_metrics(p.type_index, p.translations,
+                            np.array([t.volume for t in p.types]), np.full(3, 1 / 3),
+                            p.container_volume)
+    assert p.metrics["tvd"] == pytest.approx(again["tvd"]) and p.metrics["tvd"] > 0.3
