@@ -206,22 +206,28 @@ def _drain_site(shell: m3.Manifold, cavity_vertices: np.ndarray, thickness: floa
     return lowest
 
 
-def _free_site(shell: m3.Manifold, low: np.ndarray, radius: float, reach: float,
-               size: float, covered: Callable[[np.ndarray], bool]) -> np.ndarray | None:
-    """The lowest point of the cavity's floor within `reach` of `low` (across) that no object
-    covers (`covered(point)`), the nearest of equal heights; None where every one is covered.
-    The floor is found under the points of a grid `radius` apart, by rays cast down from
-    `reach` above `low` where that point lies in the cavity (walls above and below it)."""
+def _free_site(inner: m3.Manifold, low: np.ndarray, radius: float, reach: float,
+               covered: Callable[[np.ndarray], bool]) -> np.ndarray | None:
+    """The lowest point of the cavity's floor within `reach` of `low` (across, and at most
+    `reach` above it) that no object covers (`covered(point)`), the nearest of equal
+    heights; None where every one is covered. The floor is found under the points of a
+    grid `radius` apart, where rays cast down through the cavity (`inner`, its solid) from
+    above it leave it; a ray from a fixed height missed every floor of a cavity less tall
+    than `reach` (a flat box or dish), and the drain stayed under the object."""
     n = max(1, int(reach / radius))
     grid = [(i * i + j * j, i, j) for i in range(-n, n + 1) for j in range(-n, n + 1)
             if 0 < i * i + j * j <= n * n]
     up = np.array([0.0, 0.0, 1.0])
+    lo, hi = np.reshape(inner.bounding_box(), (2, 3))
+    length = float(hi[2] - lo[2]) + 2.0 * radius + 1.0
     floors = []
     for _, i, j in sorted(grid):
-        start = low + np.array([i * radius, j * radius, reach])
-        down, above = _ray_hits(shell, start, -up, size), _ray_hits(shell, start, up, size)
-        if down and down[0][1] and above and above[0][1]:
-            floors.append(start - down[0][0] * up)
+        start = low + np.array([i * radius, j * radius, 0.0])
+        start[2] = hi[2] + radius + 0.5
+        for t, entering in _ray_hits(inner, start, -up, length):
+            floor = start - t * up
+            if not entering and floor[2] <= low[2] + reach:  # leaving the cavity: a floor
+                floors.append(floor)
     for floor in sorted(floors, key=lambda p: p[2]):  # stable: the nearest of equal heights
         if not covered(floor):
             return floor
@@ -250,12 +256,14 @@ def drill_drain(shell: m3.Manifold, inner: m3.Manifold, diameter: float,
     size = float(np.ptp(v[:, 2])) + 4.0 * thickness + diameter + 1.0
     low = _drain_site(shell, v, thickness, size)
     if covered is not None and reach > 0 and covered(low):
-        free = _free_site(shell, low, radius, reach, size, covered)
+        free = _free_site(inner, low, radius, reach, covered)
         if free is not None:
             if notes is not None:
+                rise = float(free[2] - low[2])
+                rise = 0.0 if abs(rise) <= 1e-9 * size else rise  # a flat floor's rounding
                 notes.append(f"objects sit on the cavity's lowest point: the drain opens "
                              f"{np.linalg.norm((free - low)[:2]):.3g} away from it and "
-                             f"{free[2] - low[2]:.3g} higher, at the lowest point of the "
+                             f"{rise:.3g} higher, at the lowest point of the "
                              "floor they leave free.")
             low = free
     # the cavity's floor rises across the disc: start up to radius + T/4 above, short of the

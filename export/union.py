@@ -282,7 +282,7 @@ def clean_bodies(v: np.ndarray, f: np.ndarray, *, fill_voids: bool,
     v, f, volumes, filled = drop_specks(v, f, speck, fill_voids=fill_voids and not closed_shell)
     out = Cleaned(vertices=v, faces=f, bodies=int(np.sum(volumes > 0)),
                   volume=float(volumes.sum()), voids_filled=len(filled),
-                  voids_filled_volume=float(-filled.sum()))
+                  voids_filled_volume=float(-filled.sum()) + 0.0)  # never -0.0
     voids = int(np.sum(volumes < 0))
     if voids:
         why = ("the shell is closed" if closed_shell and fill_voids

@@ -297,6 +297,26 @@ def test_drain_through_a_flat_floor_is_in_its_middle():
     validated(shell)
 
 
+@pytest.mark.parametrize("height", [16.0, 80.0])
+def test_a_covered_drain_moves_beside_the_object_in_a_cavity_of_any_height(height):
+    # an object covers a disc of radius 10 around the floor's middle; the floor was searched
+    # from 25 (the largest object) above the lowest point, above a 16 mm box: never found
+    box = trimesh.creation.box((80.0, 80.0, height))
+
+    def covered(p):
+        return bool(np.hypot(p[0], p[1]) < 10.0)
+
+    shell, report = make_shell(box.vertices, box.faces, 1.0, drain=3.0, drain_covered=covered,
+                               drain_reach=25.0)
+    x, y, z = report.drain_at
+    assert not covered(np.array([x, y, z])) and np.hypot(x, y) < 10.0 + 3.0
+    assert z == pytest.approx(-0.5 * height + 1.0, abs=1e-6)  # on the floor
+    assert any(n.startswith("objects sit on the cavity's lowest point: the drain opens 10.1 "
+                            "away from it and 0 higher") for n in report.notes), report.notes
+    hits = ray_hits(shell, (x, y, -height), (x, y, height))  # the floor is open there
+    assert len(hits) == 2 and min(hits) > 0  # only the top wall is met
+
+
 def test_progress_reports_and_resolution(sphere):
     seen = []
     _, report = make_shell(sphere.vertices, sphere.faces, 1.5, resolution=0.6,
