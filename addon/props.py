@@ -144,7 +144,7 @@ class JAMPACKED_PG_settings(bpy.types.PropertyGroup):
     shell: FloatProperty(
         name="Shell", default=0.0, min=0.0, soft_max=10.0, subtype='DISTANCE',
         unit='LENGTH', precision=3,
-        description="Wall thickness of the container shell (0: no shell)")
+        description="Least wall thickness of the container shell (0: no shell)")
     opening: EnumProperty(name="Opening", items=OPENING_ITEMS, default='NONE')
     opening_axis: EnumProperty(name="Axis", items=AXIS_ITEMS, default='PZ',
                                description="Side of the container the opening faces")

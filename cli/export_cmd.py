@@ -32,7 +32,7 @@ modes:
            object per part named after its type; --split writes one file per part.
 
 shell and openings:
-  --shell T makes a wall of thickness T from the container's surface inwards. Open it so
+  --shell T makes a wall at least T thick from the container's surface inwards. Open it so
   the objects show with --open-plane +z@0.75 (removes the shell beyond 75% of the height
   along +z; any of +x -x +y -y +z -z) or --window +y@30 (a 30 mm round hole through the
   side facing +y, in its middle or, over a torus's hole, on the wall beside it). --drain D
@@ -112,7 +112,7 @@ def add_export_parser(sub: argparse._SubParsersAction) -> None:
     p.add_argument("--mode", choices=MODES, default="connect",
                    help="union, connect (default: one printable body) or parts")
     p.add_argument("--shell", type=positive_float, metavar="MM",
-                   help="add a shell of the container with this wall thickness")
+                   help="add a shell of the container with walls at least this thick")
     opening = p.add_mutually_exclusive_group()
     opening.add_argument("--open-plane", type=parse_open_plane, metavar="AXIS[@FRACTION]",
                          help="cut the shell open beyond a plane, e.g. +z@0.75")

@@ -30,9 +30,16 @@ import math
 
 import manifold3d as m3
 import numpy as np
+from numba import njit
 
-from jampacked.core.distance import band_distances, inside_mask, surface_distance
+from jampacked.core.distance import (
+    band_distances,
+    inside_mask,
+    point_triangle_distance,
+    surface_distance,
+)
 from jampacked.core.errors import InputError
+from jampacked.core.kernels import sample_grid_many
 from jampacked.core.solids import solid_arrays, to_solid
 
 from .marching import march_tetrahedra
@@ -71,15 +78,49 @@ def offset_grid(vertices: np.ndarray, faces: np.ndarray, thickness: float,
     cap. That is all marching at level T needs: a grid edge is at most sqrt(3) cells long and
     the distance is 1-Lipschitz, so no edge that crosses T touches a capped node.
     """
+    values, origin, _ = _offset_grid(vertices, faces, thickness, spacing)
+    return values, origin
+
+
+def _offset_grid(vertices: np.ndarray, faces: np.ndarray, thickness: float,
+                 spacing: float) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+    """`offset_grid`, and each node's nearest triangle (-1 beyond the band)."""
     band = math.ceil(thickness / spacing) + 2
     origin = vertices.min(axis=0) - spacing
     shape = tuple(int(n) for n in np.ceil((vertices.max(axis=0) + spacing - origin) / spacing)
                   .astype(np.int64) + 1)
-    dist, _ = band_distances(vertices, faces, origin, spacing, np.asarray(shape, np.int64),
-                             float(band))
+    dist, tri = band_distances(vertices, faces, origin, spacing, np.asarray(shape, np.int64),
+                               float(band))
     np.minimum(dist, band * spacing, out=dist)
     inside = inside_mask(vertices, faces, origin, spacing, shape)
-    return np.where(inside, dist, -dist), origin
+    return np.where(inside, dist, -dist), origin, tri
+
+
+@njit(cache=True)
+def _near_distances(points, tri, origin, spacing, vertices, faces):
+    """Distance from points (M, 3) to the nearest of the triangles nearest the grid nodes
+    around each (its cell's 8 corners), (M,) float64: the true distance where the point's
+    nearest triangle is one of those, as in the grid's band it nearly always is (at least
+    the true distance otherwise); inf where none is known."""
+    nx, ny, nz = tri.shape
+    out = np.empty(points.shape[0])
+    for m in range(points.shape[0]):
+        best = np.inf
+        i0 = int(np.floor((points[m, 0] - origin[0]) / spacing))
+        j0 = int(np.floor((points[m, 1] - origin[1]) / spacing))
+        k0 = int(np.floor((points[m, 2] - origin[2]) / spacing))
+        for i in range(max(i0, 0), min(i0 + 2, nx)):
+            for j in range(max(j0, 0), min(j0 + 2, ny)):
+                for k in range(max(k0, 0), min(k0 + 2, nz)):
+                    f = tri[i, j, k]
+                    if f >= 0:
+                        d = point_triangle_distance(points[m], vertices[faces[f, 0]],
+                                                    vertices[faces[f, 1]],
+                                                    vertices[faces[f, 2]])
+                        if d < best:
+                            best = d
+        out[m] = best
+    return out
 
 
 def _deepest(values: np.ndarray, origin: np.ndarray, spacing: float, vertices: np.ndarray,
@@ -136,14 +177,16 @@ def _drop_specks(inner: m3.Manifold, thickness: float) -> list[m3.Manifold]:
 
 
 def _simplified(raw: m3.Manifold, thickness: float, tolerance: float,
-                diagonal: float) -> tuple[list[m3.Manifold], float]:
+                diagonal: float, marched: m3.Manifold | None = None
+                ) -> tuple[list[m3.Manifold], float]:
     """The cavities, simplified to ``tolerance`` where that provably keeps them watertight.
 
     manifold3d's simplification can fold triangles over or leave slivers (elalish/manifold
     #970; how often: docs/notes-export.md). So each attempt is validated
     (closed, no degenerate faces, no self-intersections), with smaller tolerances next, and
-    the unsimplified surface (watertight by construction) last. Returns (cavities, the
-    tolerance used, 0.0 for none).
+    the unsimplified surface last: `raw` where it validates, else `marched` (the surface as
+    marched, watertight by construction, where `raw` moved its vertices). Returns
+    (cavities, the tolerance used, 0.0 for none).
     """
     exact = raw.get_tolerance()
     for factor in SIMPLIFY_LADDER if tolerance > 0 else ():
@@ -157,7 +200,54 @@ def _simplified(raw: m3.Manifold, thickness: float, tolerance: float,
         v, f = solid_arrays(m3.Manifold.compose(parts))
         if validate_arrays(v, f).passed:
             return parts, factor * tolerance
+    if marched is not None and not validate_arrays(*solid_arrays(raw)).passed:
+        raw = marched  # the push folded the surface somewhere: as marched
     return _drop_specks(raw, thickness), 0.0
+
+
+#: no part of the wall ends thinner than T: the inner surface is marched at T plus the
+#: simplification's tolerance, and its vertices short of that pushed out (`_thickened`);
+#: False: marched at T, as before 2026-11-30
+AT_LEAST_T = True
+#: a marched vertex closer to the container than this fraction of its level is pushed out
+THIN_VERTEX = 0.999
+#: Newton steps of that push (each along the distance grid's gradient, by the exact
+#: distance's shortfall)
+THICKEN_STEPS = 2
+
+
+def _thickened(v: np.ndarray, vertices: np.ndarray, faces: np.ndarray, level: float,
+               values: np.ndarray, nearest: np.ndarray, origin: np.ndarray, spacing: float
+               ) -> np.ndarray:
+    """The inner surface's vertices `v`, marched at distance `level`, with each closer than
+    that to the container (vertices, faces) pushed away from it to `level`. Marching
+    interpolates the distance linearly along a grid edge, which cuts inside the curved level
+    set where the container folds inward (a concave edge, a limb's crotch): on a coarse
+    grid (a large print, where the grid is capped) walls came out a fifth thinner there.
+    The push goes
+    along the grid's gradient (`values`), by the shortfall of the distance to the triangles
+    nearest the grid's nodes around (`nearest`: `_near_distances`)."""
+    d = _near_distances(v, nearest, origin, spacing, vertices, faces)
+    thin = np.flatnonzero(d < THIN_VERTEX * level)
+    if len(thin) == 0:
+        return v
+    out = v.copy()
+    grid = np.ascontiguousarray(values, np.float64)
+    for _ in range(THICKEN_STEPS):
+        p = out[thin]
+        g = np.empty_like(p)
+        for axis in range(3):  # central differences of the trilinear grid, half a cell
+            step = np.zeros(3)
+            step[axis] = 0.5 * spacing
+            g[:, axis] = (sample_grid_many(grid, origin, spacing, p + step)
+                          - sample_grid_many(grid, origin, spacing, p - step)) / spacing
+        norm = np.linalg.norm(g, axis=1)
+        # a distance's gradient is a unit vector: far less is a ridge, or the grid's cap
+        ok = norm > 0.5
+        short = level - _near_distances(p, nearest, origin, spacing, vertices, faces)
+        move = np.where(ok & (short > 0), short, 0.0) / np.where(ok, norm, 1.0)
+        out[thin] = p + move[:, None] * g
+    return out
 
 
 def inner_solid(vertices: np.ndarray, faces: np.ndarray, thickness: float, spacing: float,
@@ -168,15 +258,22 @@ def inner_solid(vertices: np.ndarray, faces: np.ndarray, thickness: float, spaci
     grid ``spacing`` and simplification ``tolerance`` in its units. Raises InputError when T
     leaves no cavity (the message gives the largest T that works).
     """
-    values, origin = offset_grid(vertices, faces, thickness, spacing)
-    if float(values.max()) <= thickness:
+    # T is the wall's least thickness (as slicers' hollowing takes it): simplifying moves the
+    # surface by up to the tolerance, so the level keeps that much more
+    level = thickness + (tolerance if AT_LEAST_T else 0.0)
+    values, origin, nearest = _offset_grid(vertices, faces, level, spacing)
+    if float(values.max()) <= level:
         raise _too_thick(thickness, _deepest(values, origin, spacing, vertices, faces))
-    v, f = march_tetrahedra(values, thickness, origin, spacing)
-    raw = to_solid(v, f)
-    if raw.status() != m3.Error.NoError:  # pragma: no cover - marching output is manifold
-        raise RuntimeError(f"inner shell surface rejected by manifold3d: {raw.status()}")
+    v, f = march_tetrahedra(values, level, origin, spacing)
+    marched = to_solid(v, f)
+    if marched.status() != m3.Error.NoError:  # pragma: no cover - marching output is manifold
+        raise RuntimeError(f"inner shell surface rejected by manifold3d: {marched.status()}")
+    pushed = (_thickened(v, vertices, faces, level, values, nearest, origin, spacing)
+              if AT_LEAST_T else v)
+    raw = marched if pushed is v else to_solid(pushed, f)
     diagonal = float(np.linalg.norm(vertices.max(axis=0) - vertices.min(axis=0)))
-    parts, used = _simplified(raw, thickness, tolerance, diagonal)
+    parts, used = _simplified(raw, thickness, tolerance, diagonal,
+                              None if raw is marched else marched)
     if not parts:
         raise _too_thick(thickness, _deepest(values, origin, spacing, vertices, faces))
     return m3.Manifold.compose(parts), len(parts), used

@@ -24,7 +24,7 @@ from jampacked.core.solids import to_solid
 from .offset import MAX_GRID_NODES, grid_spacing, inner_solid
 from .openings import cut_window, drill_drain, opening_label, plane_cut
 from .options import Opening
-from .wall import measure_wall_thickness
+from .wall import measure_wall_thickness, vertex_wall_thickness
 
 __all__ = ["ShellReport", "make_shell", "measure_wall_thickness", "opening_label"]
 
@@ -36,7 +36,8 @@ class ShellReport:
     thickness: the wall thickness T asked for.
     measured_min/median/max: wall thickness measured on the result (exact distance from points
         on the inner surface to the container mesh; see :func:`measure_wall_thickness`).
-    samples: how many points that measurement used.
+    samples: how many random points of the inner surface that measurement used (the least
+        is also measured at its vertices).
     opening: the opening cut, e.g. ``"plane +z@0.75"`` or ``"window +y 30 mm"``, or None.
     drain: drain hole diameter, or None.
     volume: volume of the shell solid.
@@ -93,11 +94,14 @@ def make_shell(vertices: np.ndarray, faces: np.ndarray, thickness: float, *,
             point, or None. Resin and powder printers need one so that uncured resin or loose
             powder can escape from the cavity.
         resolution: the printer's resolution: the inner surface is made on a grid of this
-            spacing and simplified to min(resolution/2, T/10), so the wall thickness stays
-            within about that of T. Default: spacing T/4, simplified to min(spacing/10, T/20).
-            Either way the grid is coarsened to stay under ``MAX_GRID_NODES`` nodes.
+            spacing and simplified to min(resolution/2, T/10). Default: spacing T/4,
+            simplified to min(spacing/10, T/20). Either way the grid is coarsened to stay
+            under ``MAX_GRID_NODES`` nodes. T is the wall's least thickness (as slicers'
+            hollowing takes it): the inner surface keeps T plus the simplification's
+            tolerance from the container, its vertices at least that far.
         progress: ``progress(fraction, message)`` called as the work goes on.
-        samples: points used to measure the wall thickness.
+        samples: random points used to measure the wall thickness (its least also at the
+            inner surface's vertices).
         drain_covered, drain_reach: whether objects sit on a drain at a point (this
             function's frame), and how far from the cavity's lowest point the drain may
             move to open beside them (`openings.drill_drain`).
@@ -148,10 +152,12 @@ def make_shell(vertices: np.ndarray, faces: np.ndarray, thickness: float, *,
             shell = cut_window(shell, opening, lo, hi, thickness, notes)
     report_progress(0.85, "shell: measuring the wall thickness")
     measured = measure_wall_thickness(v, f, inner, n=samples)
-    notes += _accuracy_notes(measured, thickness, spacing, resolution)
+    least = float(min(measured.min(initial=math.inf),
+                      vertex_wall_thickness(v, f, inner).min(initial=math.inf)))
+    notes += _accuracy_notes(least, measured, thickness, spacing, resolution, tolerance)
     report = ShellReport(
         thickness=float(thickness),
-        measured_min=float(measured.min()) if measured.size else math.nan,
+        measured_min=least if measured.size else math.nan,
         measured_median=float(np.median(measured)) if measured.size else math.nan,
         measured_max=float(measured.max()) if measured.size else math.nan,
         samples=int(measured.size),
@@ -190,14 +196,26 @@ def _checked_input(vertices: np.ndarray, faces: np.ndarray, thickness: float,
     return v, f
 
 
-def _accuracy_notes(measured: np.ndarray, thickness: float, spacing: float,
-                    resolution: float | None) -> list[str]:
-    """A note when the measured median wall is more than 10% off T: the grid was coarse."""
-    if not (measured.size and abs(float(np.median(measured)) - thickness) > 0.1 * thickness):
+def _accuracy_notes(least: float, measured: np.ndarray, thickness: float, spacing: float,
+                    resolution: float | None, tolerance: float) -> list[str]:
+    """A note where the measured wall is more than 5% under T at its thinnest (the grid
+    was coarse for it), or more than 10% over T at its median (T plus a simplification
+    tolerance asked by a coarse --resolution)."""
+    if not measured.size:
         return []
-    fix = ("give a finer --resolution" if resolution is not None and spacing == resolution
-           else f"the distance grid is capped at {MAX_GRID_NODES:,} nodes: use a thicker "
-           "wall or a smaller container")
-    return [f"the measured median wall thickness {np.median(measured):.3g} is more than 10% "
-            f"off {thickness:g}: the grid spacing {spacing:.3g} is coarse for this thickness; "
-            f"{fix}."]
+    median = float(np.median(measured))
+    with_resolution = resolution is not None and spacing == resolution
+    if least < 0.95 * thickness:
+        fix = ("give a finer --resolution" if with_resolution
+               else f"the distance grid is capped at {MAX_GRID_NODES:,} nodes: use a thicker "
+               "wall or a smaller container")
+        return [f"the wall is {least:.3g} thick at its thinnest, under the {thickness:g} "
+                f"asked: the grid spacing {spacing:.3g} is coarse for this thickness; {fix}."]
+    if median > 1.1 * thickness:
+        fix = ("a finer --resolution keeps it closer" if with_resolution
+               else "a thicker wall is measured closer to what is asked")
+        return [f"the wall is {median:.3g} thick at its median, {median / thickness - 1:.0%} "
+                f"over the {thickness:g} asked: no part of it may be thinner than "
+                f"{thickness:g}, and the inner surface is simplified by up to {tolerance:.2g} "
+                f"(grid spacing {spacing:.3g}); {fix}."]
+    return []

@@ -13,7 +13,7 @@ from jampacked.core.distance import surface_distance
 from jampacked.core.meshes import sample_surface
 from jampacked.core.solids import solid_arrays
 
-__all__ = ["measure_wall_thickness"]
+__all__ = ["measure_wall_thickness", "vertex_wall_thickness"]
 
 
 def measure_wall_thickness(shell_outer_vertices: np.ndarray, shell_outer_faces: np.ndarray,
@@ -36,3 +36,15 @@ def measure_wall_thickness(shell_outer_vertices: np.ndarray, shell_outer_faces: 
     v, f = solid_arrays(inner)
     points = sample_surface(v, f, n, seed)
     return surface_distance(points, shell_outer_vertices, shell_outer_faces)
+
+
+def vertex_wall_thickness(shell_outer_vertices: np.ndarray, shell_outer_faces: np.ndarray,
+                          inner: m3.Manifold) -> np.ndarray:
+    """Wall thickness at each vertex of the inner surface, (vertices,) float64: where the
+    thinnest spots are, which random points in faces miss (the inner surface is made
+    exactly T thick at its vertices, and faces between them can cut only a little inside:
+    `offset._thickened`). Arguments as :func:`measure_wall_thickness`."""
+    if inner.is_empty():
+        return np.zeros(0)
+    v, _ = solid_arrays(inner)
+    return surface_distance(v, shell_outer_vertices, shell_outer_faces)

@@ -121,8 +121,11 @@ def test_simplification_falls_back_when_validation_fails(sphere, monkeypatch):
 def test_box_shell_volume_and_exact_outer_surface():
     box = trimesh.creation.box([20.0, 16.0, 12.0])
     shell, report = make_shell(box.vertices, box.faces, 2.0)
-    expected = 20 * 16 * 12 - 16 * 12 * 8
-    assert shell.volume() == pytest.approx(expected, rel=0.01)
+    # T is the least thickness: the wall keeps the simplification's tolerance on top
+    wall = 2.0 + report.tolerance
+    assert 0 < report.tolerance <= 0.05 * 2.0
+    expected = 20 * 16 * 12 - (20 - 2 * wall) * (16 - 2 * wall) * (12 - 2 * wall)
+    assert shell.volume() == pytest.approx(expected, rel=0.005)  # the cavity's edges cut
     assert report.volume == pytest.approx(shell.volume())
     val = validated(shell)
     kinds = sorted(b.kind for b in val.bodies)
@@ -132,16 +135,18 @@ def test_box_shell_volume_and_exact_outer_surface():
     gap = np.min(np.linalg.norm(v[None] - box.vertices[:, None], axis=2), axis=1)
     assert gap.max() < 1e-5
     assert np.allclose(v.min(axis=0), box.vertices.min(axis=0))
-    assert report.measured_median == pytest.approx(2.0, rel=0.01)
+    assert report.measured_min >= 2.0 and report.measured_median == pytest.approx(wall)
 
 
 def test_sphere_shell_thickness_is_measured_close_to_t(sphere, sphere_shell):
     shell, report = sphere_shell
     assert isinstance(report, ShellReport)
     assert report.samples == 2000
-    assert report.measured_median == pytest.approx(1.5, rel=0.03)
-    assert 0.9 * 1.5 < report.measured_min <= report.measured_median
-    assert report.measured_median <= report.measured_max < 1.1 * 1.5
+    # at least T, and at most T plus twice the simplification's tolerance (kept on top of T,
+    # and the most it moves the surface)
+    assert 1.5 <= report.measured_min <= report.measured_median
+    assert report.measured_median <= 1.5 + 2 * report.tolerance
+    assert report.measured_max < 1.1 * (1.5 + report.tolerance)  # the facets' corners
     val = validated(shell)
     assert len(val.bodies) == 2 and all(b.genus == 0 for b in val.bodies)
     # the outer surface is the icosphere's own triangles; the rest is the cavity
@@ -222,12 +227,12 @@ def test_window_cuts_only_the_near_wall():
                                opening=Opening("window", "+x", size=8.0))
     assert report.opening == "window +x 8 mm"
     removed = closed.volume() - shell.volume()
-    assert removed == pytest.approx(math.pi * 4.0 ** 2 * 2.0, rel=0.02)
+    assert removed == pytest.approx(math.pi * 4.0 ** 2 * (2.0 + report.tolerance), rel=0.02)
     val = validated(shell)
     assert len(val.bodies) == 1 and val.bodies[0].genus == 0
     # through the window's axis: only the -x wall is left
     hits = ray_hits(shell, (40.0, 0.013, 0.021), (-40.0, 0.013, 0.021))
-    np.testing.assert_allclose(hits, [-15.0, -13.0], atol=1e-3)
+    np.testing.assert_allclose(hits, [-15.0, -13.0 + report.tolerance], atol=1e-3)
 
 
 def test_window_on_a_torus_spares_the_inner_ring():
@@ -291,9 +296,10 @@ def test_drain_through_a_flat_floor_is_in_its_middle():
     closed, _ = make_shell(box.vertices, box.faces, 2.0)
     shell, report = make_shell(box.vertices, box.faces, 2.0, drain=3.0)
     x, y, z = report.drain_at
-    assert abs(x) < 1.0 and abs(y) < 1.0 and z == pytest.approx(-4.0, abs=0.01)
+    wall = 2.0 + report.tolerance
+    assert abs(x) < 1.0 and abs(y) < 1.0 and z == pytest.approx(-6.0 + wall, abs=0.01)
     # exactly one floor plug of the cylinder goes: no side wall is touched
-    assert closed.volume() - shell.volume() == pytest.approx(math.pi * 1.5 ** 2 * 2.0, rel=0.01)
+    assert closed.volume() - shell.volume() == pytest.approx(math.pi * 1.5 ** 2 * wall, rel=0.01)
     validated(shell)
 
 
@@ -310,11 +316,30 @@ def test_a_covered_drain_moves_beside_the_object_in_a_cavity_of_any_height(heigh
                                drain_reach=25.0)
     x, y, z = report.drain_at
     assert not covered(np.array([x, y, z])) and np.hypot(x, y) < 10.0 + 3.0
-    assert z == pytest.approx(-0.5 * height + 1.0, abs=1e-6)  # on the floor
+    assert z == pytest.approx(-0.5 * height + 1.0 + report.tolerance, abs=1e-6)  # the floor
     assert any(n.startswith("objects sit on the cavity's lowest point: the drain opens 10.1 "
                             "away from it and 0 higher") for n in report.notes), report.notes
     hits = ray_hits(shell, (x, y, -height), (x, y, height))  # the floor is open there
     assert len(hits) == 2 and min(hits) > 0  # only the top wall is met
+
+
+def test_the_wall_is_nowhere_thinner_than_asked_round_a_fold():
+    # an L's inner edge folds the container inward: the inner surface curves round it, and
+    # marched on a grid as coarse as T its faces cut inside the curve and its simplification
+    # moved them further: the wall was 0.924 there for 1 asked, and the report said so
+    # only from 2,000 random points
+    from jampacked.core.meshes import sample_surface
+    from jampacked.core.solids import solid_arrays
+
+    v, f = solid_arrays(m3.Manifold.cube((40.0, 20.0, 20.0)) + m3.Manifold.cube((20.0, 40.0, 20.0)))
+    shell, report = make_shell(v, f, 1.0, resolution=1.0)
+    sv, sf = solid_arrays(shell)
+    d = surface_distance(sample_surface(sv, sf, 200_000, 1), v, f)
+    wall = d[d > 1e-6]  # the inner surface's points (the outer is the container itself)
+    assert wall.min() >= 1.0 and report.measured_min >= 1.0
+    assert report.measured_min <= wall.min() + 0.01  # the report reads the thinnest spot
+    assert np.median(wall) <= 1.0 + 2 * report.tolerance  # T plus the tolerance kept
+    assert report.notes == []
 
 
 def test_progress_reports_and_resolution(sphere):
@@ -339,6 +364,8 @@ def test_spot_the_cow_at_150_mm():
     v = cow.vertices * (150.0 / cow.extents.max())
     shell, report = make_shell(v, cow.faces, 2.0, resolution=1.5,
                                opening=Opening("plane", "+z", 0.8), drain=3.0)
-    assert report.measured_median == pytest.approx(2.0, rel=0.1)
-    assert report.measured_min > 1.5 and report.measured_max < 2.5
+    # at least T but where a coarse grid's faces cut across a fold, T plus the tolerance
+    # (0.2 at this resolution) at the median
+    assert 2.0 + report.tolerance <= report.measured_median <= 2.0 + 2 * report.tolerance
+    assert report.measured_min > 0.95 * 2.0 and report.measured_max < 2.7
     validated(shell)
