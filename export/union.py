@@ -25,7 +25,7 @@ from .cleanup import (
     remove_degenerate_faces,
     shared_vertices,
 )
-from .intersect import _morton_order, intersecting_pairs
+from .intersect import _morton_order, intersecting_pairs, ray_winding_numbers, winding_numbers
 from .validate import merge_identical
 
 __all__ = ["SPECK_REL", "Cleaned", "clean_bodies", "clean_arrays", "crossing_pairs", "drop_specks",
@@ -230,8 +230,9 @@ def drop_specks(v: np.ndarray, f: np.ndarray, speck: float, fill_voids: bool = F
     """Split a mesh into its connected components (by shared vertices, as manifold3d
     writes them), drop those whose |volume| <= speck, with `fill_voids` also every void
     (a component of negative volume: the inward surface of a sealed cavity), and unused
-    vertices. Returns (vertices, faces, signed volume of each kept component, signed
-    volume of each void filled)."""
+    vertices; a body inside a void filled goes with it. Returns (vertices, faces, signed
+    volume of each kept component, signed volume of each void filled and of each body
+    that went with one)."""
     n = len(v)
     if len(f) == 0:
         return v, f, np.zeros(0), np.zeros(0)
@@ -250,11 +251,45 @@ def drop_specks(v: np.ndarray, f: np.ndarray, speck: float, fill_voids: bool = F
     keep = used & (np.abs(volumes) > speck)
     filled = keep & (volumes < 0) if fill_voids else np.zeros(count, bool)
     keep &= ~filled
+    # a body floating in a void that is filled (an object touching nothing in a sealed
+    # cavity) would be a solid inside the solid: it goes into the fill too
+    nested = _inside_filled(v, f, face_label, keep & (volumes > 0), filled)
+    keep &= ~nested
     if not np.all(keep[used]) or len(np.unique(f)) < n:
         f = f[keep[face_label]]
         verts, inverse = np.unique(f, return_inverse=True)
         v, f = v[verts], inverse.reshape(-1, 3)
-    return v, f, volumes[keep], volumes[filled]
+    return v, f, volumes[keep], np.concatenate([volumes[filled], volumes[nested]])
+
+
+def _inside_filled(v: np.ndarray, f: np.ndarray, face_label: np.ndarray, bodies: np.ndarray,
+                   filled: np.ndarray) -> np.ndarray:
+    """Which components (mask over the labels) among `bodies` lie inside one of the `filled`
+    voids: the winding number of a point of each (its first face's centroid) about the
+    void's surface, for the bodies within the void's box."""
+    out = np.zeros(len(bodies), bool)
+    if not filled.any() or not bodies.any():
+        return out
+    order = np.argsort(face_label, kind="stable")
+    starts = np.searchsorted(face_label[order], np.arange(len(bodies) + 1))
+    lo = np.full((len(bodies), 3), np.inf)
+    hi = np.full((len(bodies), 3), -np.inf)
+    for axis in range(3):
+        corner = v[f, axis]
+        np.minimum.at(lo[:, axis], face_label, corner.min(axis=1))
+        np.maximum.at(hi[:, axis], face_label, corner.max(axis=1))
+    candidates = np.flatnonzero(bodies)
+    point = v[f[order[starts[candidates]]]].mean(axis=1)
+    for void in np.flatnonzero(filled):
+        near = np.all((lo[void] <= lo[candidates]) & (hi[candidates] <= hi[void]), axis=1)
+        if not near.any():
+            continue
+        surface = f[order[starts[void]:starts[void + 1]]]
+        w, ok = ray_winding_numbers(point[near], v, surface)
+        if not np.all(ok):
+            w[~ok] = np.rint(winding_numbers(point[near][~ok], v, surface))
+        out[candidates[near][w != 0]] = True
+    return out
 
 
 @dataclass
@@ -281,7 +316,7 @@ def clean_bodies(v: np.ndarray, f: np.ndarray, *, fill_voids: bool,
     speck = SPECK_REL * float(np.prod(np.ptp(v, axis=0))) if len(v) else 0.0
     v, f, volumes, filled = drop_specks(v, f, speck, fill_voids=fill_voids and not closed_shell)
     out = Cleaned(vertices=v, faces=f, bodies=int(np.sum(volumes > 0)),
-                  volume=float(volumes.sum()), voids_filled=len(filled),
+                  volume=float(volumes.sum()), voids_filled=int(np.sum(filled < 0)),
                   voids_filled_volume=float(-filled.sum()) + 0.0)  # never -0.0
     voids = int(np.sum(volumes < 0))
     if voids:

@@ -579,6 +579,26 @@ def test_sealed_voids_are_filled_unless_kept(tmp_path, mode):
     assert any("1 sealed void" in w and "--keep-voids" in w for w in kept.warnings)
 
 
+def test_a_body_floating_in_a_void_that_is_filled_goes_with_it():
+    # union mode, a shell whose drain an object covers: its cavity is sealed and filled, and
+    # an object touching nothing inside it was left a solid inside the solid, which the
+    # validator refused ("this is a defect"): 2 bodies, the volume counted twice
+    from jampacked.core.solids import solid_arrays
+    from jampacked.export.union import clean_bodies
+    from jampacked.export.validate import validate_arrays
+
+    box = m3.Manifold.cube((40, 40, 40), True) - m3.Manifold.cube((36, 36, 36), True)
+    ball = m3.Manifold.sphere(5, 32)
+    v, f = solid_arrays(box + ball)
+    filled = clean_bodies(v, f, fill_voids=True, closed_shell=False)
+    assert filled.bodies == 1 and filled.voids_filled == 1
+    assert filled.volume == pytest.approx(40.0 ** 3)
+    assert filled.voids_filled_volume == pytest.approx(36.0 ** 3 - ball.volume())
+    assert validate_arrays(filled.vertices, filled.faces).passed
+    kept = clean_bodies(v, f, fill_voids=False, closed_shell=False)  # hollow: the ball stays
+    assert kept.bodies == 2 and kept.volume == pytest.approx(box.volume() + ball.volume())
+
+
 def test_cli_keep_voids(tmp_path, capsys):
     from jampacked.cli.main import main
 
