@@ -19,6 +19,7 @@ Frames: the packing's container frame, container units. The plan:
 
 from __future__ import annotations
 
+import math
 from collections.abc import Callable, Sequence
 from dataclasses import dataclass, field
 
@@ -177,7 +178,8 @@ def _closest_pair(obj: PlacedObject, other: PlacedObject | Surface, start: np.nd
 
 def strut(p: np.ndarray, q: np.ndarray, diameter: float, spin: float = 0.0) -> m3.Manifold:
     """A cylinder of the given diameter from p to q (container frame), its polygonal
-    cross-section turned by ``spin`` radians about its axis."""
+    cross-section turned by ``spin`` radians about its axis; the polygon holds the circle
+    of that diameter (its sides touch it), so the strut is nowhere thinner than asked."""
     d = q - p
     length = float(np.linalg.norm(d))
     z = d / length
@@ -189,7 +191,8 @@ def strut(p: np.ndarray, q: np.ndarray, diameter: float, spin: float = 0.0) -> m
     # line up with the axes (exact coincidences leave slivers in the union)
     x, y = np.cos(spin) * x + np.sin(spin) * y, -np.sin(spin) * x + np.cos(spin) * y
     m = np.column_stack([x, y, z, p])  # (3, 4): local cylinder along +z from the origin
-    cyl = m3.Manifold.cylinder(length, diameter / 2, diameter / 2, STRUT_SEGMENTS)
+    corner = diameter / 2 / math.cos(math.pi / STRUT_SEGMENTS)
+    cyl = m3.Manifold.cylinder(length, corner, corner, STRUT_SEGMENTS)
     return cyl.transform(m)
 
 

@@ -25,7 +25,7 @@ from jampacked.core.meshes import load_mesh
 from jampacked.core.packing import Packing, TypeRecord
 from jampacked.core.packing_json import save_packing
 from jampacked.core.report import PackInputs
-from jampacked.core.solids import to_solid
+from jampacked.core.solids import solid_arrays, to_solid
 from jampacked.export import offset
 from jampacked.export.assemble import export_packing
 from jampacked.export.closest import Surface, closest_on_triangles
@@ -695,6 +695,19 @@ def test_a_drain_no_free_floor_can_take_is_named_in_a_warning(tmp_path, monkeypa
     drain = [w for w in rep.warnings if "drain" in w]
     assert len(drain) == 1 and "polytope3 #0" in drain[0] and "--up" in drain[0]
     assert _drain_probe(tmp_path / "plugged.stl", np.asarray(rep.shell.drain_at), 0.5) > 0.9
+
+
+@pytest.mark.parametrize("spin", [0.0, 0.3])
+def test_a_strut_is_nowhere_thinner_than_its_diameter(spin):
+    # its 12-sided cross-section was inscribed in the circle asked: 3.4% thinner across flats
+    from jampacked.export.connect import STRUT_SEGMENTS, strut
+
+    s = strut(np.zeros(3), np.array([0.0, 0.0, 10.0]), 2.0, spin)
+    v, _ = solid_arrays(s)
+    sides = STRUT_SEGMENTS
+    across_flats = 2 * np.hypot(v[:, 0], v[:, 1]).max() * np.cos(np.pi / sides)
+    assert across_flats == pytest.approx(2.0)
+    assert s.volume() == pytest.approx(sides * np.tan(np.pi / sides) * 10.0)  # > pi r^2 L
 
 
 def test_a_strut_to_a_thin_shell_stays_inside_the_container(tmp_path):
