@@ -515,7 +515,7 @@ def _assemble(container: MeshSource, scene: _Scene, approx: _Approximation, run:
                        inputs.options.attempts.count, len(run.attempts),
                        extra_passes_ran=bool(run.best.extra_passes),
                        left_out=[(o.type, o.need, o.has, o.why) for o in run.left_out],
-                       clearance=clearance)
+                       clearance=clearance, fidelity=approx.fidelity.name)
         + slow_certification(timings["certify"], inputs.time_budget,
                              [t.name for t in objtypes],
                              [len(t.faces) if np.any(typ == i) else 0

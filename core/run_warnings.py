@@ -23,14 +23,15 @@ def run_warnings(names: Sequence[str], shares: np.ndarray, counts: np.ndarray, t
                  stopped: str | None, attempts_asked: int | None,
                  attempts_run: int, extra_passes_ran: bool = True,
                  left_out: Sequence[tuple[int, float, float, str]] = (),
-                 clearance: float = 0.0) -> list[str]:
+                 clearance: float = 0.0, fidelity: str = "") -> list[str]:
     """Warnings for a packing of counts (T,) objects per type against shares (T,) summing
     to 1, whose TVD is `tvd` (the mix tolerance `max_tvd`); `phase1` is the kept attempt's
     first phase and `extra_passes_ran` whether any of its extra cavity passes started;
     `stopped` the run's stop reason ("deadline", "cancelled" or None); `attempts_asked`
     None when the count of attempts was left to the budget; `left_out` the types the run
     packed without, as (type, need, the container's, "depth" or "length")
-    (`room.out_of_reach`), with the run's `clearance` (container units)."""
+    (`room.out_of_reach`), with the run's `clearance` (container units) and `fidelity`
+    (the preset it used)."""
     out = []
     missing = [i for i, (s, c) in enumerate(zip(shares, counts, strict=True))
                if s > 0 and c == 0]
@@ -48,7 +49,8 @@ def run_warnings(names: Sequence[str], shares: np.ndarray, counts: np.ndarray, t
                      f"the container's approximation reads at most {has:.4g} (up to half a "
                      "grid cell below the true depth at its deepest point), so the engine can "
                      "place it nowhere")
-            advice = ("--fidelity high / fidelity='high' (finer grids, smaller margins) may "
+            advice = (scale[:1].upper() + scale[1:] if fidelity == "high" else
+                      "--fidelity high / fidelity='high' (finer grids, smaller margins) may "
                       f"place it; or {scale}")
         out.append(f"type {names[i]} (share {shares[i]:.0%}) was left out: {lacks}; the other "
                    f"types were packed at their shares among themselves. {advice}")

@@ -5,6 +5,7 @@ from __future__ import annotations
 import time
 
 import numpy as np
+import pytest
 import trimesh
 
 from jampacked.core import placement
@@ -173,3 +174,14 @@ def test_pack_passes_its_certification_time_and_faces(tmp_path, monkeypatch):
     assert "spied" in p.report.warnings
     assert seen["budget"] == 2.0 and seen["faces"] == [320] and seen["names"] == ["ball"]
     assert seen["seconds"] == p.timings["certify"]
+
+
+@pytest.mark.parametrize("fidelity, advised", [("medium", True), ("high", False)])
+def test_a_type_left_out_for_depth_is_advised_high_fidelity_unless_it_ran_so(fidelity,
+                                                                             advised):
+    [w] = run_warnings(["ball", "cube"], np.array([0.5, 0.5]), np.array([0, 9]), 0.5, 0.04,
+                       PhaseStats(), None, None, None, 1, left_out=[(0, 20.03, 20.0, "depth")],
+                       fidelity=fidelity)
+    assert w.startswith("type ball (share 50%) was left out: with its contact margins it "
+                        "needs 20.03 units of depth")
+    assert ("--fidelity high" in w) is advised and "remove the type." in w
