@@ -218,6 +218,9 @@ def _free_site(inner: m3.Manifold, low: np.ndarray, radius: float, reach: float,
     grid = [(i * i + j * j, i, j) for i in range(-n, n + 1) for j in range(-n, n + 1)
             if 0 < i * i + j * j <= n * n]
     up = np.array([0.0, 0.0, 1.0])
+    # the floor of the cavity the lowest point is on (the drain under another cavity's
+    # floor would open into this one, not out)
+    inner = _cavity_at(inner, low)
     lo, hi = np.reshape(inner.bounding_box(), (2, 3))
     length = float(hi[2] - lo[2]) + 2.0 * radius + 1.0
     floors = []
@@ -232,6 +235,19 @@ def _free_site(inner: m3.Manifold, low: np.ndarray, radius: float, reach: float,
         if not covered(floor):
             return floor
     return None
+
+
+def _cavity_at(inner: m3.Manifold, point: np.ndarray) -> m3.Manifold:
+    """The cavity of `inner` (its solid, one or more bodies) whose surface holds `point`:
+    the body with the lowest bottom among those whose box holds it (`inner` with one)."""
+    parts = inner.decompose()
+    if len(parts) < 2:
+        return inner
+    boxes = [np.reshape(p.bounding_box(), (2, 3)) for p in parts]
+    slack = 1e-6 * float(np.ptp(np.reshape(inner.bounding_box(), (2, 3)), axis=0).max())
+    holding = [k for k, (lo, hi) in enumerate(boxes)
+               if np.all(lo - slack <= point) and np.all(point <= hi + slack)]
+    return parts[min(holding, key=lambda k: boxes[k][0, 2])] if holding else inner
 
 
 def drill_drain(shell: m3.Manifold, inner: m3.Manifold, diameter: float,

@@ -323,6 +323,22 @@ def test_a_covered_drain_moves_beside_the_object_in_a_cavity_of_any_height(heigh
     assert len(hits) == 2 and min(hits) > 0  # only the top wall is met
 
 
+def test_a_covered_drain_stays_in_its_own_cavity():
+    # two chambers joined by a neck too thin to hollow: two cavities. Every free floor
+    # within reach was taken, that of the other chamber too, where a drain opens that
+    # chamber and leaves the covered one sealed
+    from jampacked.core.solids import solid_arrays
+
+    a = m3.Manifold.cube((30, 30, 20)).translate((-32, -15, -10))
+    b = m3.Manifold.cube((30, 30, 20)).translate((2, -15, -8))  # its floor 2 higher
+    neck = m3.Manifold.cube((6, 4, 1.5)).translate((-3, -2, 8))
+    v, f = solid_arrays(a + b + neck)
+    shell, report = make_shell(v, f, 1.0, drain=3.0, drain_covered=lambda p: bool(p[0] < -1),
+                               drain_reach=40.0)
+    assert report.cavities == 2
+    assert report.drain_at[0] < -2.0 and report.drain_at[2] == pytest.approx(-9.0, abs=0.1)
+
+
 def test_the_wall_is_nowhere_thinner_than_asked_round_a_fold():
     # an L's inner edge folds the container inward: the inner surface curves round it, and
     # marched on a grid as coarse as T its faces cut inside the curve and its simplification
