@@ -155,18 +155,29 @@ def tight_fit_spacing(vertices: np.ndarray, faces: np.ndarray, types: Sequence[M
     return (min(spacing, min(slack) / 3.0) if slack else spacing), measured
 
 
+def inscribed_lower_bound(t: ObjectType) -> float:
+    """A lower bound of the type's inscribed radius (local units, as scaled): its inner room
+    or the exact distance from its deepest inner sphere centre to its surface, whichever is
+    more. The spheres' radii are no bound: they come from the type's grid, whose nodes far
+    from the surface read at least the true distance (a radius 2.0 where 1.64 fits)."""
+    centres = np.asarray(t.sphere_centres, np.float64).reshape(-1, 3)
+    at_centres = (float(surface_distance(centres, t.vertices, t.faces).max())
+                  if len(centres) else 0.0)
+    return max(inner_room(t.vertices, t.faces), at_centres)
+
+
 def check_types_fit(objtypes: list[ObjectType], cont: Container, clearance: float) -> None:
     """A type whose inscribed radius (plus the clearance) is deeper than the container fits
-    nowhere, and is refused: its largest inner sphere and its inner room are lower bounds
-    of that radius; the grid's depth is within a cell of the true depth, and where that
-    leaves it open, `has_depth` settles it on the container mesh."""
+    nowhere, and is refused (`inscribed_lower_bound`); the grid's depth is within a cell of
+    the true depth, and where that leaves it open, `has_depth` settles it on the container
+    mesh."""
     grid = cont.grid
     depth = float(grid.values.max())
     no_room = []
     for t in objtypes:
         if t.share <= 0:
             continue
-        need = max(float(t.sphere_radii.max()), inner_room(t.vertices, t.faces)) + clearance
+        need = inscribed_lower_bound(t) + clearance
         if need > depth + grid.spacing:
             no_room.append((f"{t.name} ({t.path})" if t.path else t.name, need, depth))
         elif need > depth - grid.spacing:
@@ -181,8 +192,8 @@ def check_types_fit(objtypes: list[ObjectType], cont: Container, clearance: floa
         raise PackingError(
             f"object type{'s' if len(no_room) > 1 else ''} {names} cannot fit: the "
             f"container's deepest interior point is about {deepest:.4g} units from its "
-            f"wall, and the type{'s need' if len(no_room) > 1 else ' needs'} {needs} (the "
-            "inscribed radius"
+            f"wall, and the type{'s need' if len(no_room) > 1 else ' needs'} at least {needs} "
+            "(the inscribed radius"
             f"{' plus the clearance' if clearance else ''}). Scale the container up "
             "(--container-size / container_size) or the objects down (--type-scale / "
             f"type_scale){', lower the clearance' if clearance else ''}, or remove the type.")
@@ -190,10 +201,10 @@ def check_types_fit(objtypes: list[ObjectType], cont: Container, clearance: floa
 
 @dataclass(frozen=True)
 class OutOfReach:
-    """A type the approximation cannot place anywhere (`out_of_reach`): its index, and
+    """A type the solver cannot place anywhere (`out_of_reach`): its index, and
     what it needs against what the container has (container units): with `why` "depth",
     the depth of its inscribed radius, the clearance and its contact margins against the
-    most the container grid reads; with "length", its length and the clearance at both
+    container's depth found; with "length", its length and the clearance at both
     ends against the container box's diagonal."""
 
     type: int
@@ -204,28 +215,30 @@ class OutOfReach:
 
 def out_of_reach(objtypes: Sequence[ObjectType], cont: Container, margins: Margins,
                  clearance: float) -> list[OutOfReach]:
-    """The types (with a share) that the approximation can place nowhere: the depth each
-    needs, its inscribed radius (a lower bound: `check_types_fit`) plus the clearance and
-    the contact margins the solver keeps from the wall (its own and the wall's), is more
-    than the container grid reads anywhere (its interpolant never exceeds its largest
-    node, which can fall half a cell short of the true depth at a peak); or it is longer
-    than the container could hold in any direction (`refuse_too_long`). Run without them,
-    the others pack at their shares among themselves instead of starving while the mix
-    waits for a type that never grows. None where every type is out of reach (the run
-    then says why nothing was placed)."""
-    top = float(cont.grid.values.max())
+    """The types (with a share) that the solver can place nowhere: no point of the container
+    is as deep as the type's inscribed radius (`inscribed_lower_bound`) plus the clearance
+    and the contact margins the solver keeps from the wall (its own and the wall's), which
+    `has_depth` proves on the container mesh; or it is longer than the container could hold
+    in any direction (`refuse_too_long`). Run without them, the others pack at their shares
+    among themselves instead of starving while the mix waits for a type that never grows.
+    None where every type is out of reach (the run then says why nothing was placed)."""
+    grid = cont.grid
+    top = float(grid.values.max())
     across = float(np.linalg.norm(np.ptp(cont.vertices, axis=0)))
     live = [i for i, t in enumerate(objtypes) if t.share > 0]
     out = []
     for i in live:
         t = objtypes[i]
         length = float(np.ptp(t.vertices, axis=0).max()) + 2.0 * clearance
-        need = (max(float(t.sphere_radii.max()), inner_room(t.vertices, t.faces)) + clearance
-                + float(margins.objects[i]) + float(margins.wall))
         if length > across * (1 + 1e-9):
             out.append(OutOfReach(i, length, across, "length"))
-        elif need > top:
-            out.append(OutOfReach(i, need, top))
+            continue
+        need = (inscribed_lower_bound(t) + clearance + float(margins.objects[i])
+                + float(margins.wall))
+        if need > top - grid.spacing:  # within a cell of the grid's depth: settle it
+            found, deepest = has_depth(cont.vertices, cont.faces, grid, need)
+            if found is False:
+                out.append(OutOfReach(i, need, deepest))
     return out if len(out) < len(live) else []
 
 

@@ -45,10 +45,9 @@ def run_warnings(names: Sequence[str], shares: np.ndarray, counts: np.ndarray, t
                      f"({has:.4g}, its box's diagonal), so it fits in no orientation")
             advice = scale[:1].upper() + scale[1:]
         else:
-            lacks = (f"with its contact margins{plus} it needs {need:.4g} units of depth, and "
-                     f"the container's approximation reads at most {has:.4g} (up to half a "
-                     "grid cell below the true depth at its deepest point), so the engine can "
-                     "place it nowhere")
+            lacks = (f"with its contact margins{plus} it needs at least {need:.4g} units of "
+                     f"depth, and the container's deepest point is about {has:.4g} from its "
+                     "wall, so the engine can place it nowhere")
             advice = (scale[:1].upper() + scale[1:] if fidelity == "high" else
                       "--fidelity high / fidelity='high' (finer grids, smaller margins) may "
                       f"place it; or {scale}")

@@ -183,5 +183,5 @@ def test_a_type_left_out_for_depth_is_advised_high_fidelity_unless_it_ran_so(fid
                        PhaseStats(), None, None, None, 1, left_out=[(0, 20.03, 20.0, "depth")],
                        fidelity=fidelity)
     assert w.startswith("type ball (share 50%) was left out: with its contact margins it "
-                        "needs 20.03 units of depth")
+                        "needs at least 20.03 units of depth")
     assert ("--fidelity high" in w) is advised and "remove the type." in w

@@ -351,7 +351,7 @@ def test_no_object_placed_names_the_depth_a_type_needs(tmp_path, monkeypatch):
         pack("box:8.9x8.9x8.9", [str(path)], seed=1)
     assert "cube (" in str(err.value) and "cannot fit" in str(err.value)
     assert "deepest interior point is about 4.4" in str(err.value)
-    assert "needs 4.5 (the inscribed radius)" in str(err.value)
+    assert "needs at least 4.5 (the inscribed radius)" in str(err.value)
     assert "fidelity" not in str(err.value)
 
 
