@@ -243,7 +243,7 @@ def out_of_reach(objtypes: Sequence[ObjectType], cont: Container, margins: Margi
 
 
 #: `has_depth`'s limits: points measured in all, and halvings of the first cells
-DEPTH_SEARCH_POINTS = 2_000_000
+DEPTH_SEARCH_POINTS = 500_000
 DEPTH_SEARCH_LEVELS = 12
 
 
