@@ -224,9 +224,8 @@ def _thickened(v: np.ndarray, vertices: np.ndarray, faces: np.ndarray, level: fl
     interpolates the distance linearly along a grid edge, which cuts inside the curved level
     set where the container folds inward (a concave edge, a limb's crotch): on a coarse
     grid (a large print, where the grid is capped) walls came out a fifth thinner there.
-    The push goes
-    along the grid's gradient (`values`), by the shortfall of the distance to the triangles
-    nearest the grid's nodes around (`nearest`: `_near_distances`)."""
+    The push goes along the grid's gradient (`values`), by the shortfall of the distance to
+    the triangles nearest the grid's nodes around (`nearest`: `_near_distances`)."""
     d = _near_distances(v, nearest, origin, spacing, vertices, faces)
     thin = np.flatnonzero(d < THIN_VERTEX * level)
     if len(thin) == 0:
