@@ -204,16 +204,13 @@ def _accuracy_notes(least: float, measured: np.ndarray, thickness: float, spacin
     if not measured.size:
         return []
     median = float(np.median(measured))
-    with_resolution = resolution is not None and spacing == resolution
+    fix = ("give a finer --resolution" if resolution is not None and spacing == resolution
+           else f"the distance grid is capped at {MAX_GRID_NODES:,} nodes: use a thicker "
+           "wall or a smaller container")
     if least < 0.95 * thickness:
-        fix = ("give a finer --resolution" if with_resolution
-               else f"the distance grid is capped at {MAX_GRID_NODES:,} nodes: use a thicker "
-               "wall or a smaller container")
         return [f"the wall is {least:.3g} thick at its thinnest, under the {thickness:g} "
                 f"asked: the grid spacing {spacing:.3g} is coarse for this thickness; {fix}."]
     if median > 1.1 * thickness:
-        fix = ("a finer --resolution keeps it closer" if with_resolution
-               else "a thicker wall is measured closer to what is asked")
         return [f"the wall is {median:.3g} thick at its median, {median / thickness - 1:.0%} "
                 f"over the {thickness:g} asked: no part of it may be thinner than "
                 f"{thickness:g}, and the inner surface is simplified by up to {tolerance:.2g} "

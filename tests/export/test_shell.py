@@ -385,3 +385,17 @@ def test_spot_the_cow_at_150_mm():
     assert 2.0 + report.tolerance <= report.measured_median <= 2.0 + 2 * report.tolerance
     assert report.measured_min > 0.95 * 2.0 and report.measured_max < 2.7
     validated(shell)
+
+
+def test_the_accuracy_notes_read_the_thinnest_spot_and_the_median():
+    from jampacked.export.shell import _accuracy_notes
+
+    points = np.array([1.0, 1.02, 1.04])
+    [thin] = _accuracy_notes(0.82, points, 1.0, 0.81, None, 0.05)
+    assert thin.startswith("the wall is 0.82 thick at its thinnest, under the 1 asked: the "
+                           "grid spacing 0.81 is coarse") and "capped at 4,000,000" in thin
+    [thick] = _accuracy_notes(2.09, np.array([2.2, 2.22, 2.3]), 2.0, 0.4, 0.4, 0.2)
+    assert thick.startswith("the wall is 2.22 thick at its median, 11% over the 2 asked: no "
+                            "part of it may be thinner than 2, and the inner surface is "
+                            "simplified by up to 0.2") and "give a finer --resolution" in thick
+    assert _accuracy_notes(0.99, points, 1.0, 0.25, None, 0.0125) == []
