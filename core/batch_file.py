@@ -176,6 +176,11 @@ def _expand(scene: dict, defaults: dict, base: Path, where: str, k: int) -> list
                 scene_id = "-".join(parts)
                 if len(scene_id) > MAX_ID:
                     most = MAX_ID - (len(scene_id) - len(name))
+                    if most < 1:  # the seed alone is too long
+                        raise InputError(f"{where}: seed {seed} is too long for a file name "
+                                         f"({len(str(seed))} digits); give seeds of at most "
+                                         f"{MAX_ID - len(scene_id) + len(str(seed))} "
+                                         "digits.")
                     raise InputError(f"{where}: 'name' is too long for a file name "
                                      f"({len(name)} characters); give a name of at most "
                                      f"{most}.")

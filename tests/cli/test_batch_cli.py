@@ -107,6 +107,9 @@ def test_a_scene_expands_to_containers_times_sets_times_seeds(folder):
     (f"[[scene]]\nname='{'n' * 300}'\ncontainer='box:9x9x9'\ntypes=['a.obj']\nseed=1\n",
      r"scene 1 \(line 1\): 'name' is too long for a file name \(300 characters\); give a "
      "name of at most 197"),
+    (f"[[scene]]\nname='x'\ncontainer='box:9x9x9'\ntypes=['a.obj']\nseed={'9' * 240}\n",
+     r"scene 1 \(line 1\): seed 9{240} is too long for a file name \(240 digits\); give "
+     "seeds of at most 197 digits"),
     (f"[[scene]]\ncontainer='box:9x9x9'\ntypes=['{'a' * 5000}.obj']\nseed=1\n",
      r"scene 1 \(line 1\), types: mesh file 'a{77}\.\.\.' cannot be looked up: .*Give a "
      "shorter path"),
