@@ -24,7 +24,7 @@ from jampacked.core.solids import to_solid
 from .offset import MAX_GRID_NODES, grid_spacing, inner_solid
 from .openings import cut_window, drill_drain, opening_label, plane_cut
 from .options import Opening
-from .wall import measure_wall_thickness, vertex_wall_thickness
+from .wall import measure_wall_thickness, wall_thickness
 
 __all__ = ["ShellReport", "make_shell", "measure_wall_thickness", "opening_label"]
 
@@ -151,9 +151,8 @@ def make_shell(vertices: np.ndarray, faces: np.ndarray, thickness: float, *,
         else:
             shell = cut_window(shell, opening, lo, hi, thickness, notes)
     report_progress(0.85, "shell: measuring the wall thickness")
-    measured = measure_wall_thickness(v, f, inner, n=samples)
-    least = float(min(measured.min(initial=math.inf),
-                      vertex_wall_thickness(v, f, inner).min(initial=math.inf)))
+    measured, at_vertices = wall_thickness(v, f, inner, n=samples)
+    least = float(min(measured.min(initial=math.inf), at_vertices.min(initial=math.inf)))
     notes += _accuracy_notes(least, measured, thickness, spacing, resolution, tolerance)
     report = ShellReport(
         thickness=float(thickness),

@@ -13,7 +13,7 @@ from jampacked.core.distance import surface_distance
 from jampacked.core.meshes import sample_surface
 from jampacked.core.solids import solid_arrays
 
-__all__ = ["measure_wall_thickness", "vertex_wall_thickness"]
+__all__ = ["measure_wall_thickness", "wall_thickness"]
 
 
 def measure_wall_thickness(shell_outer_vertices: np.ndarray, shell_outer_faces: np.ndarray,
@@ -31,20 +31,20 @@ def measure_wall_thickness(shell_outer_vertices: np.ndarray, shell_outer_faces: 
     thickness of the wall there, as a caliper pressed against the inner face would read it.
     Empty when ``inner`` is empty.
     """
-    if inner.is_empty() or n <= 0:
-        return np.zeros(0)
-    v, f = solid_arrays(inner)
-    points = sample_surface(v, f, n, seed)
-    return surface_distance(points, shell_outer_vertices, shell_outer_faces)
+    return wall_thickness(shell_outer_vertices, shell_outer_faces, inner, n, seed)[0]
 
 
-def vertex_wall_thickness(shell_outer_vertices: np.ndarray, shell_outer_faces: np.ndarray,
-                          inner: m3.Manifold) -> np.ndarray:
-    """Wall thickness at each vertex of the inner surface, (vertices,) float64: where the
-    thinnest spots are, which random points in faces miss (the inner surface is made
-    exactly T thick at its vertices, and faces between them can cut only a little inside:
-    `offset._thickened`). Arguments as :func:`measure_wall_thickness`."""
+def wall_thickness(shell_outer_vertices: np.ndarray, shell_outer_faces: np.ndarray,
+                   inner: m3.Manifold, n: int = 2000, seed: int = 0
+                   ) -> tuple[np.ndarray, np.ndarray]:
+    """The wall thickness at ``n`` random points of the inner surface (as
+    :func:`measure_wall_thickness`) and at each of its vertices, (n,) and (vertices,)
+    float64. The vertices hold the thinnest spots, which random points in faces miss (the
+    inner surface is made at least T thick at its vertices, and faces between them cut only
+    a little inside: `offset._thickened`)."""
     if inner.is_empty():
-        return np.zeros(0)
-    v, _ = solid_arrays(inner)
-    return surface_distance(v, shell_outer_vertices, shell_outer_faces)
+        return np.zeros(0), np.zeros(0)
+    v, f = solid_arrays(inner)
+    points = sample_surface(v, f, n, seed) if n > 0 else np.zeros((0, 3))
+    d = surface_distance(np.vstack([points, v]), shell_outer_vertices, shell_outer_faces)
+    return d[:len(points)], d[len(points):]
