@@ -55,6 +55,7 @@ from .run_warnings import run_warnings, slow_certification
 from .solver import PackState, Solver, SolverParams, TypeTable
 from .spheres import sphere_coverage
 from .threads import ThreadTuner
+from .type_give_up import shares_without
 
 Progress = Callable[[float, str], None]
 Snapshot = Callable[[np.ndarray, np.ndarray, np.ndarray], None]
@@ -406,7 +407,8 @@ class _Placed:
     tuner: ThreadTuner | None
     phase1_spacing: float
     t_compile: float  # when the kernels were ready (perf_counter)
-    #: the shares the placement packed for: the asked ones, less the types left out
+    #: the shares the placement packed for: the asked ones, less the types left out and
+    #: those the kept attempt gave up (`Attempt.given_up`)
     shares: np.ndarray
     left_out: list[OutOfReach]
 
@@ -453,7 +455,8 @@ def _place(scene: _Scene, approx: _Approximation, q: np.ndarray, seed: int,
         best, attempts = place(new_solver, q, s1, approx.f_min, seed, stop, margins.objects,
                                opts, scene.volume, report,
                                None if snapshot is None else Snapshots(snapshot, table.radius))
-    return _Placed(best, attempts, margins, tuner, s1, t_compile, q, left_out)
+    return _Placed(best, attempts, margins, tuner, s1, t_compile, shares_without(q, best.given_up),
+                   left_out)
 
 
 def _certify(solver: Solver, approx: _Approximation, q: np.ndarray, clearance: float,
@@ -515,6 +518,7 @@ def _assemble(container: MeshSource, scene: _Scene, approx: _Approximation, run:
                        inputs.options.attempts.count, len(run.attempts),
                        extra_passes_ran=bool(run.best.extra_passes),
                        left_out=[(o.type, o.need, o.has, o.why) for o in run.left_out],
+                       given_up=run.best.given_up,
                        clearance=clearance, fidelity=approx.fidelity.name)
         + slow_certification(timings["certify"], inputs.time_budget,
                              [t.name for t in objtypes],

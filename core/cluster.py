@@ -22,7 +22,7 @@ import threading
 import time
 import uuid
 from collections.abc import Callable, Iterator
-from dataclasses import dataclass
+from dataclasses import dataclass, field
 
 import numba
 import numpy as np
@@ -77,6 +77,7 @@ class AttemptResult:
     timings: dict
     stopped: str | None  # the attempt's stop reason ("deadline", "cancelled") or None
     worker: str = ""
+    given_up: list[dict] = field(default_factory=list)  # `Attempt.given_up`
 
     def to_attempt(self, solver: Solver) -> Attempt:
         """The Attempt on `solver` (a fresh one), its state replaced by this result's."""
@@ -86,7 +87,8 @@ class AttemptResult:
         state.n = self.n
         return Attempt(solver=solver, density=self.density, after=self.after,
                        phase1=self.phase1, phase2=self.phase2,
-                       extra_passes=self.extra_passes, timings=self.timings)
+                       extra_passes=self.extra_passes, timings=self.timings,
+                       given_up=self.given_up)
 
 
 class _SharedCancel:
@@ -132,7 +134,7 @@ def run_attempt(job: AttemptJob, index: int) -> AttemptResult:
         index=index, n=s.n, state={name: getattr(s, name) for name in _STATE_FIELDS},
         density=att.density, after=att.after, phase1=att.phase1, phase2=att.phase2,
         extra_passes=att.extra_passes, timings=att.timings, stopped=stop.reason or None,
-        worker=worker)
+        worker=worker, given_up=att.given_up)
 
 
 def place_on_cluster(client, job: AttemptJob, count: int, new_solver: Callable[[], Solver],

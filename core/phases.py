@@ -22,6 +22,7 @@ from .report import PhaseStats
 from .rotations import random_quaternions
 from .solver import Solver
 from .stacking import Stack
+from .type_give_up import TypeFailures
 from .type_spread import TypeSpread, type_needed
 
 START_SCALE = 0.05
@@ -165,7 +166,9 @@ def phase1(solver: Solver, shares: np.ndarray, spacing: float, rng: np.random.Ge
     The next object to grow takes the largest type that is below its target share (or, when
     none is, the type furthest below it); it is the first ungrown one, or with
     spread_window > 1 the one of the next spread_window (at most a SPREAD_QUEUE-th of the
-    lattice) ungrown ones furthest from the grown objects of that type.
+    lattice) ungrown ones furthest from the grown objects of that type. A type that grows
+    far less often than the others is given up (`type_give_up`), and the phase's
+    `extra["given_up"]` says which, with its tries.
     """
     t0 = time.perf_counter()
     st = PhaseStats()
@@ -211,6 +214,7 @@ def phase1(solver: Solver, shares: np.ndarray, spacing: float, rng: np.random.Ge
     order_by_volume = np.argsort(-table.volume)
     total = len(queue)
     spread = TypeSpread(n_types)
+    failures = TypeFailures(shares)
     # a few lattice points: a window over most of them would fix the order, and the
     # attempts of a small scene would all grow alike
     window = max(1, min(spread_window, total // SPREAD_QUEUE))
@@ -220,7 +224,7 @@ def phase1(solver: Solver, shares: np.ndarray, spacing: float, rng: np.random.Ge
         k = queue[done - 1]
         if not solver.s.alive[k]:
             continue
-        t = type_needed(counts, shares, order_by_volume)
+        t = type_needed(counts, failures.shares_now(), order_by_volume)
         # an ungrown object takes the type the mix needs now (the paper draws types up
         # front; typing on demand keeps the mix when big types fail more often); the
         # queue is in random order, and of its next few the one furthest from its type
@@ -237,12 +241,15 @@ def phase1(solver: Solver, shares: np.ndarray, spacing: float, rng: np.random.Ge
         if solver.flat[t]:
             solver.s.quat[k] = flat_quaternion(solver.flat_axes[t], solver.s.pos[k],
                                                solver.c.grid, rng)
-        if grow(solver, k, solver.s.scale[k], iters, stop, growth_steps):
+        grew = grow(solver, k, solver.s.scale[k], iters, stop, growth_steps)
+        if grew:
             counts[t] += 1
             st.grown += 1
             spread.add(t, solver.s.pos[k])
         else:
             st.failed += 1
+        if grew or not stop():
+            failures.record(t, grew)
         if progress is not None and done % 4 == 0:
             progress(done / max(total, 1), f"phase 1: {st.grown} placed, density "
                      f"{_counted_density(counts, solver):.1%}")
@@ -250,6 +257,8 @@ def phase1(solver: Solver, shares: np.ndarray, spacing: float, rng: np.random.Ge
     for k in queue:
         if solver.s.scale[k] < 1.0:
             solver.s.alive[k] = 0
+    if failures.given_up.any():
+        st.extra["given_up"] = failures.report()
     st.stopped = stop.reason
     st.seconds = time.perf_counter() - t0
     return st
@@ -307,6 +316,7 @@ def phase2(solver: Solver, shares: np.ndarray, spacing: float, rng: np.random.Ge
     by_size = [int(t) for t in np.argsort(-f) if shares[t] > 0]  # zero share: never placed
     one_more = np.eye(len(shares))  # row t: one object of type t
     misses = 0
+    held = 0  # candidate points where a type fits and the mix took none of them
     n = solver.s.n
     full = np.flatnonzero((solver.s.alive[:n] == 1) & (solver.s.scale[:n] >= 1.0))
     counts = np.bincount(solver.s.typ[full], minlength=len(shares)).astype(np.float64)
@@ -327,6 +337,7 @@ def phase2(solver: Solver, shares: np.ndarray, spacing: float, rng: np.random.Ge
         # only a small type, filling each with it would leave the shares far behind
         cap = mix_cap(counts, shares, max_tvd)
         fits = [t for t in fits if tvd_of_counts(counts + one_more[t], shares) <= cap]
+        held += not fits
         if fit_factor < 1.0:
             # extra passes: the one the mix lacks most first, larger first on ties
             n_now = counts.sum() + 1.0
@@ -365,7 +376,7 @@ def phase2(solver: Solver, shares: np.ndarray, spacing: float, rng: np.random.Ge
                      f"{_counted_density(counts, solver):.1%}")
     st.stopped = stop.reason or st.stopped
     st.seconds = time.perf_counter() - t0
-    st.extra = {"candidates": int(len(pts)), "threshold": threshold}
+    st.extra = {"candidates": int(len(pts)), "threshold": threshold, "mix_held": held}
     return st
 
 

@@ -29,6 +29,7 @@ from .phases import Stop, phase1, phase2, stacked_phase1
 from .report import AttemptSummary, ExtraPassStats, PhaseStats
 from .solver import PackState, Solver
 from .stacking import stack_start
+from .type_give_up import shares_without
 
 #: attempts that ran to their end and repeated the best attempt's count and density (to
 #: SAME_DENSITY) after which no further attempt starts. Between random streams, densities of
@@ -63,6 +64,10 @@ class Attempt:
     phase2: PhaseStats = field(default_factory=PhaseStats)
     extra_passes: list[ExtraPassStats] = field(default_factory=list)
     timings: dict = field(default_factory=dict)  # phase1, phase2, extra
+    #: the types the attempt gave up, as `type_give_up.TypeFailures.report` records: those
+    #: phase 1 gave up, and those no pass placed (tries None), after which the cavity passes
+    #: ran again without them
+    given_up: list[dict] = field(default_factory=list)
 
     def summary(self, stopped: str | None) -> AttemptSummary:
         return AttemptSummary(
@@ -82,7 +87,8 @@ def snapshot_metrics(state: PackState, volume: np.ndarray, q: np.ndarray,
 def place_once(solver: Solver, q: np.ndarray, s1: float, f_min: float,
                rng: np.random.Generator, stop: Stop, margin: np.ndarray, options: PackOptions,
                c_volume: float, budgeted: bool,
-               report: Callable[[float, str], None], *, index: int) -> Attempt:
+               report: Callable[[float, str], None], *, index: int,
+               given_up: tuple[dict, ...] = ()) -> Attempt:
     """Phase 1, phase 2 and the extra cavity passes on `solver`'s (empty) state.
 
     q: (T,) target shares; s1: phase 1's lattice spacing; f_min: the smallest type's
@@ -90,11 +96,14 @@ def place_once(solver: Solver, q: np.ndarray, s1: float, f_min: float,
     the extra passes run again on new lattices while a round adds objects. Attempt `index`
     0 starts from the types stacked in rows where they fill the container so
     (`stacking.stack_start`); the others, and every attempt elsewhere, from phase 1's
-    grown lattice.
+    grown lattice. The types of `given_up` (`Attempt.given_up`) are not packed; where no
+    pass placed a type of a share over the mix tolerance, and the mix held the others back
+    from holes they fit (`phase2`'s "mix_held"), the attempt starts again without it.
     """
     vol = solver.t.volume
     ph, cav = options.phases, options.cavity
     t0 = time.perf_counter()
+    q_asked, q = q, shares_without(q, list(given_up))
     stack = None
     if index == 0:
         # a search of seconds: cancel ends it; the deadline leaves its stack to keep
@@ -111,54 +120,84 @@ def place_once(solver: Solver, q: np.ndarray, s1: float, f_min: float,
                      lattice=ph.phase1_lattice, cubic_density=ph.phase1_density,
                      fcc_density=ph.phase1_fcc_density,
                      progress=lambda f, m: report(0.05 + 0.55 * f, m))
-    after1 = snapshot_metrics(solver.s, vol, q, c_volume)
+    after1 = snapshot_metrics(solver.s, vol, q_asked, c_volume)
+    given_up = (*given_up, *st1.extra.get("given_up", []))
+    q_packed = shares_without(q_asked, list(given_up))  # and not the types phase 1 gave up
     t1 = time.perf_counter()
     # between stacked rows the holes are slivers: an object started there at a small
     # fraction of its size pushes whole rows and fails (docs/notes-core.md)
     floor = STACK_MIN_START if stack is not None else 0.0
     if stack is not None:
         solver.max_tests = STACK_PUSH_TESTS
-    st2 = phase2(solver, q, s1 * ph.phase2_spacing, rng, stop,
+    st2 = phase2(solver, q_packed, s1 * ph.phase2_spacing, rng, stop,
                  iters=ph.phase2_iterations, margin=margin, retries=ph.phase2_retries,
                  max_tvd=cav.max_tvd, min_start=floor,
                  progress=lambda f, m: report(0.6 + 0.2 * f, m))
-    after2 = snapshot_metrics(solver.s, vol, q, c_volume)
+    after2 = snapshot_metrics(solver.s, vol, q_asked, c_volume)
     t2 = time.perf_counter()
     # beyond the paper: further cavity passes at lower thresholds (objects grown there push
     # their neighbours aside), while the time budget allows. Each pass ends after
     # `patience` fruitless points; with time left, the passes run again on freshly
     # jittered lattices (other holes), for as long as a round still adds objects.
-    extra: list[ExtraPassStats] = []
     n_extra = max(len(cav.factors), 1)
     if solver.flat.any():  # their holes are as deep as they are thick (`lie_flat`)
         f_min = min(f_min, float(solver.flat_half[solver.flat, 2].min()))
     rounds = cav.rounds if budgeted else 1
-    for rnd in range(rounds):
-        grown = 0
-        for i, factor in enumerate(cav.factors):
-            if stop():
+
+    def cavity_rounds(shares: np.ndarray, first: int) -> list[ExtraPassStats]:
+        out: list[ExtraPassStats] = []
+        for rnd in range(first, first + rounds):
+            grown = 0
+            for i, factor in enumerate(cav.factors):
+                if stop():
+                    break
+                lo = 0.8 + 0.1 * (i + (rnd - first) * n_extra) / (n_extra * rounds)
+                st = phase2(
+                    solver, shares, s1 * ph.phase2_spacing * factor, rng, stop,
+                    iters=cav.iterations, margin=margin, retries=cav.retries,
+                    growth_steps=cav.growth_steps, min_start=max(cav.min_start, floor),
+                    threshold=factor * f_min, fit_factor=factor, patience=cav.patience,
+                    flat_lattice=True,
+                    max_tvd=cav.max_tvd,
+                    progress=lambda f, m, lo=lo: report(lo + 0.1 * f / (n_extra * rounds), m))
+                grown += st.grown
+                out.append(ExtraPassStats(**asdict(st), round=rnd, factor=factor))
+            if grown == 0 or stop():
                 break
-            lo = 0.8 + 0.1 * (i + rnd * n_extra) / (n_extra * rounds)
-            st = phase2(
-                solver, q, s1 * ph.phase2_spacing * factor, rng, stop,
-                iters=cav.iterations, margin=margin, retries=cav.retries,
-                growth_steps=cav.growth_steps, min_start=max(cav.min_start, floor),
-                threshold=factor * f_min, fit_factor=factor, patience=cav.patience,
-                flat_lattice=True,
-                max_tvd=cav.max_tvd,
-                progress=lambda f, m, lo=lo: report(lo + 0.1 * f / (n_extra * rounds), m))
-            grown += st.grown
-            extra.append(ExtraPassStats(**asdict(st), round=rnd, factor=factor))
-        if grown == 0 or stop():
-            break
+        return out
+
+    extra = cavity_rounds(q_packed, 0)
     solver.max_tests = 0  # certification's repair pushes as far as it needs
-    after3 = snapshot_metrics(solver.s, vol, q, c_volume)
+    after3 = snapshot_metrics(solver.s, vol, q_asked, c_volume)
     t3 = time.perf_counter()
+    timings = {"phase1": t1 - t0, "phase2": t2 - t1, "extra": t3 - t2}
+    never = never_placed(solver.s, q_packed)
+    held = sum(st.extra.get("mix_held", 0) for st in (st2, *extra))
+    if never and held and q_packed[never].sum() > cav.max_tvd and not stop():
+        # the mix held the others back for a type no pass could grow: again without it
+        solver.s.alive[: solver.s.n] = 0
+        given_up = (*given_up, *({"type": t, "tries": None, "grown": 0} for t in never))
+        q_next = shares_without(q_asked, list(given_up))
+        s1 = s1 * (float(q_next @ vol) / float(q @ vol)) ** (1.0 / 3.0)  # their mean volume
+        again = place_once(solver, q_asked, s1, f_min, rng, stop, margin, options, c_volume,
+                           budgeted, report, index=index, given_up=given_up)
+        again.timings = {k: v + timings[k] for k, v in again.timings.items()}
+        return again
     return Attempt(
         solver=solver, density=after3["density"],
         after={"after_phase1": after1, "after_phase2": after2, "after_extra": after3},
-        phase1=st1, phase2=st2, extra_passes=extra,
-        timings={"phase1": t1 - t0, "phase2": t2 - t1, "extra": t3 - t2})
+        phase1=st1, phase2=st2, extra_passes=extra, timings=timings, given_up=list(given_up))
+
+
+def never_placed(state: PackState, shares: np.ndarray) -> list[int]:
+    """The types with a share in (T,) `shares` of which no object is alive at full size,
+    where another type has one (none where nothing is)."""
+    n = state.n
+    full = (state.alive[:n] == 1) & (state.scale[:n] >= 1.0)
+    counts = np.bincount(state.typ[:n][full], minlength=len(shares))
+    if counts.sum() == 0:
+        return []
+    return [int(t) for t in np.flatnonzero((shares > 0) & (counts == 0))]
 
 
 class Snapshots:
@@ -190,8 +229,13 @@ def attempt_rng(seed: int, index: int) -> np.random.Generator:
 
 
 def is_denser(att: Attempt, best: Attempt | None) -> bool:
-    """`att` replaces `best` as the kept attempt: strictly denser (ties keep the earlier)."""
-    return best is None or att.density > best.density
+    """`att` replaces `best` as the kept attempt: it gave up fewer types in phase 1, or as
+    many and is strictly denser (ties keep the earlier). Giving a type up is a way out for
+    a type that every attempt fails to grow, not a way to a denser packing."""
+    if best is None:
+        return True
+    given, best_given = len(att.given_up), len(best.given_up)
+    return given < best_given or (given == best_given and att.density > best.density)
 
 
 def place(new_solver: Callable[[], Solver], q: np.ndarray, s1: float, f_min: float,

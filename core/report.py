@@ -37,7 +37,7 @@ class PhaseStats:
     failed: int = 0
     seconds: float = 0.0
     stopped: str = ""  # "", "deadline", "cancelled" or "patience"
-    # phase 1: growth_steps, lattice; phase 2: candidates, threshold
+    # phase 1: growth_steps, lattice, given_up; phase 2: candidates, threshold, mix_held
     extra: dict = field(default_factory=dict)
 
 

@@ -9,7 +9,7 @@ from collections.abc import Sequence
 
 import numpy as np
 
-from .metrics import best_tvd
+from .metrics import best_tvd, tvd_of_counts
 from .report import PhaseStats
 
 #: how far above the mix tolerance (or the best TVD the count allows) a packing's TVD may be
@@ -23,7 +23,8 @@ def run_warnings(names: Sequence[str], shares: np.ndarray, counts: np.ndarray, t
                  stopped: str | None, attempts_asked: int | None,
                  attempts_run: int, extra_passes_ran: bool = True,
                  left_out: Sequence[tuple[int, float, float, str]] = (),
-                 clearance: float = 0.0, fidelity: str = "") -> list[str]:
+                 clearance: float = 0.0, fidelity: str = "",
+                 given_up: Sequence[dict] = ()) -> list[str]:
     """Warnings for a packing of counts (T,) objects per type against shares (T,) summing
     to 1, whose TVD is `tvd` (the mix tolerance `max_tvd`); `phase1` is the kept attempt's
     first phase and `extra_passes_ran` whether any of its extra cavity passes started;
@@ -31,7 +32,8 @@ def run_warnings(names: Sequence[str], shares: np.ndarray, counts: np.ndarray, t
     None when the count of attempts was left to the budget; `left_out` the types the run
     packed without, as (type, need, the container's, "depth" or "length")
     (`room.out_of_reach`), with the run's `clearance` (container units) and `fidelity`
-    (the preset it used)."""
+    (the preset it used); `given_up` the types the kept attempt gave up
+    (`placement.Attempt.given_up`). The mix is judged among the other types."""
     out = []
     missing = [i for i, (s, c) in enumerate(zip(shares, counts, strict=True))
                if s > 0 and c == 0]
@@ -53,7 +55,21 @@ def run_warnings(names: Sequence[str], shares: np.ndarray, counts: np.ndarray, t
                       f"place it; or {scale}")
         out.append(f"type {names[i]} (share {shares[i]:.0%}) was left out: {lacks}; the other "
                    f"types were packed at their shares among themselves. {advice}")
-    said = {i for i, *_ in left_out}
+    for g in given_up:
+        i = g["type"]
+        if g["tries"] is None:
+            why = "no pass could grow one"
+        else:
+            rate = g["others_grown"] / max(g["others_tries"], 1)
+            why = (f"in the first phase {g['grown']} of its {g['tries']} tries grew, "
+                   f"against {rate:.0%} of the other types' tries")
+        out.append(
+            f"type {names[i]} (share {shares[i]:.0%}) was given up: {why}, so it fits the "
+            "container in few places or orientations, or only where the others already are "
+            f"({int(counts[i])} placed). The other types were packed at their shares among "
+            "themselves. Scale the objects down (--type-scale / type_scale), the container "
+            "up (--container-size / container_size), or remove the type.")
+    said = {i for i, *_ in left_out} | {g["type"] for g in given_up}
     if counts.sum() > 0:
         for i in [i for i in missing if i not in said]:
             out.append(
@@ -61,12 +77,21 @@ def run_warnings(names: Sequence[str], shares: np.ndarray, counts: np.ndarray, t
                 "fit the container in any orientation, or only where the other types already "
                 "are. Scale the objects down (--type-scale / type_scale), the container up "
                 "(--container-size / container_size), or remove the type.")
+    if said and len(said) < len(shares):  # the mix of the others, at their shares
+        rest = [i for i in range(len(shares)) if i not in said]
+        names = [names[i] for i in rest]
+        shares = shares[rest] / shares[rest].sum()
+        counts = counts[rest]
+        missing = [rest.index(i) for i in missing if i in rest]
+        tvd = tvd_of_counts(counts, shares) if counts.sum() > 0 else 0.0
     allowed = max(max_tvd, best_tvd(shares, int(counts.sum()))) + MIX_WARN_SLACK
     if not missing and counts.sum() > 0 and tvd > allowed:
         placed = ", ".join(f"{n} {c / counts.sum():.0%} (asked {s:.0%})"
                            for n, c, s in zip(names, counts, shares, strict=True))
-        out.append(f"the type mix is off: TVD {tvd:.3f} against the tolerance {max_tvd:g}; "
-                   f"placed {placed}. " + _mix_advice(names, shares, counts, tvd, max_tvd))
+        among = " among the types placed" if said else ""
+        out.append(f"the type mix{among} is off: TVD {tvd:.3f} against the tolerance "
+                   f"{max_tvd:g}; placed {placed}. "
+                   + _mix_advice(names, shares, counts, tvd, max_tvd))
     elif not missing and counts.sum() > 0:
         out += _types_far_short(names, shares, counts, tvd, max_tvd)
     if phase1.stopped == "deadline":

@@ -120,6 +120,22 @@ def test_attempts_with_a_worker_killed_midway_give_the_packing_of_one_after_anot
     assert there.certificate["certified"] is True
 
 
+def test_a_type_given_up_on_the_workers_is_given_up_in_the_packing(client, tmp_path):
+    """The attempts' given-up types come back from the workers: the kept attempt and the
+    warning are those of one after another (`type_give_up`)."""
+    import trimesh
+
+    rod, ball = tmp_path / "rod.stl", tmp_path / "ball.stl"
+    trimesh.creation.cylinder(radius=1.5, height=36.0, sections=16).export(rod)
+    trimesh.creation.icosphere(subdivisions=2, radius=2.5).export(ball)
+    types = [str(rod), str(ball)]
+    here = pack("box:24x24x24", types, seed=2, attempts=2)
+    there = pack("box:24x24x24", types, seed=2, attempts=2, client=client)
+    _same_placements(here, there)
+    assert there.report.warnings == here.report.warnings
+    assert there.report.warnings[0].startswith("type rod (share 50%) was given up")
+
+
 def _scenes() -> list[SceneSpec]:
     return [SceneSpec(id=f"s{box[4:6]}-{seed}", container=box, types=tuple(POLY), seed=seed,
                       fidelity="low")

@@ -1,0 +1,141 @@
+"""A type that (almost) never grows no longer holds the others back (`core/type_give_up.py`,
+`placement.place_once`): phase 1 gives it up, or the attempt starts again without it."""
+
+from __future__ import annotations
+
+from types import SimpleNamespace
+
+import numpy as np
+import pytest
+import trimesh
+from testdata import mesh_path
+
+from jampacked.core.api import pack
+from jampacked.core.metrics import tvd_of_counts
+from jampacked.core.placement import is_denser, never_placed
+from jampacked.core.solver import PackState
+from jampacked.core.type_give_up import GIVE_UP_TRIES, RATIO, TypeFailures, shares_without
+
+HALF = np.array([0.5, 0.5])
+
+
+def test_a_type_failing_from_the_start_waits_for_the_others_then_is_given_up():
+    f = TypeFailures(HALF)
+    for _ in range(GIVE_UP_TRIES + 1):  # as phase 1 does: the mix asks for it again
+        assert f.shares_now()[0] == 0.5
+        f.record(0, False)
+    # eleven failures against an unknown rate: it waits while the others try
+    np.testing.assert_array_equal(f.shares_now(), [0.0, 1.0])
+    assert not f.given_up.any()
+    for _ in range(GIVE_UP_TRIES):
+        f.record(1, True)
+    assert f.given_up.tolist() == [True, False]
+    np.testing.assert_array_equal(f.placement_shares(), [0.0, 1.0])
+    assert f.report() == [{"type": 0, "tries": 11, "grown": 0, "others_tries": 10,
+                           "others_grown": 10}]
+
+
+def test_a_suspect_the_others_fail_as_often_as_is_not_given_up():
+    """Late in phase 1 every type fails often: a type is judged against the others' rate."""
+    f = TypeFailures(HALF)
+    for _ in range(GIVE_UP_TRIES + 1):
+        f.record(0, False)
+    for i in range(3 * GIVE_UP_TRIES):
+        f.record(1, i % 10 == 0)  # the others grow one in ten
+    assert not f.given_up.any()
+    np.testing.assert_array_equal(f.shares_now(), HALF)  # no longer waiting either
+
+
+@pytest.mark.parametrize("grown, tries, given_up", [(1, 19, False), (1, 21, True),
+                                                    (2, 29, False), (2, 31, True)])
+def test_a_type_is_given_up_at_one_success_in_ratio_tries(grown, tries, given_up):
+    f = TypeFailures(HALF)
+    for _ in range(GIVE_UP_TRIES):
+        f.record(1, True)
+    for i in range(tries):
+        f.record(0, i < grown)
+    assert RATIO == 10.0
+    assert bool(f.given_up[0]) is given_up
+
+
+def test_the_last_type_with_a_share_is_never_given_up():
+    f = TypeFailures(np.array([0.0, 1.0]))
+    for _ in range(100):
+        f.record(1, False)
+    assert not f.given_up.any()
+    np.testing.assert_array_equal(f.shares_now(), [0.0, 1.0])
+    g = TypeFailures(np.full(3, 1 / 3))
+    for _ in range(50):
+        g.record(0, False)
+        g.record(1, False)
+        g.record(2, True)
+    assert g.given_up.tolist() == [True, True, False]
+
+
+def test_shares_without_the_given_up_types():
+    q = np.array([0.5, 0.3, 0.2])
+    assert shares_without(q, []) is q
+    np.testing.assert_allclose(shares_without(q, [{"type": 0}]), [0.0, 0.6, 0.4])
+    np.testing.assert_array_equal(shares_without(q, [{"type": t} for t in range(3)]), q)
+
+
+def test_never_placed_types_are_those_with_a_share_and_no_full_size_object():
+    s = PackState()
+    for t, scale in ((1, 1.0), (2, 0.5), (3, 1.0)):
+        s.add(t, np.zeros(3), np.array([1.0, 0, 0, 0]), scale, 0.0)
+    shares = np.array([0.25, 0.25, 0.25, 0.25, 0.0])
+    assert never_placed(s, shares) == [0, 2]
+    s.alive[:] = 0
+    assert never_placed(s, shares) == []  # nothing placed: nothing to give up for
+
+
+def test_an_attempt_that_gave_up_fewer_types_is_kept_before_a_denser_one():
+    def att(density, given_up):
+        return SimpleNamespace(density=density, given_up=[{"type": t} for t in given_up])
+
+    assert is_denser(att(0.1, []), att(0.5, [0]))
+    assert not is_denser(att(0.5, [0]), att(0.1, []))
+    assert is_denser(att(0.5, [0]), att(0.4, [1]))
+    assert not is_denser(att(0.4, [0]), att(0.4, [1]))  # ties keep the earlier
+
+
+def _scene(tmp_path, rod_length: float):
+    rod, ball = tmp_path / "rod.stl", tmp_path / "ball.stl"
+    trimesh.creation.cylinder(radius=1.5, height=rod_length, sections=16).export(rod)
+    trimesh.creation.icosphere(subdivisions=2, radius=2.5).export(ball)
+    return [str(rod), str(ball)]
+
+
+def test_a_type_that_fits_only_along_the_diagonal_no_longer_starves_the_others(tmp_path):
+    """A 36 mm rod in a 24 mm cube fits only near its long diagonals: phase 1 gave nearly
+    every lattice object the rod, which the mix lacked, and 4 objects were packed (3.2%)."""
+    p = pack("box:24x24x24", _scene(tmp_path, 36.0), seed=0)
+    counts = np.bincount(p.type_index, minlength=2)
+    assert counts[1] >= 80 and counts[0] <= 3
+    assert p.metrics["density"] > 0.4
+    [w] = p.report.warnings
+    assert w.startswith("type rod (share 50%) was given up: in the first phase 1 of its 21 "
+                        "tries grew, against 100% of the other types' tries")
+    assert "the other types were packed at their shares among themselves" in w.lower()
+    assert p.report.phase1.extra["given_up"][0]["type"] == 0
+    # the TVD is still measured against the shares asked
+    assert p.metrics["tvd"] == pytest.approx(tvd_of_counts(counts, HALF))
+
+
+def test_a_type_no_pass_grows_makes_the_attempt_start_again_without_it(tmp_path):
+    """A lemon that fits the 40 mm cube with its margins, but only at its centre in one
+    orientation: nothing grew it, and the mix held the balls back (3 objects, 2.4%)."""
+    lemon = tmp_path / "lemon.stl"
+    fruit = trimesh.load(mesh_path("fruit/ycb_lowpoly/014_lemon.obj"), force="mesh")
+    fruit.apply_scale(750.0).export(lemon)
+    ball = tmp_path / "ball.stl"
+    trimesh.creation.icosphere(subdivisions=2, radius=5.0).export(ball)
+    p = pack("box:40x40x40", [str(lemon), str(ball)], seed=0)
+    counts = np.bincount(p.type_index, minlength=2)
+    assert counts[0] == 0 and counts[1] >= 40
+    [w] = p.report.warnings
+    assert w.startswith("type lemon (share 50%) was given up: no pass could grow one")
+    assert "remove the type" in w
+    assert p.metrics["tvd"] == pytest.approx(0.5)
+    # the attempt that was kept is the one without the lemon: its first phase grew balls
+    assert p.report.phase1.grown > 0 and p.certificate["certified"] is True
