@@ -28,18 +28,28 @@ class TypeFailures:
         self.tries = np.zeros(n, np.int64)
         self.grown = np.zeros(n, np.int64)
         self.given_up = np.zeros(n, bool)
+        #: types that failed so often that they are suspects at any rate of the others,
+        #: not given up: phase 1 calls this for every object, so it is cheap while none is
+        self.failing: set[int] = set()
 
     def record(self, t: int, grew: bool) -> None:
         """One growth of type t ended, full size or not; gives up each type that fails so."""
         self.tries[t] += 1
         self.grown[t] += int(grew)
-        for u in np.flatnonzero(~self.given_up & (self.shares > 0)):
+        if (self.grown[t] + 1) * RATIO < self.tries[t] and self.tries[t] >= GIVE_UP_TRIES:
+            self.failing.add(t)
+        else:
+            self.failing.discard(t)
+        for u in sorted(self.failing):
             if self._suspect(u) and self._others_tried(u) >= GIVE_UP_TRIES:
                 self.given_up[u] = True
+                self.failing.discard(u)
 
     def shares_now(self) -> np.ndarray:
         """The (T,) shares phase 1 types its next object by: zero for the given-up types
         and for suspects while the others have not tried enough (never all zero)."""
+        if not self.failing and not self.given_up.any():
+            return self.shares
         waiting = self.given_up.copy()
         for t in np.flatnonzero(~self.given_up & (self.shares > 0)):
             if self._suspect(t) and self._others_tried(t) < GIVE_UP_TRIES:
