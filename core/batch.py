@@ -150,12 +150,20 @@ def run_batch(scenes: list[SceneSpec], out_dir: str | os.PathLike, client=None,
     total = len(scenes)
     report(len(results), total, f"{len(results)} already done, {len(todo)} to pack")
 
+    def earlier(spec: SceneSpec) -> str:
+        """What a scene not written this run says of the file an earlier run left."""
+        path = scene_file(out, spec)
+        if not path.exists():
+            return ""
+        return (f" {path.name} is an earlier run's file, not this scene's packing "
+                f"({why_not.get(spec.id) or 'not verified'}); left as it was.")
+
     def finish(spec: SceneSpec, packing: Packing | None, error: str = "") -> None:
         if packing is None:
-            results[spec.id] = SceneResult(spec, "failed", message=error)
+            results[spec.id] = SceneResult(spec, "failed", message=error + earlier(spec))
         elif packing.report.stopped == "cancelled" and packing.n == 0:
             results[spec.id] = SceneResult(spec, "cancelled", message=(
-                "stopped before any object was placed; not written"))
+                "stopped before any object was placed; not written." + earlier(spec)))
         else:
             path = scene_file(out, spec)
             try:

@@ -210,6 +210,25 @@ def test_a_scene_whose_worker_failed_fails_alone(packed, tmp_path):
         assert [row["status"] for row in csv.DictReader(f)] == ["failed", "packed"]
 
 
+def test_a_scene_that_fails_on_a_rerun_says_its_earlier_file_is_not_its_packing(
+        copy, tmp_path, monkeypatch):
+    edit(copy, _density)  # an earlier run's file that does not verify
+    before = copy.read_bytes()
+
+    def fails(spec, should_cancel=None):
+        raise batch.InputError("object type a cannot fit: ...")
+
+    monkeypatch.setattr(batch, "pack_scene", fails)
+    [r] = run_batch([SPEC], tmp_path)
+    assert r.status == "failed"
+    assert r.message.startswith("object type a cannot fit: ... x-s2.json is an earlier "
+                                "run's file, not this scene's packing (")
+    assert r.message.endswith("); left as it was.") and "density" in r.message
+    assert copy.read_bytes() == before
+    with open(tmp_path / "summary.csv", newline="") as f:
+        assert "earlier run's file" in next(csv.DictReader(f))["message"]
+
+
 def test_ctrl_c_writes_the_scenes_best_packing_and_a_rerun_packs_it_again(packed, tmp_path,
                                                                           monkeypatch):
     # Ctrl-C while a scene packs here: pack() returns its best certified packing so far
