@@ -511,6 +511,7 @@ def _assemble(container: MeshSource, scene: _Scene, approx: _Approximation, run:
         extra_passes=run.best.extra_passes, attempts=run.attempts,
         margins=run.margins.report(), repair=repair,
         threads=None if run.tuner is None else run.tuner.report(),
+        given_up=list(run.best.given_up),
         warnings=[w for m in [scene.container, *scene.types] for w in m.warnings]
         + run_warnings([t.name for t in objtypes], q, np.bincount(typ, minlength=len(q)),
                        float(metrics["tvd"]), inputs.options.cavity.max_tvd,

@@ -122,7 +122,10 @@ def run_attempt(job: AttemptJob, index: int) -> AttemptResult:
     stop = Stop(deadline, None if job.cancel_event is None else _SharedCancel(job.cancel_event))
     att = place_once(solver, job.q, job.s1, job.f_min, attempt_rng(job.seed, index), stop,
                      job.margin, job.options, job.c_volume, deadline is not None,
-                     lambda f, m: None, index=index)
+                     lambda f, m: None, index=index,
+                     fresh=lambda: Solver(job.container, table, PackState(), job.params,
+                                          tuner))
+    solver = att.solver
     s = solver.s
     try:
         from distributed import get_worker

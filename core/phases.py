@@ -257,6 +257,8 @@ def phase1(solver: Solver, shares: np.ndarray, spacing: float, rng: np.random.Ge
     for k in queue:
         if solver.s.scale[k] < 1.0:
             solver.s.alive[k] = 0
+    if not stop():
+        failures.finish()
     if failures.given_up.any():
         st.extra["given_up"] = failures.report()
     st.stopped = stop.reason

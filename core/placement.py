@@ -88,6 +88,7 @@ def place_once(solver: Solver, q: np.ndarray, s1: float, f_min: float,
                rng: np.random.Generator, stop: Stop, margin: np.ndarray, options: PackOptions,
                c_volume: float, budgeted: bool,
                report: Callable[[float, str], None], *, index: int,
+               fresh: Callable[[], Solver] | None = None,
                given_up: tuple[dict, ...] = ()) -> Attempt:
     """Phase 1, phase 2 and the extra cavity passes on `solver`'s (empty) state.
 
@@ -98,7 +99,9 @@ def place_once(solver: Solver, q: np.ndarray, s1: float, f_min: float,
     (`stacking.stack_start`); the others, and every attempt elsewhere, from phase 1's
     grown lattice. The types of `given_up` (`Attempt.given_up`) are not packed; where no
     pass placed a type of a share over the mix tolerance, and the mix held the others back
-    from holes they fit (`phase2`'s "mix_held"), the attempt starts again without it.
+    from holes they fit (`phase2`'s "mix_held"), the attempt starts again without it on
+    `fresh()`, a new solver, and keeps that unless a stop cut it below the first run (its
+    timings then hold both runs, its phase statistics the kept one's).
     """
     vol = solver.t.volume
     ph, cav = options.phases, options.cavity
@@ -144,49 +147,50 @@ def place_once(solver: Solver, q: np.ndarray, s1: float, f_min: float,
         f_min = min(f_min, float(solver.flat_half[solver.flat, 2].min()))
     rounds = cav.rounds if budgeted else 1
 
-    def cavity_rounds(shares: np.ndarray, first: int) -> list[ExtraPassStats]:
-        out: list[ExtraPassStats] = []
-        for rnd in range(first, first + rounds):
-            grown = 0
-            for i, factor in enumerate(cav.factors):
-                if stop():
-                    break
-                lo = 0.8 + 0.1 * (i + (rnd - first) * n_extra) / (n_extra * rounds)
-                st = phase2(
-                    solver, shares, s1 * ph.phase2_spacing * factor, rng, stop,
-                    iters=cav.iterations, margin=margin, retries=cav.retries,
-                    growth_steps=cav.growth_steps, min_start=max(cav.min_start, floor),
-                    threshold=factor * f_min, fit_factor=factor, patience=cav.patience,
-                    flat_lattice=True,
-                    max_tvd=cav.max_tvd,
-                    progress=lambda f, m, lo=lo: report(lo + 0.1 * f / (n_extra * rounds), m))
-                grown += st.grown
-                out.append(ExtraPassStats(**asdict(st), round=rnd, factor=factor))
-            if grown == 0 or stop():
+    extra: list[ExtraPassStats] = []
+    for rnd in range(rounds):
+        grown = 0
+        for i, factor in enumerate(cav.factors):
+            if stop():
                 break
-        return out
-
-    extra = cavity_rounds(q_packed, 0)
+            lo = 0.8 + 0.1 * (i + rnd * n_extra) / (n_extra * rounds)
+            st = phase2(
+                solver, q_packed, s1 * ph.phase2_spacing * factor, rng, stop,
+                iters=cav.iterations, margin=margin, retries=cav.retries,
+                growth_steps=cav.growth_steps, min_start=max(cav.min_start, floor),
+                threshold=factor * f_min, fit_factor=factor, patience=cav.patience,
+                flat_lattice=True,
+                max_tvd=cav.max_tvd,
+                progress=lambda f, m, lo=lo: report(lo + 0.1 * f / (n_extra * rounds), m))
+            grown += st.grown
+            extra.append(ExtraPassStats(**asdict(st), round=rnd, factor=factor))
+        if grown == 0 or stop():
+            break
     solver.max_tests = 0  # certification's repair pushes as far as it needs
     after3 = snapshot_metrics(solver.s, vol, q_asked, c_volume)
     t3 = time.perf_counter()
-    timings = {"phase1": t1 - t0, "phase2": t2 - t1, "extra": t3 - t2}
-    never = never_placed(solver.s, q_packed)
-    held = sum(st.extra.get("mix_held", 0) for st in (st2, *extra))
-    if never and held and q_packed[never].sum() > cav.max_tvd and not stop():
-        # the mix held the others back for a type no pass could grow: again without it
-        solver.s.alive[: solver.s.n] = 0
-        given_up = (*given_up, *({"type": t, "tries": None, "grown": 0} for t in never))
-        q_next = shares_without(q_asked, list(given_up))
-        s1 = s1 * (float(q_next @ vol) / float(q @ vol)) ** (1.0 / 3.0)  # their mean volume
-        again = place_once(solver, q_asked, s1, f_min, rng, stop, margin, options, c_volume,
-                           budgeted, report, index=index, given_up=given_up)
-        again.timings = {k: v + timings[k] for k, v in again.timings.items()}
-        return again
-    return Attempt(
+    att = Attempt(
         solver=solver, density=after3["density"],
         after={"after_phase1": after1, "after_phase2": after2, "after_extra": after3},
-        phase1=st1, phase2=st2, extra_passes=extra, timings=timings, given_up=list(given_up))
+        phase1=st1, phase2=st2, extra_passes=extra,
+        timings={"phase1": t1 - t0, "phase2": t2 - t1, "extra": t3 - t2},
+        given_up=list(given_up))
+    never = never_placed(solver.s, q_packed)
+    held = sum(st.extra.get("mix_held", 0) for st in (st2, *extra))
+    if (fresh is None or not never or not held or q_packed[never].sum() <= cav.max_tvd
+            or stop()):
+        return att
+    # the mix held the others back for a type no pass could grow: again without it
+    report(0.05, f"{len(never)} type(s) never grew: the attempt starts again without them")
+    given_up = (*given_up, *({"type": t, "tries": None, "grown": 0} for t in never))
+    q_next = shares_without(q_asked, list(given_up))
+    s1 = s1 * (float(q_next @ vol) / float(q @ vol)) ** (1.0 / 3.0)  # their mean volume
+    again = place_once(fresh(), q_asked, s1, f_min, rng, stop, margin, options, c_volume,
+                       budgeted, report, index=index, fresh=fresh, given_up=given_up)
+    timings = {k: v + att.timings[k] for k, v in again.timings.items()}
+    kept = att if stop.reason and again.density <= att.density else again
+    kept.timings = timings
+    return kept
 
 
 def never_placed(state: PackState, shares: np.ndarray) -> list[int]:
@@ -229,13 +233,8 @@ def attempt_rng(seed: int, index: int) -> np.random.Generator:
 
 
 def is_denser(att: Attempt, best: Attempt | None) -> bool:
-    """`att` replaces `best` as the kept attempt: it gave up fewer types in phase 1, or as
-    many and is strictly denser (ties keep the earlier). Giving a type up is a way out for
-    a type that every attempt fails to grow, not a way to a denser packing."""
-    if best is None:
-        return True
-    given, best_given = len(att.given_up), len(best.given_up)
-    return given < best_given or (given == best_given and att.density > best.density)
+    """`att` replaces `best` as the kept attempt: strictly denser (ties keep the earlier)."""
+    return best is None or att.density > best.density
 
 
 def place(new_solver: Callable[[], Solver], q: np.ndarray, s1: float, f_min: float,
@@ -267,12 +266,18 @@ def place(new_solver: Callable[[], Solver], q: np.ndarray, s1: float, f_min: flo
         if watch is not None and current is not None:
             watch(current.s)
 
+    def restart() -> Solver:  # an attempt that starts again: the live view follows it
+        nonlocal current
+        current = new_solver()
+        return current
+
     while True:
         rng = attempt_rng(seed, len(done))
         t0 = time.perf_counter()
         current = new_solver()
         att = place_once(current, q, s1, f_min, rng, stop, margin, options, c_volume,
-                         stop.deadline is not None, monotone, index=len(done))
+                         stop.deadline is not None, monotone, index=len(done),
+                         fresh=restart)
         shortest = min(shortest, time.perf_counter() - t0)
         summary = att.summary(stop.reason or None)
         done.append(summary)

@@ -77,8 +77,8 @@ def run_warnings(names: Sequence[str], shares: np.ndarray, counts: np.ndarray, t
                 "fit the container in any orientation, or only where the other types already "
                 "are. Scale the objects down (--type-scale / type_scale), the container up "
                 "(--container-size / container_size), or remove the type.")
-    if said and len(said) < len(shares):  # the mix of the others, at their shares
-        rest = [i for i in range(len(shares)) if i not in said]
+    rest = [i for i in range(len(shares)) if i not in said]
+    if said and shares[rest].sum() > 0:  # the mix of the others, at their shares
         names = [names[i] for i in rest]
         shares = shares[rest] / shares[rest].sum()
         counts = counts[rest]

@@ -5,7 +5,8 @@ never grows is always the one lacking, takes nearly every object and fails, and 
 wait (docs/notes-core.md). A type that grew in at most one in RATIO of its tries, where the
 other types grew in most of theirs, is given up for the rest of the attempt; the others
 then pack at their shares among themselves. Until the others have tried GIVE_UP_TRIES times
-their success rate is unknown: a suspect type then waits while they try.
+their success rate is unknown: a suspect type then waits while they try, and is judged on
+their tries so far where the lattice runs out first.
 """
 
 from __future__ import annotations
@@ -28,6 +29,8 @@ class TypeFailures:
         self.tries = np.zeros(n, np.int64)
         self.grown = np.zeros(n, np.int64)
         self.given_up = np.zeros(n, bool)
+        #: the given-up types' records (`report`), as they stood when each was given up
+        self.records: list[dict] = []
         #: types that failed so often that they are suspects at any rate of the others,
         #: not given up: phase 1 calls this for every object, so it is cheap while none is
         self.failing: set[int] = set()
@@ -42,8 +45,14 @@ class TypeFailures:
             self.failing.discard(t)
         for u in sorted(self.failing):
             if self._suspect(u) and self._others_tried(u) >= GIVE_UP_TRIES:
-                self.given_up[u] = True
-                self.failing.discard(u)
+                self._give_up(u)
+
+    def finish(self) -> None:
+        """Phase 1 ran out of lattice objects: a type still waiting for the others' tries
+        is judged on those they had."""
+        for u in sorted(self.failing):
+            if self._suspect(u):
+                self._give_up(u)
 
     def shares_now(self) -> np.ndarray:
         """The (T,) shares phase 1 types its next object by: zero for the given-up types
@@ -63,20 +72,21 @@ class TypeFailures:
 
     def placement_shares(self) -> np.ndarray:
         """The (T,) shares the rest of the attempt packs for: the given-up types at 0."""
-        return shares_without(self.shares, self.report())
+        return shares_without(self.shares, self.records)
 
     def report(self) -> list[dict]:
         """The given-up types as JSON-ready records: type, its tries and how many grew, and
-        the same of the other types together."""
-        out = []
-        for t in np.flatnonzero(self.given_up):
-            others = np.flatnonzero(self.shares > 0)
-            others = others[others != t]
-            out.append({"type": int(t), "tries": int(self.tries[t]),
-                        "grown": int(self.grown[t]),
-                        "others_tries": int(self.tries[others].sum()),
-                        "others_grown": int(self.grown[others].sum())})
-        return out
+        the same of the other types it was judged against, when it was given up."""
+        return [dict(r) for r in self.records]
+
+    def _give_up(self, t: int) -> None:
+        others = self._others(t)
+        self.records.append({"type": int(t), "tries": int(self.tries[t]),
+                             "grown": int(self.grown[t]),
+                             "others_tries": int(self.tries[others].sum()),
+                             "others_grown": int(self.grown[others].sum())})
+        self.given_up[t] = True
+        self.failing.discard(t)
 
     def _others(self, t: int) -> np.ndarray:
         live = (self.shares > 0) & ~self.given_up

@@ -12,6 +12,7 @@ from testdata import mesh_path
 
 from jampacked.core.api import pack
 from jampacked.core.metrics import tvd_of_counts
+from jampacked.core.packing_json import load_packing, save_packing
 from jampacked.core.placement import is_denser, never_placed
 from jampacked.core.solver import PackState
 from jampacked.core.type_give_up import GIVE_UP_TRIES, RATIO, TypeFailures, shares_without
@@ -89,14 +90,50 @@ def test_never_placed_types_are_those_with_a_share_and_no_full_size_object():
     assert never_placed(s, shares) == []  # nothing placed: nothing to give up for
 
 
-def test_an_attempt_that_gave_up_fewer_types_is_kept_before_a_denser_one():
+def test_a_suspect_still_waiting_when_the_lattice_runs_out_is_judged_on_the_others_tries():
+    """A small lattice: the others had six tries, not ten, when phase 1 ended."""
+    f = TypeFailures(HALF)
+    for i in range(21):
+        f.record(0, i == 0)
+    for _ in range(6):
+        f.record(1, True)
+    assert not f.given_up.any()
+    f.finish()
+    assert f.report() == [{"type": 0, "tries": 21, "grown": 1, "others_tries": 6,
+                           "others_grown": 6}]
+    g = TypeFailures(HALF)  # the others failed as often: not given up
+    for i in range(21):
+        g.record(0, i == 0)
+    for i in range(6):
+        g.record(1, i == 0)
+    g.finish()
+    assert not g.given_up.any()
+
+
+def test_the_rate_in_a_record_is_the_one_the_type_was_judged_against():
+    f = TypeFailures(np.full(3, 1 / 3))
+    for _ in range(GIVE_UP_TRIES):
+        f.record(2, True)
+    for _ in range(GIVE_UP_TRIES + 1):
+        f.record(0, False)
+    assert f.given_up.tolist() == [True, False, False]
+    for _ in range(GIVE_UP_TRIES + 1):
+        f.record(1, False)
+    # type 1 is judged against type 2 alone (type 0 was given up): 10 of 10
+    assert f.report()[1] == {"type": 1, "tries": 11, "grown": 0, "others_tries": 10,
+                             "others_grown": 10}
+    for _ in range(5):
+        f.record(2, False)
+    assert f.report()[0]["others_tries"] == 10  # as it stood then
+
+
+def test_the_densest_attempt_is_kept_whatever_it_gave_up():
     def att(density, given_up):
         return SimpleNamespace(density=density, given_up=[{"type": t} for t in given_up])
 
-    assert is_denser(att(0.1, []), att(0.5, [0]))
-    assert not is_denser(att(0.5, [0]), att(0.1, []))
-    assert is_denser(att(0.5, [0]), att(0.4, [1]))
-    assert not is_denser(att(0.4, [0]), att(0.4, [1]))  # ties keep the earlier
+    assert is_denser(att(0.5, [0]), att(0.1, []))
+    assert not is_denser(att(0.1, []), att(0.5, [0]))
+    assert not is_denser(att(0.4, []), att(0.4, [1]))  # ties keep the earlier
 
 
 def _scene(tmp_path, rod_length: float):
@@ -122,15 +159,27 @@ def test_a_type_that_fits_only_along_the_diagonal_no_longer_starves_the_others(t
     assert p.metrics["tvd"] == pytest.approx(tvd_of_counts(counts, HALF))
 
 
-def test_a_type_no_pass_grows_makes_the_attempt_start_again_without_it(tmp_path):
-    """A lemon that fits the 40 mm cube with its margins, but only at its centre in one
-    orientation: nothing grew it, and the mix held the balls back (3 objects, 2.4%)."""
+def test_with_several_attempts_none_starves(tmp_path):
+    """Seed 0's second attempt ran out of lattice while the rod waited for the balls' tenth
+    try, so it gave nothing up and packed 7 objects; kept for giving up fewer types."""
+    p = pack("box:24x24x24", _scene(tmp_path, 36.0), seed=0, attempts=2)
+    assert [a.count for a in p.report.attempts][1] >= 80
+    assert p.n >= 80 and p.report.given_up[0]["type"] == 0
+
+
+def _lemon_scene(tmp_path) -> list[str]:
     lemon = tmp_path / "lemon.stl"
     fruit = trimesh.load(mesh_path("fruit/ycb_lowpoly/014_lemon.obj"), force="mesh")
     fruit.apply_scale(750.0).export(lemon)
     ball = tmp_path / "ball.stl"
     trimesh.creation.icosphere(subdivisions=2, radius=5.0).export(ball)
-    p = pack("box:40x40x40", [str(lemon), str(ball)], seed=0)
+    return [str(lemon), str(ball)]
+
+
+def test_a_type_no_pass_grows_makes_the_attempt_start_again_without_it(tmp_path):
+    """A lemon that fits the 40 mm cube with its margins, but only at its centre in one
+    orientation: nothing grew it, and the mix held the balls back (3 objects, 2.4%)."""
+    p = pack("box:40x40x40", _lemon_scene(tmp_path), seed=0)
     counts = np.bincount(p.type_index, minlength=2)
     assert counts[0] == 0 and counts[1] >= 40
     [w] = p.report.warnings
@@ -139,3 +188,22 @@ def test_a_type_no_pass_grows_makes_the_attempt_start_again_without_it(tmp_path)
     assert p.metrics["tvd"] == pytest.approx(0.5)
     # the attempt that was kept is the one without the lemon: its first phase grew balls
     assert p.report.phase1.grown > 0 and p.certificate["certified"] is True
+    assert p.report.given_up == [{"type": 0, "tries": None, "grown": 0}]
+    path = tmp_path / "p.json"
+    save_packing(p, path)
+    assert load_packing(path).report.given_up == p.report.given_up
+
+
+def test_a_stop_as_the_attempt_starts_again_keeps_the_first_run(tmp_path):
+    """Ctrl-C as the lemon's attempt started again left no object (the first run's were
+    dropped before the second had placed any)."""
+    again = []
+
+    def progress(fraction, message):
+        if "starts again" in message:
+            again.append(message)
+
+    p = pack("box:40x40x40", _lemon_scene(tmp_path), seed=0, progress=progress,
+             should_cancel=lambda: bool(again))
+    assert again and p.report.stopped == "cancelled"
+    assert p.n == 3 and p.report.given_up == []
