@@ -318,7 +318,7 @@ def phase2(solver: Solver, shares: np.ndarray, spacing: float, rng: np.random.Ge
     by_size = [int(t) for t in np.argsort(-f) if shares[t] > 0]  # zero share: never placed
     one_more = np.eye(len(shares))  # row t: one object of type t
     misses = 0
-    held = 0  # candidate points where a type fits and the mix took none of them
+    held = 0  # candidate points where the mix refused a type that fits, and none grew
     n = solver.s.n
     full = np.flatnonzero((solver.s.alive[:n] == 1) & (solver.s.scale[:n] >= 1.0))
     counts = np.bincount(solver.s.typ[full], minlength=len(shares)).astype(np.float64)
@@ -338,8 +338,9 @@ def phase2(solver: Solver, shares: np.ndarray, spacing: float, rng: np.random.Ge
         # only types that keep the mix within max_tvd (or improve it): where the holes fit
         # only a small type, filling each with it would leave the shares far behind
         cap = mix_cap(counts, shares, max_tvd)
+        fitting = len(fits)
         fits = [t for t in fits if tvd_of_counts(counts + one_more[t], shares) <= cap]
-        held += not fits
+        refused = len(fits) < fitting
         if fit_factor < 1.0:
             # extra passes: the one the mix lacks most first, larger first on ties
             n_now = counts.sum() + 1.0
@@ -351,6 +352,7 @@ def phase2(solver: Solver, shares: np.ndarray, spacing: float, rng: np.random.Ge
             if smaller:
                 tries += list(rng.choice(smaller, size=min(retries, len(smaller)),
                                          replace=False))
+        added = False
         for t in tries:
             q = random_quaternions(rng, 1)[0]
             if solver.flat[t]:
@@ -371,8 +373,10 @@ def phase2(solver: Solver, shares: np.ndarray, spacing: float, rng: np.random.Ge
                 st.grown += 1
                 counts[t] += 1
                 misses = 0
+                added = True
                 break
             st.failed += 1
+        held += refused and not added
         if progress is not None and n_done % 8 == 0:
             progress(n_done / len(pts), f"phase 2: {st.grown} added, density "
                      f"{_counted_density(counts, solver):.1%}")

@@ -60,9 +60,9 @@ def run_warnings(names: Sequence[str], shares: np.ndarray, counts: np.ndarray, t
         if g["tries"] is None:
             why = "no pass could grow one"
         else:
-            rate = g["others_grown"] / max(g["others_tries"], 1)
             why = (f"in the first phase {g['grown']} of its {g['tries']} tries grew, "
-                   f"against {rate:.0%} of the other types' tries")
+                   f"against {g['against_grown']} of {g['against_tries']} of "
+                   f"{names[g['against']]}'s")
         out.append(
             f"type {names[i]} (share {shares[i]:.0%}) was given up: {why}, so it fits the "
             "container in few places or orientations, or only where the others already are "

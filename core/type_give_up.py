@@ -2,21 +2,22 @@
 
 Phase 1 gives each lattice object the type the mix lacks most, so a type that (almost)
 never grows is always the one lacking, takes nearly every object and fails, and the others
-wait (docs/notes-core.md). A type that grew in at most one in RATIO of its tries, where the
-other types grew in most of theirs, is given up for the rest of the attempt; the others
-then pack at their shares among themselves. Until the others have tried GIVE_UP_TRIES times
-their success rate is unknown: a suspect type then waits while they try, and is judged on
-their tries so far where the lattice runs out first.
+wait (docs/notes-core.md). A type that grew in at most one in RATIO of its tries, where
+another type grew in most of its own, is given up for the rest of the attempt; the others
+then pack at their shares among themselves. Until that type has tried GIVE_UP_TRIES times
+its success rate is unknown: a suspect type then waits while the others try, and is judged
+on their tries so far where the lattice runs out first.
 """
 
 from __future__ import annotations
 
 import numpy as np
 
-#: the tries of a type, and of the others together, before a type can be given up
+#: the tries of a type, and of the type it is judged against, before it can be given up
 GIVE_UP_TRIES = 10
-#: a type is given up where (its successes + 1) x RATIO is below its tries x the others'
-#: success rate: ten times less likely to grow than the others, counting one success more
+#: a type is given up where (its successes + 1) x RATIO is below its tries x the success
+#: rate of the other type that grows most often: ten times less likely to grow, counting
+#: one success more
 RATIO = 10.0
 
 
@@ -44,24 +45,25 @@ class TypeFailures:
         else:
             self.failing.discard(t)
         for u in sorted(self.failing):
-            if self._suspect(u) and self._others_tried(u) >= GIVE_UP_TRIES:
+            if self._suspect(u) and self._judged(u):
                 self._give_up(u)
 
     def finish(self) -> None:
         """Phase 1 ran out of lattice objects: a type still waiting for the others' tries
-        is judged on those they had."""
+        is judged on those they had, where one of them grew."""
         for u in sorted(self.failing):
-            if self._suspect(u):
+            if self._suspect(u) and self.grown[self._others(u)].sum() > 0:
                 self._give_up(u)
 
     def shares_now(self) -> np.ndarray:
         """The (T,) shares phase 1 types its next object by: zero for the given-up types
-        and for suspects while the others have not tried enough (never all zero)."""
+        and for suspects while the type they are judged against has not tried enough
+        (never all zero)."""
         if not self.failing and not self.given_up.any():
             return self.shares
         waiting = self.given_up.copy()
         for t in np.flatnonzero(~self.given_up & (self.shares > 0)):
-            if self._suspect(t) and self._others_tried(t) < GIVE_UP_TRIES:
+            if self._suspect(t) and not self._judged(t):
                 waiting[t] = True
         if not waiting.any():
             return self.shares
@@ -76,15 +78,15 @@ class TypeFailures:
 
     def report(self) -> list[dict]:
         """The given-up types as JSON-ready records: type, its tries and how many grew, and
-        the same of the other types it was judged against, when it was given up."""
+        the type it was judged against ("against") with the same, when it was given up."""
         return [dict(r) for r in self.records]
 
     def _give_up(self, t: int) -> None:
-        others = self._others(t)
+        u = self._best_other(t)
         self.records.append({"type": int(t), "tries": int(self.tries[t]),
-                             "grown": int(self.grown[t]),
-                             "others_tries": int(self.tries[others].sum()),
-                             "others_grown": int(self.grown[others].sum())})
+                             "grown": int(self.grown[t]), "against": u,
+                             "against_tries": int(self.tries[u]),
+                             "against_grown": int(self.grown[u])})
         self.given_up[t] = True
         self.failing.discard(t)
 
@@ -93,17 +95,26 @@ class TypeFailures:
         live[t] = False
         return live
 
-    def _others_tried(self, t: int) -> int:
-        return int(self.tries[self._others(t)].sum())
+    def _judged(self, t: int) -> bool:
+        """The type t is judged against has tried enough for its rate to count."""
+        return bool(self.tries[self._best_other(t)] >= GIVE_UP_TRIES)
+
+    def _rate(self, t: int) -> float:
+        return float(self.grown[t] + 1) / float(self.tries[t] + 1)  # 1 before any try
+
+    def _best_other(self, t: int) -> int:
+        """The other type with a share, not given up, that grows most often (of those as
+        often, the one tried most)."""
+        others = np.flatnonzero(self._others(t))
+        return int(max(others, key=lambda u: (self._rate(u), self.tries[u], -u)))
 
     def _suspect(self, t: int) -> bool:
-        """t failed so often against the others' rate (1 before they tried) that it may
-        never grow; never the last type with a share."""
-        others = self._others(t)
-        if not others.any() or self.tries[t] < GIVE_UP_TRIES:
+        """t failed so often against the other type that grows most often that it may
+        never grow; never the last type with a share. Against the best, not all the others
+        together: two types that never grow would otherwise shield each other."""
+        if not self._others(t).any() or self.tries[t] < GIVE_UP_TRIES:
             return False
-        rate = (self.grown[others].sum() + 1) / (self.tries[others].sum() + 1)
-        return (self.grown[t] + 1) * RATIO < self.tries[t] * rate
+        return (self.grown[t] + 1) * RATIO < self.tries[t] * self._rate(self._best_other(t))
 
 
 def shares_without(shares: np.ndarray, given_up: list[dict]) -> np.ndarray:

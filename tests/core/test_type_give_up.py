@@ -32,8 +32,8 @@ def test_a_type_failing_from_the_start_waits_for_the_others_then_is_given_up():
         f.record(1, True)
     assert f.given_up.tolist() == [True, False]
     np.testing.assert_array_equal(f.placement_shares(), [0.0, 1.0])
-    assert f.report() == [{"type": 0, "tries": 11, "grown": 0, "others_tries": 10,
-                           "others_grown": 10}]
+    assert f.report() == [{"type": 0, "tries": 11, "grown": 0, "against": 1,
+                           "against_tries": 10, "against_grown": 10}]
 
 
 def test_a_suspect_the_others_fail_as_often_as_is_not_given_up():
@@ -99,8 +99,8 @@ def test_a_suspect_still_waiting_when_the_lattice_runs_out_is_judged_on_the_othe
         f.record(1, True)
     assert not f.given_up.any()
     f.finish()
-    assert f.report() == [{"type": 0, "tries": 21, "grown": 1, "others_tries": 6,
-                           "others_grown": 6}]
+    assert f.report() == [{"type": 0, "tries": 21, "grown": 1, "against": 1,
+                           "against_tries": 6, "against_grown": 6}]
     g = TypeFailures(HALF)  # the others failed as often: not given up
     for i in range(21):
         g.record(0, i == 0)
@@ -119,12 +119,29 @@ def test_the_rate_in_a_record_is_the_one_the_type_was_judged_against():
     assert f.given_up.tolist() == [True, False, False]
     for _ in range(GIVE_UP_TRIES + 1):
         f.record(1, False)
-    # type 1 is judged against type 2 alone (type 0 was given up): 10 of 10
-    assert f.report()[1] == {"type": 1, "tries": 11, "grown": 0, "others_tries": 10,
-                             "others_grown": 10}
+    # type 1 is judged against type 2, which grows most often: 10 of 10
+    assert f.report()[1] == {"type": 1, "tries": 11, "grown": 0, "against": 2,
+                             "against_tries": 10, "against_grown": 10}
     for _ in range(5):
         f.record(2, False)
-    assert f.report()[0]["others_tries"] == 10  # as it stood then
+    assert f.report()[0]["against_tries"] == 10  # as it stood then
+
+
+def test_two_types_that_never_grow_do_not_shield_each_other():
+    """Each was judged against the others together, the other's failures among them: at
+    (0 + 1) / (1 + 1) neither was given up, and the two types that grow never got a try."""
+    f = TypeFailures(np.full(4, 0.25))
+    f.record(0, False)
+    for _ in range(GIVE_UP_TRIES + 1):
+        f.record(1, False)
+    assert f.shares_now()[1] == 0.0  # waits: the types it is judged against never tried
+    for _ in range(GIVE_UP_TRIES):
+        f.record(0, False)
+    np.testing.assert_array_equal(f.shares_now(), [0.0, 0.0, 0.5, 0.5])
+    for _ in range(GIVE_UP_TRIES):
+        f.record(2, True)
+    assert f.given_up.tolist() == [True, True, False, False]
+    assert [r["against"] for r in f.report()] == [2, 2]
 
 
 def test_the_densest_attempt_is_kept_whatever_it_gave_up():
@@ -152,7 +169,7 @@ def test_a_type_that_fits_only_along_the_diagonal_no_longer_starves_the_others(t
     assert p.metrics["density"] > 0.4
     [w] = p.report.warnings
     assert w.startswith("type rod (share 50%) was given up: in the first phase 1 of its 21 "
-                        "tries grew, against 100% of the other types' tries")
+                        "tries grew, against 10 of 10 of ball's")
     assert "the other types were packed at their shares among themselves" in w.lower()
     assert p.report.phase1.extra["given_up"][0]["type"] == 0
     # the TVD is still measured against the shares asked
@@ -165,6 +182,22 @@ def test_with_several_attempts_none_starves(tmp_path):
     p = pack("box:24x24x24", _scene(tmp_path, 36.0), seed=0, attempts=2)
     assert [a.count for a in p.report.attempts][1] >= 80
     assert p.n >= 80 and p.report.given_up[0]["type"] == 0
+
+
+def test_two_types_that_never_grow_are_both_given_up(tmp_path):
+    """A 36 mm rod and a 34 x 34 x 1 plate in a 24 mm cube, with balls and cubes: 3 objects
+    (2.0%); the passes always tried a type that never grows, so the mix never refused a
+    hole outright."""
+    plate, cube = tmp_path / "plate.stl", tmp_path / "cube.stl"
+    trimesh.creation.box((34.0, 34.0, 1.0)).export(plate)
+    trimesh.creation.box((4.0, 4.0, 4.0)).export(cube)
+    rod, ball = _scene(tmp_path, 36.0)
+    trimesh.creation.cylinder(radius=2.0, height=36.0, sections=16).export(rod)  # no room
+    p = pack("box:24x24x24", [rod, str(plate), ball, str(cube)], seed=0, time_budget=20)
+    counts = np.bincount(p.type_index, minlength=4)
+    assert counts[:2].tolist() == [0, 0] and counts[2:].min() >= 30
+    assert sorted(g["type"] for g in p.report.given_up) == [0, 1]
+    assert len(p.report.warnings) == 2
 
 
 def _lemon_scene(tmp_path) -> list[str]:
