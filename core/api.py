@@ -520,6 +520,8 @@ def _assemble(container: MeshSource, scene: _Scene, approx: _Approximation, run:
                        extra_passes_ran=bool(run.best.extra_passes),
                        left_out=[(o.type, o.need, o.has, o.why) for o in run.left_out],
                        given_up=run.best.given_up,
+                       mix_held=sum(st.extra.get("mix_held", 0)
+                                    for st in (run.best.phase2, *run.best.extra_passes)),
                        clearance=clearance, fidelity=approx.fidelity.name)
         + slow_certification(timings["certify"], inputs.time_budget,
                              [t.name for t in objtypes],

@@ -24,7 +24,7 @@ def run_warnings(names: Sequence[str], shares: np.ndarray, counts: np.ndarray, t
                  attempts_run: int, extra_passes_ran: bool = True,
                  left_out: Sequence[tuple[int, float, float, str]] = (),
                  clearance: float = 0.0, fidelity: str = "",
-                 given_up: Sequence[dict] = ()) -> list[str]:
+                 given_up: Sequence[dict] = (), mix_held: int = 0) -> list[str]:
     """Warnings for a packing of counts (T,) objects per type against shares (T,) summing
     to 1, whose TVD is `tvd` (the mix tolerance `max_tvd`); `phase1` is the kept attempt's
     first phase and `extra_passes_ran` whether any of its extra cavity passes started;
@@ -33,7 +33,8 @@ def run_warnings(names: Sequence[str], shares: np.ndarray, counts: np.ndarray, t
     packed without, as (type, need, the container's, "depth" or "length")
     (`room.out_of_reach`), with the run's `clearance` (container units) and `fidelity`
     (the preset it used); `given_up` the types the kept attempt gave up
-    (`placement.Attempt.given_up`). The mix is judged among the other types."""
+    (`placement.Attempt.given_up`). The mix is judged among the other types. `mix_held`:
+    the holes where the kept attempt's mix refused a type that fit (`phases.phase2`)."""
     out = []
     missing = [i for i, (s, c) in enumerate(zip(shares, counts, strict=True))
                if s > 0 and c == 0]
@@ -91,9 +92,9 @@ def run_warnings(names: Sequence[str], shares: np.ndarray, counts: np.ndarray, t
         among = " among the types placed" if said else ""
         out.append(f"the type mix{among} is off: TVD {tvd:.3f} against the tolerance "
                    f"{max_tvd:g}; placed {placed}. "
-                   + _mix_advice(names, shares, counts, tvd, max_tvd))
+                   + _mix_advice(names, shares, counts, tvd, max_tvd, mix_held))
     elif not missing and counts.sum() > 0:
-        out += _types_far_short(names, shares, counts, tvd, max_tvd)
+        out += _types_far_short(names, shares, counts, tvd, max_tvd, mix_held)
     if phase1.stopped == "deadline":
         out.append(
             f"the time budget ({time_budget:g} s) ended while the first objects were still "
@@ -148,7 +149,7 @@ SHORT_OBJECTS = 4
 
 
 def _types_far_short(names: Sequence[str], shares: np.ndarray, counts: np.ndarray,
-                     tvd: float, max_tvd: float) -> list[str]:
+                     tvd: float, max_tvd: float, mix_held: int = 0) -> list[str]:
     """A warning naming the types whose share of the placed objects is below SHORT_SHARE of
     their target share, where the mix as a whole (its TVD) is not reported off."""
     n = int(counts.sum())
@@ -162,26 +163,30 @@ def _types_far_short(names: Sequence[str], shares: np.ndarray, counts: np.ndarra
     return [f"{'a type is' if len(short) == 1 else 'types are'} placed far below the share "
             f"asked: {said}. The mix as a whole is {near} the tolerance (TVD {tvd:.3f}, "
             f"tolerance {max_tvd:g}), as the other types make up the count. "
-            + _room_advice(max_tvd)]
+            + _room_advice(max_tvd, mix_held)]
 
 
-def _room_advice(max_tvd: float) -> str:
+def _room_advice(max_tvd: float, mix_held: int = 0) -> str:
     """What fits more of the types short of their share, and (with a tolerance above 0)
-    what holds the others back."""
+    what holds the others back; where the mix held them back from holes (`mix_held` > 0),
+    what lets them fill those."""
     hold = ("; a smaller mix tolerance (--mix-tolerance) holds the other types back to "
             "their shares, with fewer objects (far fewer where the short types find little "
             "room)" if max_tvd > 0 else "")
+    if mix_held > 0:
+        hold = (". The mix held the other types back from holes they fit: a larger mix "
+                "tolerance (--mix-tolerance) lets them fill those, further from the shares")
     return ("Smaller objects of the short types (--type-scale / type_scale) or a larger "
             f"container (--container-size / container_size) fit more of them{hold}.")
 
 
 def _mix_advice(names: Sequence[str], shares: np.ndarray, counts: np.ndarray, tvd: float,
-                max_tvd: float) -> str:
+                max_tvd: float, mix_held: int = 0) -> str:
     """How to bring an off mix back, by its cause: with few objects the cavity passes may
     take one object beyond the best mix the count allows (`metrics.mix_cap`), which a zero
     tolerance does not; otherwise the types short of their share found no room."""
     n = int(counts.sum())
-    if max_tvd > 0 and tvd <= best_tvd(shares, n) + 1.0 / n + 1e-9:
+    if max_tvd > 0 and tvd <= best_tvd(shares, n) + 1.0 / n + 1e-9 and not mix_held:
         return (f"With {n} objects one object moves the mix by about {1.0 / n:.2f}, and the "
                 "cavity passes may take one more object of a type to fill a hole; a mix "
                 "tolerance of 0 (--mix-tolerance 0) keeps the mix as close as the count "
@@ -189,4 +194,4 @@ def _mix_advice(names: Sequence[str], shares: np.ndarray, counts: np.ndarray, tv
                 "maybe several).")
     short = [names[i] for i in np.flatnonzero(counts / n < shares - 1e-12)]
     return f"The types short of their share ({', '.join(short)}) found no more room. " \
-        + _room_advice(max_tvd)
+        + _room_advice(max_tvd, mix_held)

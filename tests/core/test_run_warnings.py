@@ -185,3 +185,20 @@ def test_a_type_left_out_for_depth_is_advised_high_fidelity_unless_it_ran_so(fid
     assert w.startswith("type ball (share 50%) was left out: with its contact margins it "
                         "needs at least 20.03 units of depth")
     assert ("--fidelity high" in w) is advised and "remove the type." in w
+
+
+def test_a_mix_held_back_by_a_type_that_found_no_room_advises_a_larger_tolerance():
+    """A 26 mm ball (10%) fits a 30 mm box once, and the mix held the 6 mm balls to 20;
+    the advice was a tolerance of 0, which would hold them back further."""
+    shares = np.array([0.1, 0.9])
+    counts = np.array([1, 20])
+    tvd = 0.5 * (abs(1 / 21 - 0.1) + abs(20 / 21 - 0.9))
+    [w] = run_warnings(["big", "small"], shares, counts, tvd, 0.04, PhaseStats(), None, None,
+                       None, 1, mix_held=151)
+    assert "--mix-tolerance 0" not in w and "short of their share (big)" in w
+    assert w.endswith("The mix held the other types back from holes they fit: a larger mix "
+                      "tolerance (--mix-tolerance) lets them fill those, further from the "
+                      "shares.")
+    [w] = run_warnings(["big", "small"], shares, counts, tvd, 0.04, PhaseStats(), None, None,
+                       None, 1)
+    assert "--mix-tolerance 0" in w  # nothing held back: one object's step explains it
