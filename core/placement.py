@@ -65,8 +65,8 @@ class Attempt:
     extra_passes: list[ExtraPassStats] = field(default_factory=list)
     timings: dict = field(default_factory=dict)  # phase1, phase2, extra
     #: the types the attempt gave up, as `type_give_up.TypeFailures.report` records: those
-    #: phase 1 gave up, and those no pass placed (tries None), after which the cavity passes
-    #: ran again without them
+    #: phase 1 gave up, and those no pass placed (tries None), after which the attempt
+    #: started again without them
     given_up: list[dict] = field(default_factory=list)
 
     def summary(self, stopped: str | None) -> AttemptSummary:
@@ -142,12 +142,11 @@ def place_once(solver: Solver, q: np.ndarray, s1: float, f_min: float,
     # their neighbours aside), while the time budget allows. Each pass ends after
     # `patience` fruitless points; with time left, the passes run again on freshly
     # jittered lattices (other holes), for as long as a round still adds objects.
+    extra: list[ExtraPassStats] = []
     n_extra = max(len(cav.factors), 1)
     if solver.flat.any():  # their holes are as deep as they are thick (`lie_flat`)
         f_min = min(f_min, float(solver.flat_half[solver.flat, 2].min()))
     rounds = cav.rounds if budgeted else 1
-
-    extra: list[ExtraPassStats] = []
     for rnd in range(rounds):
         grown = 0
         for i, factor in enumerate(cav.factors):
