@@ -65,8 +65,8 @@ class Attempt:
     extra_passes: list[ExtraPassStats] = field(default_factory=list)
     timings: dict = field(default_factory=dict)  # phase1, phase2, extra
     #: the types the attempt gave up, as `type_give_up.TypeFailures.report` records: those
-    #: phase 1 gave up, and those no pass placed (tries None), after which the attempt
-    #: started again without them
+    #: phase 1 gave up, and those no pass placed ("restarted": their phase 1 tries), after
+    #: which the attempt started again without them
     given_up: list[dict] = field(default_factory=list)
 
     def summary(self, stopped: str | None) -> AttemptSummary:
@@ -98,10 +98,11 @@ def place_once(solver: Solver, q: np.ndarray, s1: float, f_min: float,
     0 starts from the types stacked in rows where they fill the container so
     (`stacking.stack_start`); the others, and every attempt elsewhere, from phase 1's
     grown lattice. The types of `given_up` (`Attempt.given_up`) are not packed; where no
-    pass placed a type of a share over the mix tolerance, and the mix held the others back
-    from holes they fit (`phase2`'s "mix_held"), the attempt starts again without it on
-    `fresh()`, a new solver, and keeps that unless a stop cut it below the first run (its
-    timings then hold both runs, its phase statistics the kept one's).
+    pass placed a type of a share over the mix tolerance that phase 1 tried and never grew
+    (`TypeFailures.never_grew`), and the mix held the others back from holes they fit
+    (`phase2`'s "mix_held"), the attempt starts again without it on `fresh()`, a new
+    solver, and keeps the denser run (its timings then hold both runs, its phase
+    statistics the kept one's).
     """
     vol = solver.t.volume
     ph, cav = options.phases, options.cavity
@@ -174,21 +175,22 @@ def place_once(solver: Solver, q: np.ndarray, s1: float, f_min: float,
         phase1=st1, phase2=st2, extra_passes=extra,
         timings={"phase1": t1 - t0, "phase2": t2 - t1, "extra": t3 - t2},
         given_up=list(given_up))
-    never = never_placed(solver.s, q_packed)
+    tried = dict(map(tuple, st1.extra.get("never_grew", [])))
+    never = [t for t in never_placed(solver.s, q_packed) if t in tried]
     held = sum(st.extra.get("mix_held", 0) for st in (st2, *extra))
     if (fresh is None or not never or not held or q_packed[never].sum() <= cav.max_tvd
             or stop()):
         return att
-    # the mix held the others back for a type no pass could grow: again without it
+    # the mix held the others back for a type that grew in no try: again without it
     report(0.05, f"{len(never)} type(s) never grew: the attempt starts again without them")
-    given_up = (*given_up, *({"type": t, "tries": None, "grown": 0} for t in never))
+    given_up = (*given_up, *({"type": t, "tries": tried[t], "grown": 0, "restarted": True}
+                             for t in never))
     q_next = shares_without(q_asked, list(given_up))
     s1 = s1 * (float(q_next @ vol) / float(q @ vol)) ** (1.0 / 3.0)  # their mean volume
     again = place_once(fresh(), q_asked, s1, f_min, rng, stop, margin, options, c_volume,
                        budgeted, report, index=index, fresh=fresh, given_up=given_up)
-    timings = {k: v + att.timings[k] for k, v in again.timings.items()}
-    kept = att if stop.reason and again.density <= att.density else again
-    kept.timings = timings
+    kept = again if again.density > att.density else att  # the same types never grew
+    kept.timings = {k: v + att.timings[k] for k, v in again.timings.items()}
     return kept
 
 

@@ -119,5 +119,5 @@ class RunReport:
     threads: ThreadReport | None = None
     warnings: list[str] = field(default_factory=list)
     #: the types the kept attempt gave up (`placement.Attempt.given_up`): type, tries and
-    #: grown in phase 1 (tries None: no pass grew one, and the attempt started again)
+    #: grown in phase 1 ("restarted": no pass grew one, and the attempt started again)
     given_up: list[dict] = field(default_factory=list)

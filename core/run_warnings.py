@@ -58,16 +58,18 @@ def run_warnings(names: Sequence[str], shares: np.ndarray, counts: np.ndarray, t
                    f"types were packed at their shares among themselves. {advice}")
     for g in given_up:
         i = g["type"]
-        if g["tries"] is None:
-            why = "no pass could grow one"
+        if g.get("restarted"):
+            why = (f"none of its {g['tries']} tries in the first phase grew, nor one in the "
+                   "cavity passes, while the mix held the other types back from holes they "
+                   "fit, so the packing started again without it")
         else:
             why = (f"in the first phase {g['grown']} of its {g['tries']} tries grew, "
                    f"against {g['against_grown']} of {g['against_tries']} of "
                    f"{names[g['against']]}'s")
         out.append(
-            f"type {names[i]} (share {shares[i]:.0%}) was given up: {why}, so it fits the "
+            f"type {names[i]} (share {shares[i]:.0%}) was given up: {why}. It fits the "
             "container in few places or orientations, or only where the others already are "
-            f"({int(counts[i])} placed). The other types were packed at their shares among "
+            f"({int(counts[i])} placed); the other types were packed at their shares among "
             "themselves. Scale the objects down (--type-scale / type_scale), the container "
             "up (--container-size / container_size), or remove the type.")
     said = {i for i, *_ in left_out} | {g["type"] for g in given_up}
@@ -89,7 +91,7 @@ def run_warnings(names: Sequence[str], shares: np.ndarray, counts: np.ndarray, t
     if not missing and counts.sum() > 0 and tvd > allowed:
         placed = ", ".join(f"{n} {c / counts.sum():.0%} (asked {s:.0%})"
                            for n, c, s in zip(names, counts, shares, strict=True))
-        among = " among the types placed" if said else ""
+        among = " among the other types" if said else ""
         out.append(f"the type mix{among} is off: TVD {tvd:.3f} against the tolerance "
                    f"{max_tvd:g}; placed {placed}. "
                    + _mix_advice(names, shares, counts, tvd, max_tvd, mix_held))
@@ -169,13 +171,14 @@ def _types_far_short(names: Sequence[str], shares: np.ndarray, counts: np.ndarra
 def _room_advice(max_tvd: float, mix_held: int = 0) -> str:
     """What fits more of the types short of their share, and (with a tolerance above 0)
     what holds the others back; where the mix held them back from holes (`mix_held` > 0),
-    what lets them fill those."""
+    also what lets them fill those."""
     hold = ("; a smaller mix tolerance (--mix-tolerance) holds the other types back to "
             "their shares, with fewer objects (far fewer where the short types find little "
             "room)" if max_tvd > 0 else "")
-    if mix_held > 0:
-        hold = (". The mix held the other types back from holes they fit: a larger mix "
-                "tolerance (--mix-tolerance) lets them fill those, further from the shares")
+    if mix_held > 0 and max_tvd < 1:
+        larger = "a larger one" if max_tvd > 0 else "a mix tolerance above 0 (--mix-tolerance)"
+        hold += (f"; {larger} lets the other types fill the holes the mix held them back "
+                 "from, further from the shares")
     return ("Smaller objects of the short types (--type-scale / type_scale) or a larger "
             f"container (--container-size / container_size) fit more of them{hold}.")
 
@@ -186,12 +189,15 @@ def _mix_advice(names: Sequence[str], shares: np.ndarray, counts: np.ndarray, tv
     take one object beyond the best mix the count allows (`metrics.mix_cap`), which a zero
     tolerance does not; otherwise the types short of their share found no room."""
     n = int(counts.sum())
-    if max_tvd > 0 and tvd <= best_tvd(shares, n) + 1.0 / n + 1e-9 and not mix_held:
+    if max_tvd > 0 and tvd <= best_tvd(shares, n) + 1.0 / n + 1e-9:
+        larger = ("; a larger one (--mix-tolerance) lets the other types fill the holes the "
+                  "mix held them back from, further from the shares" if mix_held > 0
+                  and max_tvd < 1 else "")
         return (f"With {n} objects one object moves the mix by about {1.0 / n:.2f}, and the "
                 "cavity passes may take one more object of a type to fill a hole; a mix "
                 "tolerance of 0 (--mix-tolerance 0) keeps the mix as close as the count "
                 "allows, at the cost of the objects the mix cannot take (in a small scene, "
-                "maybe several).")
+                f"maybe several){larger}.")
     short = [names[i] for i in np.flatnonzero(counts / n < shares - 1e-12)]
     return f"The types short of their share ({', '.join(short)}) found no more room. " \
         + _room_advice(max_tvd, mix_held)

@@ -13,6 +13,9 @@ from __future__ import annotations
 
 import numpy as np
 
+#: a type that tried this often in phase 1 and never grew, nor in a later pass, may be left
+#: out of the attempt, which then starts again (a large type's lattice may hold two points)
+NEVER_GREW_TRIES = 1
 #: the tries of a type, and of the type it is judged against, before it can be given up
 GIVE_UP_TRIES = 10
 #: a type is given up where (its successes + 1) x RATIO is below its tries x the success
@@ -35,6 +38,7 @@ class TypeFailures:
         #: types that failed so often that they are suspects at any rate of the others,
         #: not given up: phase 1 calls this for every object, so it is cheap while none is
         self.failing: set[int] = set()
+        self._placement = self.shares  # `placement_shares`, kept for `shares_now`
 
     def record(self, t: int, grew: bool) -> None:
         """One growth of type t ended, full size or not; gives up each type that fails so."""
@@ -50,27 +54,31 @@ class TypeFailures:
 
     def finish(self) -> None:
         """Phase 1 ran out of lattice objects: a type still waiting for the others' tries
-        is judged on those they had, where one of them grew."""
+        is judged on those they had, against a type that tried, where one of them grew."""
         for u in sorted(self.failing):
-            if self._suspect(u) and self.grown[self._others(u)].sum() > 0:
-                self._give_up(u)
+            if self._suspect(u, tried=True) and self.grown[self._others(u)].sum() > 0:
+                self._give_up(u, tried=True)
 
     def shares_now(self) -> np.ndarray:
         """The (T,) shares phase 1 types its next object by: zero for the given-up types
         and for suspects while the type they are judged against has not tried enough
         (never all zero)."""
-        if not self.failing and not self.given_up.any():
-            return self.shares
-        waiting = self.given_up.copy()
-        for t in np.flatnonzero(~self.given_up & (self.shares > 0)):
-            if self._suspect(t) and not self._judged(t):
-                waiting[t] = True
-        if not waiting.any():
-            return self.shares
-        q = np.where(waiting, 0.0, self.shares)
+        waiting = [t for t in sorted(self.failing) if self._suspect(t) and not self._judged(t)]
+        if not waiting:  # suspects are failing types: most objects end here
+            return self._placement
+        q = self._placement.copy()
+        q[waiting] = 0.0
         if q.sum() <= 0:
-            return self.placement_shares()
+            return self._placement
         return q / q.sum()
+
+    def never_grew(self) -> list[list[int]]:
+        """[type, tries] of the types not given up that tried at least NEVER_GREW_TRIES
+        times and never grew: where no later pass grows one either, the attempt may start
+        again without them (`placement.place_once`)."""
+        return [[int(t), int(self.tries[t])] for t in range(len(self.shares))
+                if not self.given_up[t] and self.tries[t] >= NEVER_GREW_TRIES
+                and self.grown[t] == 0]
 
     def placement_shares(self) -> np.ndarray:
         """The (T,) shares the rest of the attempt packs for: the given-up types at 0."""
@@ -81,14 +89,15 @@ class TypeFailures:
         the type it was judged against ("against") with the same, when it was given up."""
         return [dict(r) for r in self.records]
 
-    def _give_up(self, t: int) -> None:
-        u = self._best_other(t)
+    def _give_up(self, t: int, tried: bool = False) -> None:
+        u = self._best_other(t, tried)
         self.records.append({"type": int(t), "tries": int(self.tries[t]),
                              "grown": int(self.grown[t]), "against": u,
                              "against_tries": int(self.tries[u]),
                              "against_grown": int(self.grown[u])})
         self.given_up[t] = True
         self.failing.discard(t)
+        self._placement = self.placement_shares()
 
     def _others(self, t: int) -> np.ndarray:
         live = (self.shares > 0) & ~self.given_up
@@ -102,19 +111,23 @@ class TypeFailures:
     def _rate(self, t: int) -> float:
         return float(self.grown[t] + 1) / float(self.tries[t] + 1)  # 1 before any try
 
-    def _best_other(self, t: int) -> int:
+    def _best_other(self, t: int, tried: bool = False) -> int:
         """The other type with a share, not given up, that grows most often (of those as
-        often, the one tried most)."""
+        often, the one tried most); with `tried`, of those that tried (t's first other
+        where none did)."""
         others = np.flatnonzero(self._others(t))
+        if tried and (self.tries[others] > 0).any():
+            others = others[self.tries[others] > 0]
         return int(max(others, key=lambda u: (self._rate(u), self.tries[u], -u)))
 
-    def _suspect(self, t: int) -> bool:
+    def _suspect(self, t: int, tried: bool = False) -> bool:
         """t failed so often against the other type that grows most often that it may
         never grow; never the last type with a share. Against the best, not all the others
         together: two types that never grow would otherwise shield each other."""
         if not self._others(t).any() or self.tries[t] < GIVE_UP_TRIES:
             return False
-        return (self.grown[t] + 1) * RATIO < self.tries[t] * self._rate(self._best_other(t))
+        u = self._best_other(t, tried)
+        return (self.grown[t] + 1) * RATIO < self.tries[t] * self._rate(u)
 
 
 def shares_without(shares: np.ndarray, given_up: list[dict]) -> np.ndarray:

@@ -136,6 +136,23 @@ def test_a_type_given_up_on_the_workers_is_given_up_in_the_packing(client, tmp_p
     assert there.report.warnings[0].startswith("type rod (share 50%) was given up")
 
 
+def test_an_attempt_that_starts_again_on_a_worker_gives_the_packing_here(client, tmp_path):
+    """A lemon that fits the 40 mm cube only at its centre: each attempt starts again
+    without it, on a worker on a solver of its own."""
+    import trimesh
+
+    lemon, ball = tmp_path / "lemon.stl", tmp_path / "ball.stl"
+    fruit = trimesh.load(mesh_path("fruit/ycb_lowpoly/014_lemon.obj"), force="mesh")
+    fruit.apply_scale(750.0).export(lemon)
+    trimesh.creation.icosphere(subdivisions=2, radius=5.0).export(ball)
+    types = [str(lemon), str(ball)]
+    here = pack("box:40x40x40", types, seed=0, attempts=2)
+    there = pack("box:40x40x40", types, seed=0, attempts=2, client=client)
+    _same_placements(here, there)
+    assert there.report.given_up == here.report.given_up
+    assert there.report.given_up[0]["restarted"] is True and there.n >= 40
+
+
 def _scenes() -> list[SceneSpec]:
     return [SceneSpec(id=f"s{box[4:6]}-{seed}", container=box, types=tuple(POLY), seed=seed,
                       fidelity="low")

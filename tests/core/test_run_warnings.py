@@ -187,18 +187,30 @@ def test_a_type_left_out_for_depth_is_advised_high_fidelity_unless_it_ran_so(fid
     assert ("--fidelity high" in w) is advised and "remove the type." in w
 
 
-def test_a_mix_held_back_by_a_type_that_found_no_room_advises_a_larger_tolerance():
-    """A 26 mm ball (10%) fits a 30 mm box once, and the mix held the 6 mm balls to 20;
-    the advice was a tolerance of 0, which would hold them back further."""
+def test_a_mix_held_back_by_a_type_that_found_no_room_also_advises_a_larger_tolerance():
+    """A 26 mm ball (10%) fits a 30 mm box once, and the mix held the 6 mm balls to 20:
+    the advice was only a tolerance of 0, which would hold them back further. A first fix
+    dropped that advice wherever the mix held a hole back, which is most scenes at the
+    mix cap, where a tolerance of 0 is the one that keeps the mix."""
     shares = np.array([0.1, 0.9])
     counts = np.array([1, 20])
     tvd = 0.5 * (abs(1 / 21 - 0.1) + abs(20 / 21 - 0.9))
-    [w] = run_warnings(["big", "small"], shares, counts, tvd, 0.04, PhaseStats(), None, None,
-                       None, 1, mix_held=151)
-    assert "--mix-tolerance 0" not in w and "short of their share (big)" in w
-    assert w.endswith("The mix held the other types back from holes they fit: a larger mix "
-                      "tolerance (--mix-tolerance) lets them fill those, further from the "
-                      "shares.")
-    [w] = run_warnings(["big", "small"], shares, counts, tvd, 0.04, PhaseStats(), None, None,
-                       None, 1)
-    assert "--mix-tolerance 0" in w  # nothing held back: one object's step explains it
+
+    def warn(mix_held, max_tvd=0.04):
+        [w] = run_warnings(["big", "small"], shares, counts, tvd, max_tvd, PhaseStats(), None,
+                           None, None, 1, mix_held=mix_held)
+        return w
+
+    assert "a mix tolerance of 0 (--mix-tolerance 0) keeps the mix" in warn(151)
+    assert warn(151).endswith("; a larger one (--mix-tolerance) lets the other types fill "
+                              "the holes the mix held them back from, further from the "
+                              "shares.")
+    assert "a larger one" not in warn(0)
+    # types far short, where the count is not the cause: both ways named
+    w = run_warnings(["big", "small"], shares, np.array([10, 300]), 0.068, 0.04, PhaseStats(),
+                     None, None, None, 1, mix_held=40)[0]
+    assert "a smaller mix tolerance (--mix-tolerance) holds the other types back" in w
+    assert "; a larger one lets the other types fill the holes the mix held them back" in w
+    w = run_warnings(["big", "small"], shares, np.array([10, 300]), 0.068, 0.0, PhaseStats(),
+                     None, None, None, 1, mix_held=40)[0]
+    assert "a mix tolerance above 0 (--mix-tolerance) lets the other types fill" in w

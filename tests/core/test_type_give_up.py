@@ -144,6 +144,44 @@ def test_two_types_that_never_grow_do_not_shield_each_other():
     assert [r["against"] for r in f.report()] == [2, 2]
 
 
+def test_finish_judges_against_a_type_that_tried():
+    """A review: type 2 never tried, so at (0 + 1) / (0 + 1) it was the type judged
+    against, and the warning read "against 0 of 0"."""
+    f = TypeFailures(np.array([0.4, 0.3, 0.3]))
+    for i in range(21):
+        f.record(0, i == 0)
+    for i in range(4):
+        f.record(1, i < 3)
+    f.finish()
+    assert f.report() == []  # judged against type 1's 3 of 4: not ten times as often
+    g = TypeFailures(np.array([0.4, 0.3, 0.3]))
+    for i in range(21):
+        g.record(0, i == 0)
+    for _ in range(9):
+        g.record(1, True)
+    g.finish()
+    assert g.report() == [{"type": 0, "tries": 21, "grown": 1, "against": 1,
+                           "against_tries": 9, "against_grown": 9}]
+
+
+def test_types_that_tried_and_never_grew_are_named_for_the_restart():
+    f = TypeFailures(np.full(3, 1 / 3))
+    f.record(0, False)
+    f.record(1, True)
+    f.record(1, False)
+    assert f.never_grew() == [[0, 1]]  # type 2 never tried: the count may explain it
+
+
+def test_after_a_give_up_most_objects_take_the_kept_shares():
+    f = TypeFailures(HALF)
+    for _ in range(GIVE_UP_TRIES):
+        f.record(1, True)
+    for _ in range(GIVE_UP_TRIES + 1):
+        f.record(0, False)
+    a, b = f.shares_now(), f.shares_now()
+    assert a is b and a.tolist() == [0.0, 1.0]  # no recomputing per object
+
+
 def test_the_densest_attempt_is_kept_whatever_it_gave_up():
     def att(density, given_up):
         return SimpleNamespace(density=density, given_up=[{"type": t} for t in given_up])
@@ -178,7 +216,8 @@ def test_a_type_that_fits_only_along_the_diagonal_no_longer_starves_the_others(t
 
 def test_with_several_attempts_none_starves(tmp_path):
     """Seed 0's second attempt ran out of lattice while the rod waited for the balls' tenth
-    try, so it gave nothing up and packed 7 objects; kept for giving up fewer types."""
+    try, so it gave nothing up and packed 7 objects, and was kept (an attempt that gave up
+    fewer types was kept first)."""
     p = pack("box:24x24x24", _scene(tmp_path, 36.0), seed=0, attempts=2)
     assert [a.count for a in p.report.attempts][1] >= 80
     assert p.n >= 80 and p.report.given_up[0]["type"] == 0
@@ -216,12 +255,16 @@ def test_a_type_no_pass_grows_makes_the_attempt_start_again_without_it(tmp_path)
     counts = np.bincount(p.type_index, minlength=2)
     assert counts[0] == 0 and counts[1] >= 40
     [w] = p.report.warnings
-    assert w.startswith("type lemon (share 50%) was given up: no pass could grow one")
+    tries = p.report.given_up[0]["tries"]
+    assert w.startswith(f"type lemon (share 50%) was given up: none of its {tries} tries in "
+                        "the first phase grew, nor one in the cavity passes, while the mix "
+                        "held the other types back")
     assert "remove the type" in w
     assert p.metrics["tvd"] == pytest.approx(0.5)
     # the attempt that was kept is the one without the lemon: its first phase grew balls
     assert p.report.phase1.grown > 0 and p.certificate["certified"] is True
-    assert p.report.given_up == [{"type": 0, "tries": None, "grown": 0}]
+    assert p.report.given_up == [{"type": 0, "tries": tries, "grown": 0, "restarted": True}]
+    assert tries >= 1
     path = tmp_path / "p.json"
     save_packing(p, path)
     assert load_packing(path).report.given_up == p.report.given_up
