@@ -56,6 +56,30 @@ def warm_cache_env(folder: str) -> dict:
     return dict(os.environ, JAMPACKED_CACHE=os.path.join(folder, "jampacked"))
 
 
+def rod_and_balls(folder: Path, rod_length: float = 36.0,
+                  rod_radius: float = 1.5) -> list[str]:
+    """A rod and balls of radius 2.5 as STL files in `folder`: in box:24 a 36 mm rod of
+    radius 1.5 fits only near the long diagonals, one of radius 2 nowhere."""
+    import trimesh
+
+    rod, ball = folder / "rod.stl", folder / "ball.stl"
+    trimesh.creation.cylinder(radius=rod_radius, height=rod_length, sections=16).export(rod)
+    trimesh.creation.icosphere(subdivisions=2, radius=2.5).export(ball)
+    return [str(rod), str(ball)]
+
+
+def lemon_and_balls(folder: Path) -> list[str]:
+    """The low-poly YCB lemon x750 and balls of radius 5 as mesh files in `folder`: the
+    lemon fits box:40 with its margins, but only at the centre in one orientation."""
+    import trimesh
+
+    lemon, ball = folder / "lemon.stl", folder / "ball.stl"
+    fruit = trimesh.load(mesh_path("fruit/ycb_lowpoly/014_lemon.obj"), force="mesh")
+    fruit.apply_scale(750.0).export(lemon)
+    trimesh.creation.icosphere(subdivisions=2, radius=5.0).export(ball)
+    return [str(lemon), str(ball)]
+
+
 class UlpUp:
     """A numpy ufunc whose results are one ulp larger, as numpy's SIMD cube root, log and
     exp differ from libm's on CPUs with AVX-512."""

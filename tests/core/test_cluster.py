@@ -10,7 +10,7 @@ import distributed
 import numpy as np
 import pytest
 from dask_workers import kill_a_busy_worker, task_starts, transitions
-from testdata import mesh_path
+from testdata import lemon_and_balls, mesh_path, rod_and_balls
 
 from jampacked.core.api import pack
 from jampacked.core.batch import check_done, pack_scene, run_batch, scene_file
@@ -120,37 +120,21 @@ def test_attempts_with_a_worker_killed_midway_give_the_packing_of_one_after_anot
     assert there.certificate["certified"] is True
 
 
-def test_a_type_given_up_on_the_workers_is_given_up_in_the_packing(client, tmp_path):
-    """The attempts' given-up types come back from the workers: the kept attempt and the
-    warning are those of one after another (`type_give_up`)."""
-    import trimesh
-
-    rod, ball = tmp_path / "rod.stl", tmp_path / "ball.stl"
-    trimesh.creation.cylinder(radius=1.5, height=36.0, sections=16).export(rod)
-    trimesh.creation.icosphere(subdivisions=2, radius=2.5).export(ball)
-    types = [str(rod), str(ball)]
-    here = pack("box:24x24x24", types, seed=2, attempts=2)
-    there = pack("box:24x24x24", types, seed=2, attempts=2, client=client)
+@pytest.mark.parametrize("scene, box, seed", [(rod_and_balls, "box:24x24x24", 2),
+                                              (lemon_and_balls, "box:40x40x40", 0)])
+def test_types_given_up_on_the_workers_are_given_up_in_the_packing(client, tmp_path, scene,
+                                                                   box, seed):
+    """The attempts' given-up types come back from the workers, and an attempt that starts
+    again without its lemon does so on a worker, on a solver of its own: the kept attempt
+    and the warnings are those of one after another (`type_give_up`)."""
+    types = scene(tmp_path)
+    here = pack(box, types, seed=seed, attempts=2)
+    there = pack(box, types, seed=seed, attempts=2, client=client)
     _same_placements(here, there)
     assert there.report.warnings == here.report.warnings
-    assert there.report.warnings[0].startswith("type rod (share 50%) was given up")
-
-
-def test_an_attempt_that_starts_again_on_a_worker_gives_the_packing_here(client, tmp_path):
-    """A lemon that fits the 40 mm cube only at its centre: each attempt starts again
-    without it, on a worker on a solver of its own."""
-    import trimesh
-
-    lemon, ball = tmp_path / "lemon.stl", tmp_path / "ball.stl"
-    fruit = trimesh.load(mesh_path("fruit/ycb_lowpoly/014_lemon.obj"), force="mesh")
-    fruit.apply_scale(750.0).export(lemon)
-    trimesh.creation.icosphere(subdivisions=2, radius=5.0).export(ball)
-    types = [str(lemon), str(ball)]
-    here = pack("box:40x40x40", types, seed=0, attempts=2)
-    there = pack("box:40x40x40", types, seed=0, attempts=2, client=client)
-    _same_placements(here, there)
     assert there.report.given_up == here.report.given_up
-    assert there.report.given_up[0]["restarted"] is True and there.n >= 40
+    assert there.report.given_up[0]["type"] == 0 and there.n >= 40
+    assert there.report.given_up[0].get("restarted", False) is (scene is lemon_and_balls)
 
 
 def _scenes() -> list[SceneSpec]:

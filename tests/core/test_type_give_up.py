@@ -8,7 +8,7 @@ from types import SimpleNamespace
 import numpy as np
 import pytest
 import trimesh
-from testdata import mesh_path
+from testdata import lemon_and_balls, rod_and_balls
 
 from jampacked.core.api import pack
 from jampacked.core.metrics import tvd_of_counts
@@ -191,17 +191,10 @@ def test_the_densest_attempt_is_kept_whatever_it_gave_up():
     assert not is_denser(att(0.4, []), att(0.4, [1]))  # ties keep the earlier
 
 
-def _scene(tmp_path, rod_length: float):
-    rod, ball = tmp_path / "rod.stl", tmp_path / "ball.stl"
-    trimesh.creation.cylinder(radius=1.5, height=rod_length, sections=16).export(rod)
-    trimesh.creation.icosphere(subdivisions=2, radius=2.5).export(ball)
-    return [str(rod), str(ball)]
-
-
 def test_a_type_that_fits_only_along_the_diagonal_no_longer_starves_the_others(tmp_path):
     """A 36 mm rod in a 24 mm cube fits only near its long diagonals: phase 1 gave nearly
     every lattice object the rod, which the mix lacked, and 4 objects were packed (3.2%)."""
-    p = pack("box:24x24x24", _scene(tmp_path, 36.0), seed=0)
+    p = pack("box:24x24x24", rod_and_balls(tmp_path), seed=0)
     counts = np.bincount(p.type_index, minlength=2)
     assert counts[1] >= 80 and counts[0] <= 3
     assert p.metrics["density"] > 0.4
@@ -218,7 +211,7 @@ def test_with_several_attempts_none_starves(tmp_path):
     """Seed 0's second attempt ran out of lattice while the rod waited for the balls' tenth
     try, so it gave nothing up and packed 7 objects, and was kept (an attempt that gave up
     fewer types was kept first)."""
-    p = pack("box:24x24x24", _scene(tmp_path, 36.0), seed=0, attempts=2)
+    p = pack("box:24x24x24", rod_and_balls(tmp_path), seed=0, attempts=2)
     assert [a.count for a in p.report.attempts][1] >= 80
     assert p.n >= 80 and p.report.given_up[0]["type"] == 0
 
@@ -230,8 +223,7 @@ def test_two_types_that_never_grow_are_both_given_up(tmp_path):
     plate, cube = tmp_path / "plate.stl", tmp_path / "cube.stl"
     trimesh.creation.box((34.0, 34.0, 1.0)).export(plate)
     trimesh.creation.box((4.0, 4.0, 4.0)).export(cube)
-    rod, ball = _scene(tmp_path, 36.0)
-    trimesh.creation.cylinder(radius=2.0, height=36.0, sections=16).export(rod)  # no room
+    rod, ball = rod_and_balls(tmp_path, rod_radius=2.0)  # no room, even along a diagonal
     p = pack("box:24x24x24", [rod, str(plate), ball, str(cube)], seed=0, time_budget=20)
     counts = np.bincount(p.type_index, minlength=4)
     assert counts[:2].tolist() == [0, 0] and counts[2:].min() >= 30
@@ -239,19 +231,10 @@ def test_two_types_that_never_grow_are_both_given_up(tmp_path):
     assert len(p.report.warnings) == 2
 
 
-def _lemon_scene(tmp_path) -> list[str]:
-    lemon = tmp_path / "lemon.stl"
-    fruit = trimesh.load(mesh_path("fruit/ycb_lowpoly/014_lemon.obj"), force="mesh")
-    fruit.apply_scale(750.0).export(lemon)
-    ball = tmp_path / "ball.stl"
-    trimesh.creation.icosphere(subdivisions=2, radius=5.0).export(ball)
-    return [str(lemon), str(ball)]
-
-
 def test_a_type_no_pass_grows_makes_the_attempt_start_again_without_it(tmp_path):
     """A lemon that fits the 40 mm cube with its margins, but only at its centre in one
     orientation: nothing grew it, and the mix held the balls back (3 objects, 2.4%)."""
-    p = pack("box:40x40x40", _lemon_scene(tmp_path), seed=0)
+    p = pack("box:40x40x40", lemon_and_balls(tmp_path), seed=0)
     counts = np.bincount(p.type_index, minlength=2)
     assert counts[0] == 0 and counts[1] >= 40
     [w] = p.report.warnings
@@ -279,7 +262,7 @@ def test_a_stop_as_the_attempt_starts_again_keeps_the_first_run(tmp_path):
         if "starts again" in message:
             again.append(message)
 
-    p = pack("box:40x40x40", _lemon_scene(tmp_path), seed=0, progress=progress,
+    p = pack("box:40x40x40", lemon_and_balls(tmp_path), seed=0, progress=progress,
              should_cancel=lambda: bool(again))
     assert again and p.report.stopped == "cancelled"
     assert p.n == 3 and p.report.given_up == []
