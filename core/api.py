@@ -518,6 +518,7 @@ def _assemble(container: MeshSource, scene: _Scene, approx: _Approximation, run:
                        run.best.phase1, inputs.time_budget, stop.reason or None,
                        inputs.options.attempts.count, len(run.attempts),
                        extra_passes_ran=bool(run.best.extra_passes),
+                       passes_seconds=run.best.timings["phase2"] + run.best.timings["extra"],
                        left_out=[(o.type, o.need, o.has, o.why) for o in run.left_out],
                        given_up=run.best.given_up,
                        mix_held=sum(st.extra.get("mix_held", 0)

@@ -12,6 +12,8 @@ import numpy as np
 from .metrics import best_tvd, tvd_of_counts
 from .report import PhaseStats
 
+#: cavity passes the time budget ended before they ran this share of it count as not run
+PASSES_CUT = 0.1
 #: how far above the mix tolerance (or the best TVD the count allows) a packing's TVD may be
 #: before the mix is reported off; the cavity passes keep it within the tolerance, and the
 #: repair's removals may add up to 0.01 (`core/repair.py` MIX_SLACK)
@@ -24,7 +26,8 @@ def run_warnings(names: Sequence[str], shares: np.ndarray, counts: np.ndarray, t
                  attempts_run: int, extra_passes_ran: bool = True,
                  left_out: Sequence[tuple[int, float, float, str]] = (),
                  clearance: float = 0.0, fidelity: str = "",
-                 given_up: Sequence[dict] = (), mix_held: int = 0) -> list[str]:
+                 given_up: Sequence[dict] = (), mix_held: int = 0,
+                 passes_seconds: float | None = None) -> list[str]:
     """Warnings for a packing of counts (T,) objects per type against shares (T,) summing
     to 1, whose TVD is `tvd` (the mix tolerance `max_tvd`); `phase1` is the kept attempt's
     first phase and `extra_passes_ran` whether any of its extra cavity passes started;
@@ -34,7 +37,9 @@ def run_warnings(names: Sequence[str], shares: np.ndarray, counts: np.ndarray, t
     (`room.out_of_reach`), with the run's `clearance` (container units) and `fidelity`
     (the preset it used); `given_up` the types the kept attempt gave up
     (`placement.Attempt.given_up`). The mix is judged among the other types. `mix_held`:
-    the holes where the kept attempt's mix refused a type that fit (`phases.phase2`)."""
+    the holes where the kept attempt's mix refused a type that fit (`phases.phase2`).
+    `passes_seconds`: how long its cavity passes ran (s); under PASSES_CUT of the budget,
+    cut by it, they count as not run."""
     out = []
     missing = [i for i, (s, c) in enumerate(zip(shares, counts, strict=True))
                if s > 0 and c == 0]
@@ -97,16 +102,20 @@ def run_warnings(names: Sequence[str], shares: np.ndarray, counts: np.ndarray, t
                    + _mix_advice(names, shares, counts, tvd, max_tvd, mix_held))
     elif not missing and counts.sum() > 0:
         out += _types_far_short(names, shares, counts, tvd, max_tvd, mix_held)
+    cut_short = (passes_seconds is not None and time_budget is not None
+                 and passes_seconds < PASSES_CUT * time_budget)
     if phase1.stopped == "deadline":
         out.append(
             f"the time budget ({time_budget:g} s) ended while the first objects were still "
             f"growing: {phase1.grown} of {phase1.inserted} grew, and the cavity passes did not "
             "run, so the container is far from full. Give a larger --time-budget / "
             "time_budget, or none.")
-    elif (stopped == "deadline" and not extra_passes_ran
+    elif (stopped == "deadline" and (not extra_passes_ran or cut_short)
           and phase1.extra.get("lattice") != "stacked"):  # rows leave slivers, not holes
+        when = (f"{passes_seconds:.3g} s into the cavity passes" if extra_passes_ran
+                else "before the cavity passes ran")
         out.append(
-            f"the time budget ({time_budget:g} s) ended before the cavity passes ran: the "
+            f"the time budget ({time_budget:g} s) ended {when}: the "
             f"first objects grew ({phase1.grown} of {phase1.inserted}), but the holes between "
             "them were left unfilled, so the container is far from full. Give a larger "
             "--time-budget / time_budget, or none.")

@@ -112,6 +112,23 @@ def test_a_budget_ending_before_the_cavity_passes():
                      extra=False)) == 1
 
 
+def test_a_budget_ending_as_the_cavity_passes_began_is_said():
+    """An independent check: the knight with four YCB fruit, 25 s under load: phase 1 took
+    24.97 s, the passes 0.03 s (2 tries), 184 objects at 43.2% and no warning (207 at 48.1%
+    with 30 s); a pass had started, so they counted as run."""
+    grown = PhaseStats(inserted=230, grown=184)
+
+    def warn(seconds):
+        return run_warnings(NAMES, HALF, np.array([92, 92]), 0.0, 0.04, grown, 25.0,
+                            "deadline", None, 1, extra_passes_ran=True,
+                            passes_seconds=seconds)
+
+    (w,) = warn(0.03)
+    assert w.startswith("the time budget (25 s) ended 0.03 s into the cavity passes: the first "
+                        "objects grew (184 of 230)")
+    assert warn(2.6) == []  # a tenth of the budget: the passes ran
+
+
 def test_pack_warns_when_the_budget_ends_before_the_cavity_passes(tmp_path, monkeypatch):
     # the clock is made to run out right after the paper's phase 2, as a 20 s budget did
     paper_phase2 = placement.phase2
