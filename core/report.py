@@ -37,7 +37,8 @@ class PhaseStats:
     failed: int = 0
     seconds: float = 0.0
     stopped: str = ""  # "", "deadline", "cancelled" or "patience"
-    # phase 1: growth_steps, lattice, given_up; phase 2: candidates, threshold, mix_held
+    # phase 1: growth_steps, lattice, given_up, never_grew; phase 2: candidates, threshold,
+    # mix_held
     extra: dict = field(default_factory=dict)
 
 
