@@ -521,8 +521,7 @@ def _assemble(container: MeshSource, scene: _Scene, approx: _Approximation, run:
                        passes_seconds=run.best.timings["phase2"] + run.best.timings["extra"],
                        left_out=[(o.type, o.need, o.has, o.why) for o in run.left_out],
                        given_up=run.best.given_up,
-                       mix_held=sum(st.extra.get("mix_held", 0)
-                                    for st in (run.best.phase2, *run.best.extra_passes)),
+                       mix_held=run.best.mix_held,
                        clearance=clearance, fidelity=approx.fidelity.name)
         + slow_certification(timings["certify"], inputs.time_budget,
                              [t.name for t in objtypes],

@@ -261,8 +261,9 @@ def phase1(solver: Solver, shares: np.ndarray, spacing: float, rng: np.random.Ge
         failures.finish()
     if failures.given_up.any():
         st.extra["given_up"] = failures.report()
-    if failures.never_grew():
-        st.extra["never_grew"] = failures.never_grew()
+    never_grew = failures.never_grew()
+    if never_grew:
+        st.extra["never_grew"] = never_grew
     st.stopped = stop.reason
     st.seconds = time.perf_counter() - t0
     return st

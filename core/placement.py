@@ -69,6 +69,11 @@ class Attempt:
     #: which the attempt started again without them
     given_up: list[dict] = field(default_factory=list)
 
+    @property
+    def mix_held(self) -> int:
+        """The holes where the mix refused a type that fit and nothing grew (`phase2`)."""
+        return sum(st.extra.get("mix_held", 0) for st in (self.phase2, *self.extra_passes))
+
     def summary(self, stopped: str | None) -> AttemptSummary:
         return AttemptSummary(
             density=self.density, count=self.after["after_extra"]["count"],
@@ -177,9 +182,8 @@ def place_once(solver: Solver, q: np.ndarray, s1: float, f_min: float,
         given_up=list(given_up))
     tried = dict(map(tuple, st1.extra.get("never_grew", [])))
     never = [t for t in never_placed(solver.s, q_packed) if t in tried]
-    held = sum(st.extra.get("mix_held", 0) for st in (st2, *extra))
-    if (fresh is None or not never or not held or q_packed[never].sum() <= cav.max_tvd
-            or stop()):
+    if (fresh is None or not never or not att.mix_held
+            or q_packed[never].sum() <= cav.max_tvd or stop()):
         return att
     # the mix held the others back for a type that grew in no try: again without it
     report(0.05, f"{len(never)} type(s) never grew: the attempt starts again without them")
