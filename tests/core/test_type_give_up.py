@@ -217,16 +217,16 @@ def test_with_several_attempts_none_starves(tmp_path):
 
 
 def test_two_types_that_never_grow_are_both_given_up(tmp_path):
-    """A 36 mm rod and a 34 x 34 x 1 plate in a 24 mm cube, with balls and cubes: 3 objects
-    (2.0%); the passes always tried a type that never grows, so the mix never refused a
-    hole outright."""
+    """A 36 mm rod and a 34 x 34 x 1 plate in a 24 mm cube, with balls and 6 mm cubes: 3
+    objects (2.5%); the passes always tried a type that never grows, so the mix never
+    refused a hole outright."""
     plate, cube = tmp_path / "plate.stl", tmp_path / "cube.stl"
     trimesh.creation.box((34.0, 34.0, 1.0)).export(plate)
-    trimesh.creation.box((4.0, 4.0, 4.0)).export(cube)
+    trimesh.creation.box((6.0, 6.0, 6.0)).export(cube)
     rod, ball = rod_and_balls(tmp_path, rod_radius=2.0)  # no room, even along a diagonal
-    p = pack("box:24x24x24", [rod, str(plate), ball, str(cube)], seed=0, time_budget=20)
+    p = pack("box:24x24x24", [rod, str(plate), ball, str(cube)], seed=0)
     counts = np.bincount(p.type_index, minlength=4)
-    assert counts[:2].tolist() == [0, 0] and counts[2:].min() >= 30
+    assert counts[:2].tolist() == [0, 0] and counts[2:].min() >= 20
     assert sorted(g["type"] for g in p.report.given_up) == [0, 1]
     assert len(p.report.warnings) == 2
 
