@@ -210,11 +210,11 @@ def phase1(solver: Solver, shares: np.ndarray, spacing: float, rng: np.random.Ge
         focus = focus[depth < near]
     if len(focus) and not stop():
         solver.resolve(focus, 50, rollback=False)
-    counts = np.zeros(n_types)
     order_by_volume = np.argsort(-table.volume)
     total = len(queue)
     spread = TypeSpread(n_types)
     failures = TypeFailures(shares)
+    counts = failures.grown  # (T,) objects grown per type, as the failures count them
     # a few lattice points: a window over most of them would fix the order, and the
     # attempts of a small scene would all grow alike
     window = max(1, min(spread_window, total // SPREAD_QUEUE))
@@ -243,7 +243,6 @@ def phase1(solver: Solver, shares: np.ndarray, spacing: float, rng: np.random.Ge
                                                solver.c.grid, rng)
         grew = grow(solver, k, solver.s.scale[k], iters, stop, growth_steps)
         if grew:
-            counts[t] += 1
             st.grown += 1
             spread.add(t, solver.s.pos[k])
         else:

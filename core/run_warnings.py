@@ -12,6 +12,9 @@ import numpy as np
 from .metrics import best_tvd, tvd_of_counts
 from .report import PhaseStats
 
+#: what fits a type the container cannot hold, in the command line's and the API's words
+SCALE = ("scale the objects down (--type-scale / type_scale), the container up "
+         "(--container-size / container_size), or remove the type.")
 #: cavity passes the time budget ended before they ran this share of it count as not run
 PASSES_CUT = 0.1
 #: how far above the mix tolerance (or the best TVD the count allows) a packing's TVD may be
@@ -44,21 +47,20 @@ def run_warnings(names: Sequence[str], shares: np.ndarray, counts: np.ndarray, t
     missing = [i for i, (s, c) in enumerate(zip(shares, counts, strict=True))
                if s > 0 and c == 0]
     plus = " and the clearance" if clearance > 0 else ""
+    scale_up = SCALE[:1].upper() + SCALE[1:]
     for i, need, has, why in left_out:
-        scale = ("scale the objects down (--type-scale / type_scale), the container up "
-                 "(--container-size / container_size), or remove the type.")
         if why == "length":
             ends = " with the clearance at both ends" if clearance > 0 else ""
             lacks = (f"it is {need:.4g} units long{ends}, longer than the container is across "
                      f"({has:.4g}, its box's diagonal), so it fits in no orientation")
-            advice = scale[:1].upper() + scale[1:]
+            advice = scale_up
         else:
             lacks = (f"with its contact margins{plus} it needs at least {need:.4g} units of "
                      f"depth, and the container's deepest point is about {has:.4g} from its "
                      "wall, so the engine can place it nowhere")
-            advice = (scale[:1].upper() + scale[1:] if fidelity == "high" else
+            advice = (scale_up if fidelity == "high" else
                       "--fidelity high / fidelity='high' (finer grids, smaller margins) may "
-                      f"place it; or {scale}")
+                      f"place it; or {SCALE}")
         out.append(f"type {names[i]} (share {shares[i]:.0%}) was left out: {lacks}; the other "
                    f"types were packed at their shares among themselves. {advice}")
     for g in given_up:
@@ -75,16 +77,14 @@ def run_warnings(names: Sequence[str], shares: np.ndarray, counts: np.ndarray, t
             f"type {names[i]} (share {shares[i]:.0%}) was given up: {why}. It fits the "
             "container in few places or orientations, or only where the others already are "
             f"({int(counts[i])} placed); the other types were packed at their shares among "
-            "themselves. Scale the objects down (--type-scale / type_scale), the container "
-            "up (--container-size / container_size), or remove the type.")
+            f"themselves. {scale_up}")
     said = {i for i, *_ in left_out} | {g["type"] for g in given_up}
     if counts.sum() > 0:
         for i in [i for i in missing if i not in said]:
             out.append(
                 f"type {names[i]} (share {shares[i]:.0%}) was not placed at all: it may not "
                 "fit the container in any orientation, or only where the other types already "
-                "are. Scale the objects down (--type-scale / type_scale), the container up "
-                "(--container-size / container_size), or remove the type.")
+                f"are. {scale_up}")
     rest = [i for i in range(len(shares)) if i not in said]
     if said and shares[rest].sum() > 0:  # the mix of the others, at their shares
         names = [names[i] for i in rest]
@@ -186,10 +186,16 @@ def _room_advice(max_tvd: float, mix_held: int = 0) -> str:
             "room)" if max_tvd > 0 else "")
     if mix_held > 0 and max_tvd < 1:
         larger = "a larger one" if max_tvd > 0 else "a mix tolerance above 0 (--mix-tolerance)"
-        hold += (f"; {larger} lets the other types fill the holes the mix held them back "
-                 "from, further from the shares")
+        hold += _fill_held(larger)
     return ("Smaller objects of the short types (--type-scale / type_scale) or a larger "
             f"container (--container-size / container_size) fit more of them{hold}.")
+
+
+def _fill_held(larger: str) -> str:
+    """The advice clause that names `larger`, a larger mix tolerance, for the holes the
+    mix held the other types back from."""
+    return (f"; {larger} lets the other types fill the holes the mix held them back from, "
+            "further from the shares")
 
 
 def _mix_advice(names: Sequence[str], shares: np.ndarray, counts: np.ndarray, tvd: float,
@@ -199,9 +205,8 @@ def _mix_advice(names: Sequence[str], shares: np.ndarray, counts: np.ndarray, tv
     tolerance does not; otherwise the types short of their share found no room."""
     n = int(counts.sum())
     if max_tvd > 0 and tvd <= best_tvd(shares, n) + 1.0 / n + 1e-9:
-        larger = ("; a larger one (--mix-tolerance) lets the other types fill the holes the "
-                  "mix held them back from, further from the shares" if mix_held > 0
-                  and max_tvd < 1 else "")
+        larger = (_fill_held("a larger one (--mix-tolerance)") if mix_held > 0 and max_tvd < 1
+                  else "")
         return (f"With {n} objects one object moves the mix by about {1.0 / n:.2f}, and the "
                 "cavity passes may take one more object of a type to fill a hole; a mix "
                 "tolerance of 0 (--mix-tolerance 0) keeps the mix as close as the count "
