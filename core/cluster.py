@@ -114,7 +114,11 @@ def run_attempt(job: AttemptJob, index: int) -> AttemptResult:
     """Attempt `index` of the job's packing on a fresh state (runs on a worker)."""
     table = TypeTable(job.types)
     tuner = ThreadTuner(numba.get_num_threads()) if job.options.tune_threads else None
-    solver = Solver(job.container, table, PackState(), job.params, tuner)
+
+    def new_solver() -> Solver:
+        return Solver(job.container, table, PackState(), job.params, tuner)
+
+    solver = new_solver()
     solver.warm_up()  # numba's cache: a load, not a compile
     deadline = None
     if job.deadline is not None:
@@ -122,9 +126,7 @@ def run_attempt(job: AttemptJob, index: int) -> AttemptResult:
     stop = Stop(deadline, None if job.cancel_event is None else _SharedCancel(job.cancel_event))
     att = place_once(solver, job.q, job.s1, job.f_min, attempt_rng(job.seed, index), stop,
                      job.margin, job.options, job.c_volume, deadline is not None,
-                     lambda f, m: None, index=index,
-                     fresh=lambda: Solver(job.container, table, PackState(), job.params,
-                                          tuner))
+                     lambda f, m: None, index=index, fresh=new_solver)
     solver = att.solver
     s = solver.s
     try:
