@@ -102,8 +102,10 @@ GEOMETRY_TYPES = {'MESH': "mesh", 'CURVE': "curve", 'SURFACE': "surface", 'META'
                   'FONT': "text"}
 
 
-def _require_mesh(obj: bpy.types.Object | None, what: str) -> bpy.types.Object:
-    """The object if Pack can read a surface from it, else InputError naming it."""
+def _require_mesh(obj: bpy.types.Object | None, what: str,
+                  scene: bpy.types.Scene) -> bpy.types.Object:
+    """The object if Pack can read a surface from it in ``scene``, else InputError naming
+    it."""
     if obj is None:
         raise _input_error(f"pick a {what}: a closed mesh object (Jampacked panel in the 3D "
                            "viewport's sidebar).")
@@ -120,6 +122,12 @@ def _require_mesh(obj: bpy.types.Object | None, what: str) -> bpy.types.Object:
     if not obj.users_scene:
         raise _input_error(f"{what} '{obj.name}' is in no scene (it was deleted): pick an "
                            "object of the scene, or bring it back with undo.")
+    if scene not in obj.users_scene[:]:
+        # another scene's depsgraph holds its transform and modifiers: this one has neither
+        others = ", ".join(f"'{sc.name}'" for sc in obj.users_scene)
+        raise _input_error(f"{what} '{obj.name}' is not in this scene ('{scene.name}'), only "
+                           f"in {others}: link it into this scene (Object > Link/Transfer "
+                           "Data > Link Objects to Scene) or pick an object of this scene.")
     return obj
 
 
@@ -153,6 +161,17 @@ def _geometry_evaluated(obj: bpy.types.Object, view_layer: bpy.types.ViewLayer) 
     return walk(view_layer.layer_collection)
 
 
+def _instance_count(obj: bpy.types.Object, depsgraph: bpy.types.Depsgraph) -> int:
+    """How many instances the object's evaluated geometry draws (Geometry Nodes instances
+    not realized, particles, vertex or face instancing): ``to_mesh`` leaves them out."""
+    if obj.instance_type == 'NONE' and not any(
+            m.type in {'NODES', 'PARTICLE_SYSTEM'} for m in obj.modifiers):
+        return 0  # nothing can instance: the scene's instances need not be walked
+    return sum(1 for inst in depsgraph.object_instances
+               if inst.is_instance and inst.parent is not None
+               and inst.parent.original == obj.original)
+
+
 def read_input(obj: bpy.types.Object, what: str,
                depsgraph: bpy.types.Depsgraph) -> Triangles:
     """World-space triangles of a Pack input (container or type), modifiers applied.
@@ -176,6 +195,16 @@ def read_input(obj: bpy.types.Object, what: str,
             f"{what} '{obj.name}' is a flat {GEOMETRY_TYPES[obj.type]} with no volume: give "
             "it depth (Object Data Properties > Geometry > Extrude or Bevel Depth), or "
             "convert it to a closed mesh.")
+    instanced = _instance_count(obj, depsgraph)
+    if instanced:
+        nodes = [m.name for m in obj.modifiers if m.type == 'NODES']
+        fix = (f"add a Realize Instances node at the end of its Geometry Nodes modifier "
+               f"'{nodes[-1]}', or apply it (Object > Apply > Visual Geometry to Mesh)"
+               if nodes else "make them real (Object > Apply > Make Instances Real) and "
+               "join them into one mesh, or turn its instancing off")
+        raise _input_error(
+            f"{what} '{obj.name}' draws {instanced} instance(s), which Pack cannot read as "
+            f"part of its surface (it would pack the object without them): {fix}.")
     tris = object_triangles(obj, depsgraph, outward=True)
     if not len(tris.faces):
         raise _input_error(
@@ -212,7 +241,7 @@ def gather_pack(context: bpy.types.Context) -> PackRequest:
     Raises InputError with a message that names the object and says what to do.
     """
     s = context.scene.jampacked
-    container = _require_mesh(s.container, "container")
+    container = _require_mesh(s.container, "container", context.scene)
     if not len(s.types):
         raise _input_error("add at least one object type (the + button under Object Types), "
                            "then pick a mesh object for it.")
@@ -223,7 +252,7 @@ def gather_pack(context: bpy.types.Context) -> PackRequest:
         if obj is None:
             raise _input_error(f"object type {i + 1} has no object: pick a mesh object for "
                                "it or remove the row.")
-        _require_mesh(obj, f"object type {i + 1}")
+        _require_mesh(obj, f"object type {i + 1}", context.scene)
         if obj == container:
             raise _input_error(f"'{obj.name}' is both the container and object type {i + 1}: "
                                "pick different objects.")
@@ -520,7 +549,7 @@ def gather_export(context: bpy.types.Context, options: Any) -> ExportRequest:
     if container is None:
         raise _input_error(f"the container '{cname}' of '{coll.name}' is gone: restore it "
                            "(undo) or pack again.")
-    _require_mesh(container, "container")
+    _require_mesh(container, "container", context.scene)
     ctris = object_triangles(container, context.evaluated_depsgraph_get(), outward=True)
     if ctris.signature() != coll.get(summary.PREFIX + "container_sha256"):
         raise _input_error(f"the container '{cname}' was moved or edited after packing "

@@ -188,6 +188,48 @@ def _instance(bpy, name, rng):
     return empty
 
 
+def _node_instances(keep_mesh: bool):
+    """An icosphere whose Geometry Nodes draw an instance: of a cube above it beside its own
+    mesh (a leaf on a fruit), or of its whole mesh (Geometry to Instance)."""
+    def build(bpy, name, rng):
+        obj = _ico(bpy, name)
+        tree = bpy.data.node_groups.new(f"{name} nodes", 'GeometryNodeTree')
+        tree.interface.new_socket("Geometry", in_out='INPUT', socket_type='NodeSocketGeometry')
+        tree.interface.new_socket("Geometry", in_out='OUTPUT',
+                                  socket_type='NodeSocketGeometry')
+        nodes, links = tree.nodes, tree.links
+        given, out = nodes.new('NodeGroupInput'), nodes.new('NodeGroupOutput')
+        to_instance = nodes.new('GeometryNodeGeometryToInstance')
+        if keep_mesh:
+            cube = nodes.new('GeometryNodeMeshCube')
+            cube.inputs['Size'].default_value = (0.4, 0.4, 0.4)
+            join = nodes.new('GeometryNodeJoinGeometry')
+            links.new(cube.outputs[0], to_instance.inputs[0])
+            links.new(given.outputs[0], join.inputs[0])
+            links.new(to_instance.outputs[0], join.inputs[0])
+            links.new(join.outputs[0], out.inputs[0])
+        else:
+            links.new(given.outputs[0], to_instance.inputs[0])
+            links.new(to_instance.outputs[0], out.inputs[0])
+        obj.modifiers.new("Leaf", 'NODES').node_group = tree
+        return obj
+    return build
+
+
+def _other_scene(build_object):
+    """An object linked only into another scene ("Library"), not the one Pack runs in."""
+    def build(bpy, name, rng):
+        obj = build_object(bpy, name, rng)
+        library = bpy.data.scenes.get("Library") or bpy.data.scenes.new("Library")
+        library.collection.objects.link(obj)
+        for coll in list(obj.users_collection):
+            if coll != library.collection:
+                coll.objects.unlink(obj)
+        obj.location = (40.0, 0.0, 0.0)
+        return obj
+    return build
+
+
 def _arrays(vertices, faces, edges=()):
     def build(bpy, name, rng):
         mesh = bpy.data.meshes.new(name)
@@ -206,6 +248,10 @@ def _nan(bpy, name, rng):
 NOT_A_SOLID = r"'{name}'.*(separate bodies|not a watertight|not closed|zero volume)"
 HUGE = r"'{name}' is [-+.e\d]+ x .* units across: Pack takes objects between 1e-06 and"
 NO_SURFACE = r"'{name}' is not a mesh object \(its type is \w+\), it has no surface"
+INSTANCES = (r"'{name}' draws 1 instance\(s\), which Pack cannot read as part of its "
+             r"surface.*Realize Instances node at the end of its Geometry Nodes modifier "
+             r"'Leaf'")
+OTHER_SCENE = r"'{name}' is not in this scene \('Scene'\), only in 'Library': link it"
 
 TYPE_KINDS = [
     Kind("plain", lambda bpy, name, rng: _ico(bpy, name), None),
@@ -253,6 +299,12 @@ TYPE_KINDS = [
     Kind("excluded collection", _hidden("excluded"),
          r"'{name}' is disabled in viewports or in an excluded", "read"),
     Kind("deleted", _deleted, r"'{name}' is in no scene \(it was deleted\)", "pick"),
+    # Blender shows the instances; Pack packed the object without them, or said "no faces"
+    Kind("nodes instance beside the mesh", _node_instances(True), INSTANCES, "read"),
+    Kind("nodes instance only", _node_instances(False), INSTANCES, "read"),
+    # read with the identity transform (no depsgraph of this scene holds it)
+    Kind("in another scene", _other_scene(_transformed((0.8, 0.8, 0.8))), OTHER_SCENE,
+         "pick"),
 ]
 
 
@@ -292,6 +344,7 @@ CONTAINER_KINDS = [
     Kind("camera", _no_data('CAMERA'), NO_SURFACE, "pick"),
     Kind("no vertices", _arrays([], []), r"'{name}' has no faces \(0 vertices", "read"),
     Kind("deleted", _deleted, r"'{name}' is in no scene \(it was deleted\)", "pick"),
+    Kind("in another scene", _other_scene(_box((3.0, 3.2, 3.4))), OTHER_SCENE, "pick"),
 ]
 
 
