@@ -6,6 +6,8 @@ custom properties name the container (``jampacked_container``) and the type mesh
 removal is part of Pack's one undo step.
 """
 
+from dataclasses import dataclass
+
 import bpy
 
 from . import instances, summary
@@ -74,6 +76,63 @@ def remove_result(coll: bpy.types.Collection, keep_in: bpy.types.Collection) -> 
     return kept_count
 
 
+#: a result's own settings and those of its place in each view layer that a replacing
+#: result takes over, so that the artist's choices (hidden, excluded, holdout) stay
+COLLECTION_FLAGS = ("hide_select", "hide_viewport", "hide_render", "color_tag")
+LAYER_FLAGS = ("exclude", "hide_viewport", "holdout", "indirect_only")
+
+
+@dataclass
+class _Place:
+    """Where a result sits and how it is set: its name, the collections it is linked in,
+    its own flags and, by (view layer, parent collection), its layer collection's flags."""
+
+    name: str
+    parents: list
+    flags: dict
+    layers: dict
+
+
+def _layer_children(view_layer: bpy.types.ViewLayer):
+    """(parent layer collection, child layer collection) pairs of the whole view layer."""
+    stack = [view_layer.layer_collection]
+    while stack:
+        parent = stack.pop()
+        for child in parent.children:
+            yield parent, child
+            stack.append(child)
+
+
+def _place_of(scene: bpy.types.Scene, coll: bpy.types.Collection) -> _Place:
+    layers = {(vl.name, parent.collection.name): {k: getattr(child, k) for k in LAYER_FLAGS}
+              for vl in scene.view_layers for parent, child in _layer_children(vl)
+              if child.collection == coll}
+    parents = [c for c in (scene.collection, *scene.collection.children_recursive)
+               if c.children.get(coll.name) == coll]
+    return _Place(coll.name, parents, {k: getattr(coll, k) for k in COLLECTION_FLAGS},
+                  layers)
+
+
+def _put_in_place(scene: bpy.types.Scene, new: bpy.types.Collection, place: _Place) -> None:
+    """Link ``new`` where the replaced result was, with its settings; keep the name the
+    artist gave it (a "Jampacked ..." name follows the container instead)."""
+    parents = [c for c in place.parents if c.children.get(new.name) is None]
+    for parent in parents:
+        parent.children.link(new)
+    if place.parents and scene.collection not in place.parents:
+        scene.collection.children.unlink(new)
+    if not place.name.startswith("Jampacked "):
+        new.name = place.name
+    for key, value in place.flags.items():
+        setattr(new, key, value)
+    for vl in scene.view_layers:
+        for parent, child in _layer_children(vl):
+            flags = place.layers.get((vl.name, parent.collection.name))
+            if child.collection == new and flags is not None:
+                for key, value in flags.items():
+                    setattr(child, key, value)
+
+
 def replace_previous(scene: bpy.types.Scene, new: bpy.types.Collection,
                      last: bpy.types.Collection | None = None) -> int:
     """Remove the earlier results of ``new``'s container in the scene but those made with
@@ -81,15 +140,22 @@ def replace_previous(scene: bpy.types.Scene, new: bpy.types.Collection,
     last: ``last`` (the scene's result before this Pack) where it is one, else the one
     linked last. Then give ``new`` and its type meshes and materials the names the removed
     ones had (no ".001" suffixes) where they are free. What the artist put in a removed
-    result moves to ``new``. Returns the number of objects and collections so moved."""
+    result moves to ``new``, and ``new`` takes the replaced result's place: the collections
+    it was linked in, its flags and those in each view layer, and the name the artist gave
+    it. Returns the number of objects and collections so moved."""
     container = str(new.get(summary.PREFIX + "container", ""))
     others = [c for c in previous_results(scene, container) if c != new]
     newest = last if last is not None and last in others else (others or [None])[-1]
     old = [c for c in others if c == newest or not c.get(KEPT, False)]
+    place = _place_of(scene, newest) if newest in old else None
+    if place is not None:
+        place.parents = [c for c in place.parents if c not in old]
     kept = 0
     for coll in old:
         kept += remove_result(coll, new)
     new.name = f"Jampacked {container}"
+    if place is not None:
+        _put_in_place(scene, new, place)
     names = []
     for mesh_name, type_name in zip(new.get(summary.PREFIX + "type_meshes", []),
                                     new.get(summary.PREFIX + "type_names", []), strict=True):

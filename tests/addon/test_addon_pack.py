@@ -370,6 +370,33 @@ def test_a_second_pack_keeps_what_the_artist_put_in_the_result(bpy, addon, scene
     assert "Kept 4 object(s) or collection(s)" in message, message
 
 
+def test_a_second_pack_takes_the_first_ones_place(bpy, addon, scene):
+    """The artist renamed the result, moved it under a collection of their own and set it
+    up per view layer: the next Pack's result took the default name at the scene's root,
+    with default settings, and left the collection empty."""
+    assert bpy.ops.jampacked.pack() == {'FINISHED'}
+    coll = scene.settings.result
+    renders = bpy.data.collections.new("Renders")
+    bpy.context.scene.collection.children.link(renders)
+    renders.children.link(coll)
+    bpy.context.scene.collection.children.unlink(coll)
+    coll.name = "My Packing"
+    coll.hide_render = True
+    coll.color_tag = 'COLOR_04'
+    layer = bpy.context.view_layer.layer_collection.children["Renders"].children[coll.name]
+    layer.holdout = True
+    layer.indirect_only = True
+    scene.settings.seed = 2
+    assert bpy.ops.jampacked.pack() == {'FINISHED'}
+    (new,) = _results(bpy)
+    assert new.name == "My Packing" and _packing(addon, new).seed == 2
+    assert list(renders.children) == [new]
+    assert new.name not in bpy.context.scene.collection.children
+    assert new.hide_render and new.color_tag == 'COLOR_04'
+    layer = bpy.context.view_layer.layer_collection.children["Renders"].children[new.name]
+    assert layer.holdout and layer.indirect_only and not layer.exclude
+
+
 def test_keep_previous_keeps_both(bpy, addon, scene):
     scene.settings.keep_previous = True
     assert bpy.ops.jampacked.pack() == {'FINISHED'}
