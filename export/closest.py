@@ -75,9 +75,11 @@ class Surface:
     """A triangle mesh that answers closest-point queries.
 
     vertices (V, 3), faces (F, 3), in the frame the queries use. Candidate triangles are
-    found with a k-d tree over triangle centroids: a triangle can hold the closest point
-    only if its centroid is within (an upper bound of the distance + the largest
-    centroid-to-corner radius) of the query, so the answer is exact.
+    found with k-d trees over triangle centroids: a triangle can hold the closest point
+    only if its centroid is within (an upper bound of the distance + its centroid-to-corner
+    radius) of the query, so the answer is exact. The triangles are grouped by that radius
+    (within a factor of 2), one tree each, so that a few large triangles (a shell's flat
+    cut) do not widen every query to most of a fine mesh.
     """
 
     def __init__(self, vertices: np.ndarray, faces: np.ndarray):
@@ -85,8 +87,12 @@ class Surface:
         self.a, self.b, self.c = tris[:, 0].copy(), tris[:, 1].copy(), tris[:, 2].copy()
         centroids = tris.mean(axis=1)
         self._centroids = centroids
-        self.radius = float(np.linalg.norm(tris - centroids[:, None], axis=2).max())
+        radii = np.linalg.norm(tris - centroids[:, None], axis=2).max(axis=1)
+        self.radius = float(radii.max()) if len(radii) else 0.0
         self.tree = cKDTree(centroids)
+        level = np.floor(np.log2(np.maximum(radii, self.radius * 1e-9 + 1e-300)))
+        self._groups = [(idx, cKDTree(centroids[idx]), float(radii[idx].max()))
+                        for idx in (np.flatnonzero(level == lv) for lv in np.unique(level))]
 
     def centroid(self, index: np.ndarray) -> np.ndarray:
         """Centroids of the triangles given by index."""
@@ -103,7 +109,9 @@ class Surface:
             bound = float(np.linalg.norm(closest_on_triangles(
                 p[None], self.a[near[k], None], self.b[near[k], None],
                 self.c[near[k], None])[0] - p))
-            cand = np.asarray(self.tree.query_ball_point(p, bound + self.radius), np.int64)
+            cand = np.sort(np.concatenate(
+                [idx[np.asarray(tree.query_ball_point(p, bound + radius), np.int64)]
+                 for idx, tree, radius in self._groups]))
             if len(cand) == 0:
                 cand = np.array([near[k]])
             q = closest_on_triangles(np.repeat(p[None], len(cand), 0), self.a[cand],

@@ -134,20 +134,16 @@ def _overlapping(objects: Sequence[PlacedObject], pairs: np.ndarray, scale: floa
     for k in np.flatnonzero(unproven):
         if cancel():
             break
-        out[k] = _fused(objects[pairs[k, 0]].solid, objects[pairs[k, 1]].solid, 0.0, scale)
+        out[k] = _fused(objects[pairs[k, 0]].solid, objects[pairs[k, 1]].solid, scale)
     return out
 
 
-def _fused(a: m3.Manifold, b: m3.Manifold, upper: float, scale: float) -> bool:
+def _fused(a: m3.Manifold, b: m3.Manifold, scale: float) -> bool:
     """Whether two solids overlap by a positive volume (more than 1e-9 of the scene's
-    size cubed, ``scale``), which the union fuses; ``upper``: a bound on their gap."""
-    return _gap(a, b, upper) <= 0.0 and (a ^ b).volume() > 1e-9 * scale ** 3
-
-
-def _gap(a: m3.Manifold, b: m3.Manifold, upper: float) -> float:
-    """Exact gap between two solids, given an upper bound (0 when they touch or overlap)."""
-    search = upper * 1.001 + 1e-6
-    return float(a.min_gap(b, search))
+    size cubed, ``scale``), which the union fuses. Their gap is searched only to 1e-6:
+    a gap of 0 is found at any search length, and a long one made manifold3d compare
+    most of a fine shell's triangles (docs/notes-export.md)."""
+    return a.min_gap(b, 1e-6) <= 0.0 and (a ^ b).volume() > 1e-9 * scale ** 3
 
 
 def _closest_pair(obj: PlacedObject, other: PlacedObject | Surface, start: np.ndarray,
@@ -241,11 +237,13 @@ def plan_connectors(objects: Sequence[PlacedObject], diameter: float, *,
             report(0.4 * k / max(len(pairs), 1), "connect: proximity graph")
             if cancel():
                 return plan
+    reach = _bottleneck(n, np.asarray(ea), np.asarray(eb), np.asarray(gaps))
+    radii = [float(np.linalg.norm(o.vertices - c, axis=1).max())
+             for o, c in zip(objects, centres, strict=True)]
     for k, (_, surface) in enumerate(shells):
         for o_idx, o in enumerate(objects):
-            _, near = surface.tree.query(o.vertices)
-            d = np.linalg.norm(o.vertices - surface.centroid(near), axis=1)
-            v = int(np.argmin(d))
+            v = _nearest_to_surface(trees[o_idx], centres[o_idx], radii[o_idx], surface,
+                                    reach)
             ea.append(o_idx)
             eb.append(n + k)
             gaps.append(float(surface.closest(o.vertices[v][None])[1][0]))
@@ -285,7 +283,7 @@ def plan_connectors(objects: Sequence[PlacedObject], diameter: float, *,
             if (min(a, b), max(a, b)) not in chosen:
                 continue
             if e not in verdicts:
-                verdicts[e] = _judge_edge(objects, shells, solid, a, b, gap_arr[e],
+                verdicts[e] = _judge_edge(objects, shells, solid, a, b,
                                           np.asarray(starts[e]), diameter, shell_thickness,
                                           centres, outside, scale, variant)
             verdict = verdicts[e]
@@ -306,8 +304,35 @@ def plan_connectors(objects: Sequence[PlacedObject], diameter: float, *,
         plan.refused += len(refused)
 
 
+def _bottleneck(n: int, ea: np.ndarray, eb: np.ndarray, weights: np.ndarray) -> float:
+    """The heaviest edge of the objects' own minimum spanning tree (inf for no edge)."""
+    if len(weights) == 0:
+        return np.inf
+    tree = minimum_spanning_tree(coo_matrix((weights + 1e-300, (ea, eb)), shape=(n, n)))
+    return float(tree.data.max()) if tree.nnz else np.inf
+
+
+def _nearest_to_surface(vertices: cKDTree, centre: np.ndarray, radius: float,
+                        surface: Surface, reach: float) -> int:
+    """The object vertex nearest a triangle centroid of ``surface``, where the object's edge
+    to a shell body starts (weighed by that vertex's distance to the surface): exact where
+    that centroid distance is at most ``reach``, found among the centroids within
+    ``radius + reach`` of the object's ``centre`` (``radius``: its farthest vertex from
+    there). An object farther away gets the vertex nearest the nearest of those centroids,
+    or of the centroid nearest its centre (a strut, where the tree takes the edge, still
+    runs between exact closest points found from there); the tree seldom takes it, since
+    ``reach`` is the heaviest edge of the objects' own tree. Querying every vertex against
+    the shell's tree took most of a connect export with a fine shell
+    (docs/notes-export.md)."""
+    near = np.asarray(surface.tree.query_ball_point(centre, radius + reach), np.int64)
+    if len(near) == 0:
+        near = np.atleast_1d(surface.tree.query(centre)[1])
+    d, vertex = vertices.query(surface.centroid(near))
+    return int(np.atleast_1d(vertex)[int(np.argmin(d))])
+
+
 def _judge_edge(objects: Sequence[PlacedObject], shells: Sequence[tuple[m3.Manifold, Surface]],
-                solid: Callable[[int], m3.Manifold], a: int, b: int, gap: float,
+                solid: Callable[[int], m3.Manifold], a: int, b: int,
                 start: np.ndarray, diameter: float, shell_thickness: float,
                 centres: np.ndarray, outside: m3.Manifold | None, scale: float,
                 variant: int) -> tuple[m3.Manifold, float] | str:
@@ -315,8 +340,7 @@ def _judge_edge(objects: Sequence[PlacedObject], shells: Sequence[tuple[m3.Manif
     past the objects): "fused" if the two already overlap, "refused" if a strut between
     two objects would leave the container, else (the strut, its length)."""
     n = len(objects)
-    upper = gap + (shells[b - n][1].radius if b >= n else 0.0)
-    if _fused(solid(a), solid(b), upper, scale):
+    if _fused(solid(a), solid(b), scale):
         return "fused"
     target = shells[b - n][1] if b >= n else objects[b]
     pa, pb = _closest_pair(objects[a], target, start)

@@ -73,6 +73,27 @@ def test_surface_closest_is_exact_against_brute_force():
     np.testing.assert_allclose(np.linalg.norm(q - pts, axis=1), d)
 
 
+def test_surface_closest_is_exact_with_triangles_of_very_different_sizes():
+    """A fine sphere cut flat (a shell's opening): the cut's few large triangles and the
+    sphere's small ones sit in separate trees; every answer is still the brute force's."""
+    import manifold3d as m3
+
+    from jampacked.core.solids import solid_arrays
+
+    v, f = solid_arrays(m3.Manifold.sphere(10.0, 256).trim_by_plane((0.0, 0.0, 1.0), 4.0))
+    surf = Surface(v, f)
+    sizes = np.linalg.norm(v[f] - v[f].mean(axis=1)[:, None], axis=2).max(axis=1)
+    assert sizes.max() > 20 * np.median(sizes) and len(surf._groups) > 1
+    rng = np.random.default_rng(2)
+    pts = rng.uniform(-12.0, 12.0, size=(30, 3))
+    q, d = surf.closest(pts)
+    tri = v[f]
+    for p, dist in zip(pts, d, strict=True):
+        brute = min(point_triangle_distance(p, *t) for t in tri)
+        assert dist == pytest.approx(brute, rel=1e-9, abs=1e-12)
+    np.testing.assert_allclose(np.linalg.norm(q - pts, axis=1), d)
+
+
 # --------------------------------------------------------------------------- packings
 
 
@@ -184,14 +205,14 @@ def test_connect_judges_each_edge_once_when_struts_are_refused(apart, tmp_path, 
     import jampacked.export.connect as connect
 
     judged: dict[tuple[int, int], int] = {}
-    real_gap, real_strut = connect._gap, connect._strut_between
+    real_fused, real_strut = connect._fused, connect._strut_between
     made: list[tuple] = []
     refused: set[tuple] = set()
 
-    def gap(a, b, upper):
+    def fused(a, b, scale):
         key = (id(a), id(b))
         judged[key] = judged.get(key, 0) + 1
-        return real_gap(a, b, upper)
+        return real_fused(a, b, scale)
 
     def strut(pa, pb, *args):
         key = (tuple(np.round(pa, 6)), tuple(np.round(pb, 6)))
@@ -202,12 +223,46 @@ def test_connect_judges_each_edge_once_when_struts_are_refused(apart, tmp_path, 
             return real_strut(pa, pa + np.array([200.0, 0.0, 0.0]), *args)
         return real_strut(pa, pb, *args)
 
-    monkeypatch.setattr(connect, "_gap", gap)
+    monkeypatch.setattr(connect, "_fused", fused)
     monkeypatch.setattr(connect, "_strut_between", strut)
     rep = export_packing(apart, tmp_path / "c.3mf", ExportOptions(mode="connect", connector=2.0))
     assert len(refused) == 3
     assert rep.passed and rep.bodies == 1 and rep.connectors == 7
     assert max(judged.values()) == 1
+
+
+def test_shell_edges_start_at_the_vertex_nearest_the_shell():
+    """Each object's edge to the shell starts at its vertex nearest a centroid of the
+    shell's triangles; the search now looks only at centroids near the object (numpy
+    reference: every vertex against every centroid). Within ``reach`` the vertex is the
+    reference's; beyond it the vertex is one of the object's, farther than ``reach``."""
+    from scipy.spatial import cKDTree
+
+    from jampacked.export.connect import _nearest_to_surface
+
+    v, f = solid_arrays(m3.Manifold.sphere(30.0, 96) - m3.Manifold.sphere(28.0, 96))
+    shell = Surface(v, f)
+    ball = m3.Manifold.sphere(2.0, 24)
+    bv = solid_arrays(ball)[0]
+    rng = np.random.default_rng(3)
+    reach = 1.5
+    near = far = 0
+    for _ in range(40):
+        direction = rng.normal(size=3)
+        centre = direction / np.linalg.norm(direction) * rng.uniform(20.0, 25.9)
+        verts = bv + centre
+        gaps = np.linalg.norm(verts[:, None] - shell.centroid(np.arange(len(f)))[None],
+                              axis=2).min(axis=1)
+        got = _nearest_to_surface(cKDTree(verts), verts.mean(axis=0),
+                                  float(np.linalg.norm(bv - bv.mean(0), axis=1).max()),
+                                  shell, reach)
+        if gaps.min() <= reach:
+            near += 1
+            assert gaps[got] == gaps.min()
+        else:
+            far += 1
+            assert gaps[got] > reach
+    assert near >= 5 and far >= 5
 
 
 def test_connect_fuses_touching_objects_without_struts(overlapping, tmp_path):
