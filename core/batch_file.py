@@ -110,6 +110,12 @@ def read_batch(path: str | os.PathLike) -> list[SceneSpec]:
     seen: dict[str, tuple[str, str]] = {}
     for k, scene in enumerate(scenes):
         where = f"scene {k + 1}" + (f" (line {lines[k]})" if k < len(lines) else "")
+        for key in scene:
+            if key not in SCENE_KEYS:
+                at = _key_line(text, lines, k, key)
+                raise InputError(f"batch file {path}, {where}: unknown key {key!r}"
+                                 f"{f' on line {at}' if at else ''}; known: "
+                                 f"{', '.join(SCENE_KEYS)}.")
         for spec in _expand(scene, defaults, base, f"batch file {path}, {where}", k):
             # case folded: "A" and "a" name one file on macOS and Windows
             other = seen.get(spec.id.casefold())
@@ -137,10 +143,17 @@ def _scene_lines(text: str) -> list[int]:
             if re.match(r"\s*\[\[\s*scene\s*\]\]", line)]
 
 
+def _key_line(text: str, headers: list[int], k: int, key: str) -> int | None:
+    """The line of `key` in scene k's table (between its header and the next), or None."""
+    if k >= len(headers):
+        return None
+    rows = text.splitlines()
+    end = headers[k + 1] - 1 if k + 1 < len(headers) else len(rows)
+    pattern = re.compile(rf"\s*(?:{re.escape(key)}|\"{re.escape(key)}\"|'{re.escape(key)}')\s*=")
+    return next((i + 1 for i in range(headers[k], end) if pattern.match(rows[i])), None)
+
+
 def _expand(scene: dict, defaults: dict, base: Path, where: str, k: int) -> list[SceneSpec]:
-    for key in scene:
-        if key not in SCENE_KEYS:
-            raise InputError(f"{where}: unknown key {key!r}; known: {', '.join(SCENE_KEYS)}.")
     merged = {**defaults, **scene}
     name = merged.get("name", f"scene{k + 1}")
     if not isinstance(name, str) or not _file_name(name):

@@ -77,7 +77,7 @@ def test_a_scene_expands_to_containers_times_sets_times_seeds(folder):
     ("[defaults]\nfidelity = 'low'\n", r"lists no scenes"),
     ("[[scene]]\ncontainer='box:9x9x9'\ntypes=['a.obj']\nseed=1\n\n[[scene]]\n"
      "container='box:9x9x9'\ntypes=['a.obj']\nseed=1\ncolour='red'\n",
-     r"scene 2 \(line 6\): unknown key 'colour'"),
+     r"scene 2 \(line 6\): unknown key 'colour' on line 10; known: name, "),
     ("[[scene]]\ncontainer='box:9x9x9'\ntypes=['missing.obj']\nseed=1\n",
      r"scene 1 \(line 1\), types: mesh file 'missing.obj' not found"),
     ("[[scene]]\ncontainer='box:9x9x9'\ntypes=['a.obj']\nseeds=[1, -2]\n",
