@@ -52,8 +52,9 @@ A rerun skips the scenes whose packing file is there and verified (it loads, its
 sha256 still match, it is certified, its placements are the ones certified and its numbers
 follow from them); any other file is packed again, saying why. Export files are made
 again when missing, changed since written, or made with other export settings (recorded
-in OUT/<scene>.exports.json). Each scene's warnings are printed and go in the summary's
-message column. Ctrl-C stops: finished scenes stay written, and the scene being packed here
+in OUT/<scene>.exports.json); those of a packing made since are removed. Each scene's
+warnings are printed and go in the summary's message column; the summary keeps the rows
+of other batch files run into OUT. Ctrl-C stops: finished scenes stay written, and the scene being packed here
 writes its best certified packing so far, which the next run packs again (exit status
 130). Exit status:
 0 every scene packed or skipped, 1 a scene failed or the batch file is bad (the message
@@ -118,6 +119,9 @@ def cmd_batch(args: argparse.Namespace) -> int:
                       f"trusted: {escape(r.repacked)}", highlight=False, soft_wrap=True)
         for why in r.reexported:
             err.print(f"note: {escape(r.spec.id)} exported again: {escape(why)}",
+                      highlight=False, soft_wrap=True)
+        for why in r.removed:
+            err.print(f"note: {escape(r.spec.id)} removed {escape(why)}",
                       highlight=False, soft_wrap=True)
         for w in r.warnings():
             warn(err, f"{r.spec.id}: {w}")

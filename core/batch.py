@@ -27,7 +27,7 @@ from pathlib import Path
 
 from .api import pack
 from .atomic import atomic_output, refusal_advice, write_refusal
-from .batch_exports import export_scene, exports_record
+from .batch_exports import drop_outdated, export_scene, exports_record
 from .batch_file import SceneSpec
 from .batch_verify import check_done
 from .errors import InputError, JampackedError
@@ -65,6 +65,8 @@ class SceneResult:
     repacked: str = ""
     #: the export files made again on a skip, each with why ("scene.stl: missing")
     reexported: list[str] = field(default_factory=list)
+    #: earlier runs' export files removed as no longer this scene's, each with why
+    removed: list[str] = field(default_factory=list)
 
     def warnings(self) -> list[str]:
         """The run's warnings on its packing (as `jampacked pack` prints them)."""
@@ -77,6 +79,7 @@ class SceneResult:
         if self.repacked:
             out.append(f"packed again: the earlier file was not trusted: {self.repacked}")
         out += [f"exported again: {r}" for r in self.reexported]
+        out += [f"removed {r}" for r in self.removed]
         return out + [f"warning: {w}" for w in self.warnings()]
 
     def row(self) -> dict:
@@ -88,7 +91,7 @@ class SceneResult:
                 "density": _fmt(m.get("density")), "tvd": _fmt(m.get("tvd")),
                 "nni_mean": _fmt(m.get("nni_mean")),
                 "certified": "" if p is None else p.certificate.get("certified"),
-                "seconds": _fmt(self.seconds), "file": self.file,
+                "seconds": _fmt(self.seconds), "file": Path(self.file).name if self.file else "",
                 "message": " | ".join(self.notes())}
 
 
@@ -106,6 +109,23 @@ def pack_scene(spec: SceneSpec, should_cancel: Callable[[], bool] | None = None)
                 time_budget=spec.time_budget, container_size=spec.container_size,
                 type_scale=spec.type_scale, options=options, attempts=spec.attempts,
                 should_cancel=should_cancel)
+
+
+@dataclass(frozen=True)
+class SceneFailure:
+    """A scene the engine refused on a worker, returned rather than raised: Dask logs a
+    task's exception with its traceback on the console, which a user's mistake (a mesh
+    that does not fit) does not merit."""
+
+    message: str
+
+
+def pack_scene_on_worker(spec: SceneSpec) -> Packing | SceneFailure:
+    """`pack_scene` as a cluster's worker runs it: the engine's errors come back as values."""
+    try:
+        return pack_scene(spec)
+    except JampackedError as exc:
+        return SceneFailure(str(exc))
 
 
 def scene_file(out_dir: str | os.PathLike, spec: SceneSpec) -> Path:
@@ -174,8 +194,9 @@ def run_batch(scenes: list[SceneSpec], out_dir: str | os.PathLike, client=None,
                                  "again.") from None
             seconds = number(packing.timings.get("total"))
             if packing.report.stopped == "cancelled":  # kept, not exported, packed again
-                results[spec.id] = SceneResult(spec, "cancelled", str(path), packing,
-                                               CANCELLED_NOTE, seconds)
+                results[spec.id] = SceneResult(
+                    spec, "cancelled", str(path), packing, CANCELLED_NOTE, seconds,
+                    removed=drop_outdated(spec, packing.certificate.get(DIGEST), out))
             else:
                 results[spec.id] = SceneResult(spec, "packed", str(path), packing,
                                                seconds=seconds,
@@ -246,9 +267,10 @@ def _export(result: SceneResult, out: Path, cancel: Callable[[], bool],
     """`export_scene` of a written result; a failed export turns it into "failed", its
     packing kept, and the files made again are noted on it."""
     digest = None if result.packing is None else result.packing.certificate.get(DIGEST)
-    error, again = export_scene(result.spec, result.file, digest, out, cancel,
-                                stale_only)
+    error, again, removed = export_scene(result.spec, result.file, digest, out, cancel,
+                                         stale_only)
     result.reexported += again
+    result.removed += removed
     if error and cancel():
         result.status, result.message = "cancelled", EXPORT_CANCELLED_NOTE
     elif error:
@@ -258,7 +280,8 @@ def _export(result: SceneResult, out: Path, cancel: Callable[[], bool],
 def _run_on_cluster(client, todo: list[SceneSpec], finish, cancel: Callable[[], bool]
                     ) -> None:
     token = uuid.uuid4().hex[:8]
-    futures = {client.submit(pack_scene, spec, key=f"scene-{spec.id}-{token}", pure=False):
+    futures = {client.submit(pack_scene_on_worker, spec, key=f"scene-{spec.id}-{token}",
+                             pure=False):
                spec for spec in todo}
     pending = dict(futures)
     try:
@@ -276,7 +299,10 @@ def _run_on_cluster(client, todo: list[SceneSpec], finish, cancel: Callable[[], 
                     # out of memory): that scene fails, the others go on
                     finish(spec, None, f"its worker failed: {type(exc).__name__}: {exc}")
                 else:
-                    finish(spec, packing)
+                    if isinstance(packing, SceneFailure):
+                        finish(spec, None, packing.message)
+                    else:
+                        finish(spec, packing)
                 f.release()
             if stop:
                 return
@@ -287,10 +313,16 @@ def _run_on_cluster(client, todo: list[SceneSpec], finish, cancel: Callable[[], 
 
 
 def write_summary(results: list[SceneResult], path: str | os.PathLike) -> None:
-    """The batch's summary table as CSV (one row per scene), written atomically."""
+    """The batch's summary table as CSV (one row per scene), written atomically. Rows of
+    other scenes the file holds (another batch file's, run into the same folder) are kept
+    first, as they were."""
+    ids = {r.spec.id for r in results}
     buf = io.StringIO()
     w = csv.DictWriter(buf, fieldnames=COLUMNS, lineterminator="\n")
     w.writeheader()
+    for row in _summary_rows(path):
+        if row.get("id") not in ids:
+            w.writerow({k: row.get(k) or "" for k in COLUMNS})
     for r in results:
         w.writerow(r.row())
     try:
@@ -299,3 +331,13 @@ def write_summary(results: list[SceneResult], path: str | os.PathLike) -> None:
     except OSError as exc:
         raise InputError(f"cannot write the batch's summary {path}: {exc.strerror or exc}."
                          ) from None
+
+
+def _summary_rows(path: str | os.PathLike) -> list[dict]:
+    """The rows of an earlier summary at `path`, or [] when there is none readable."""
+    try:
+        with open(path, newline="", encoding="utf-8") as f:
+            rows = list(csv.DictReader(f))
+    except (OSError, UnicodeDecodeError, csv.Error):
+        return []
+    return [r for r in rows if isinstance(r.get("id"), str) and r["id"]]

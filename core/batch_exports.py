@@ -25,19 +25,21 @@ def exports_record(out: Path, spec: SceneSpec) -> Path:
 
 def export_scene(spec: SceneSpec, packing_file: str, digest: str | None, out: Path,
                  cancel: Callable[[], bool], stale_only: bool = False
-                 ) -> tuple[str, list[str]]:
+                 ) -> tuple[str, list[str], list[str]]:
     """Export a scene's written packing (`packing_file`, whose certificate's digest is
     `digest`) to the formats the scene asks for (`out`/<id>.<format>, validated and written
     by `export_packing`: all or none) and record how (`exports_record`: the packing's
     digest, the export settings, each file's sha256). `stale_only`: only the files that
     record does not vouch for: missing, changed since written (truncated, edited), made from
     another packing or with other settings (export_mode, export_shell), or from before the
-    record. Returns the error ("" if none: a failed export leaves the packing as it is) and
-    why each file was made again (with `stale_only`)."""
-    if not spec.export:
-        return "", []
+    record. Files the record lists from another packing or settings that were not made
+    again are removed (`drop_outdated`). Returns the error ("" if none: a failed export
+    leaves the packing as it is), why each file was made again (with `stale_only`) and the
+    files removed, with why."""
     settings = {"mode": spec.export_mode, "shell": spec.export_shell}
     record = _read_record(exports_record(out, spec))
+    if not spec.export:
+        return "", [], drop_outdated(spec, digest, out, record=record)
     made = record.get("files", {}) if (record.get("packing") == digest
                                        and record.get("settings") == settings) else {}
     paths = [out / f"{spec.id}.{fmt}" for fmt in spec.export]
@@ -54,7 +56,7 @@ def export_scene(spec: SceneSpec, packing_file: str, digest: str | None, out: Pa
     else:
         made = {}
     if not paths:
-        return "", again
+        return "", again, []
     from jampacked.export.assemble import export_packing
     from jampacked.export.options import ExportOptions
 
@@ -72,7 +74,44 @@ def export_scene(spec: SceneSpec, packing_file: str, digest: str | None, out: Pa
     _write_record(exports_record(out, spec), {
         "format": EXPORTS_FORMAT, "version": 1, "packing": digest, "settings": settings,
         "files": made})
-    return error, again
+    return error, again, drop_outdated(spec, digest, out, set(made), record)
+
+
+def drop_outdated(spec: SceneSpec, digest: str | None, out: Path,
+                  keep: set[str] | frozenset[str] = frozenset(), record: dict | None = None
+                  ) -> list[str]:
+    """Remove the export files an earlier run recorded for this scene (`record`, else read
+    from `exports_record`) from another packing or with other settings, unchanged since
+    written, that were not made again (`keep`): beside a packing made since, they printed
+    one that no longer exists. A record left describing nothing is removed too. Files
+    changed since they were written are left, and said so. Returns what was removed or
+    left, with why."""
+    if record is None:
+        record = _read_record(exports_record(out, spec))
+    settings = {"mode": spec.export_mode, "shell": spec.export_shell}
+    if not record or (record.get("packing") == digest and record.get("settings") == settings):
+        return []
+    notes = []
+    for name, sha in record["files"].items():
+        path = out / str(name)
+        if name in keep or path.name != name or not path.is_file():
+            continue  # made again, not a plain name in `out`, or gone
+        try:
+            if file_sha256(path) != sha:
+                notes.append(f"{name}: left, made from an earlier packing or settings but "
+                             "changed since")
+                continue
+            path.unlink()
+        except OSError as exc:
+            notes.append(f"{name}: could not be removed ({exc.strerror or exc})")
+            continue
+        notes.append(f"{name}: an export of an earlier packing or settings, not made again")
+    if not spec.export:
+        try:
+            exports_record(out, spec).unlink()
+        except OSError:
+            pass
+    return notes
 
 
 def _stale_export(path: Path, record: dict, made: dict, settings: dict,

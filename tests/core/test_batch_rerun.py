@@ -269,3 +269,76 @@ def test_ctrl_c_during_an_export_keeps_the_packing_and_the_next_run_exports(pack
     [again] = run_batch([spec], tmp_path)
     assert again.status == "skipped" and again.reexported == ["x-s2.stl: missing"]
     assert (tmp_path / "x-s2.stl").is_file()
+
+
+class _RunningClient(_Client):
+    """A cluster that runs each submitted task here, at once: a task that raises fails the
+    test (a worker would log it with its traceback)."""
+
+    def __init__(self):
+        super().__init__({})
+
+    def submit(self, fn, spec, key=None, pure=None):
+        return _Future(fn(spec))
+
+
+def test_a_scene_the_engine_refuses_on_a_worker_is_a_failure_without_a_traceback(tmp_path):
+    # Dask's worker logged "Compute Failed" with the PackingError's traceback, even with
+    # -q, for a scene whose object cannot fit
+    big = dataclasses.replace(SPEC, id="big", container="box:5x5x5", types=(P1,))
+    assert isinstance(batch.pack_scene_on_worker(big), batch.SceneFailure)
+    [r] = run_batch([big], tmp_path, _RunningClient())
+    assert r.status == "failed" and "fit" in r.message and r.message == \
+        batch.pack_scene_on_worker(big).message
+    with open(tmp_path / "summary.csv", newline="") as f:
+        assert [row["status"] for row in csv.DictReader(f)] == ["failed"]
+
+
+def test_the_summary_keeps_the_rows_of_another_batch_run_into_the_folder(packed, tmp_path):
+    # a second batch file run into the same folder replaced summary.csv, and the first
+    # batch's scenes dropped out of it (their packings still there)
+    shutil.copy(packed, scene_file(tmp_path, SPEC))
+    run_batch([SPEC], tmp_path)
+    other = dataclasses.replace(SPEC, id="big", container="box:5x5x5", types=(P1,))
+    run_batch([other], tmp_path)
+    with open(tmp_path / "summary.csv", newline="") as f:
+        rows = list(csv.DictReader(f))
+    assert [(r["id"], r["status"]) for r in rows] == [("x-s2", "skipped"), ("big", "failed")]
+    # the file column names the packing beside the summary, wherever the batch ran from
+    assert rows[0]["file"] == "x-s2.json"
+    run_batch([other, SPEC], tmp_path)  # a rerun rewrites its own rows, in its order
+    with open(tmp_path / "summary.csv", newline="") as f:
+        assert [r["id"] for r in csv.DictReader(f)] == ["big", "x-s2"]
+
+
+def test_exports_of_a_replaced_packing_are_removed(packed, tmp_path):
+    # a scene packed again (here: another seed) and now exported to 3mf only left its
+    # earlier STL, of a packing that no longer exists, beside the new one
+    spec = dataclasses.replace(SPEC, export=("stl", "3mf"))
+    shutil.copy(packed, scene_file(tmp_path, spec))
+    [first] = run_batch([spec], tmp_path)
+    assert first.status == "skipped" and (tmp_path / "x-s2.stl").is_file()
+    earlier = (tmp_path / "x-s2.3mf").read_bytes()
+    [again] = run_batch([dataclasses.replace(spec, export=("3mf",), seed=3)], tmp_path)
+    assert again.status == "packed" and again.repacked
+    assert not (tmp_path / "x-s2.stl").exists()
+    assert (tmp_path / "x-s2.3mf").read_bytes() != earlier
+    assert again.removed == ["x-s2.stl: an export of an earlier packing or settings, not "
+                             "made again"]
+    # no exports asked any more: those of the earlier packing go, and their record
+    [last] = run_batch([dataclasses.replace(spec, export=(), seed=4)], tmp_path)
+    assert last.status == "packed" and not (tmp_path / "x-s2.3mf").exists()
+    assert not (tmp_path / "x-s2.exports.json").exists()
+    assert last.removed == ["x-s2.3mf: an export of an earlier packing or settings, not "
+                            "made again"]
+
+
+def test_an_export_edited_since_is_left_and_said_so(packed, tmp_path):
+    spec = dataclasses.replace(SPEC, export=("stl",))
+    shutil.copy(packed, scene_file(tmp_path, spec))
+    run_batch([spec], tmp_path)
+    (tmp_path / "x-s2.stl").write_bytes(b"solid mine\nendsolid mine\n")
+    [again] = run_batch([dataclasses.replace(spec, export=(), seed=3)], tmp_path)
+    assert again.status == "packed" and (tmp_path / "x-s2.stl").is_file()
+    assert again.removed == ["x-s2.stl: left, made from an earlier packing or settings but "
+                             "changed since"]
