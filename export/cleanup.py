@@ -28,6 +28,8 @@ their winding.
 
 from __future__ import annotations
 
+import heapq
+
 import numpy as np
 from numba import njit
 
@@ -91,27 +93,74 @@ def degenerate_faces(v: np.ndarray, f: np.ndarray, float32: bool = True) -> np.n
     return np.flatnonzero(zero)
 
 
-def _faces_with_edge(f: np.ndarray, a: int, b: int) -> np.ndarray:
-    """Faces holding the directed edge a -> b."""
-    nxt = np.roll(f, -1, axis=1)
-    return np.flatnonzero(np.any((f == a) & (nxt == b), axis=1))
+class _Faces:
+    """A closed mesh's faces under local edits (edge collapses and flips), each found and
+    made in time proportional to the faces around it, not to the mesh: removed faces are
+    only marked, so the others keep their order (as np.delete would), and a vertex's faces
+    are those it had at the start plus those it gained since, checked against the faces'
+    corners now. One collapse or flip used to search and copy the whole face array, which
+    made the cleanup of a union of hundreds of detailed objects take tens of seconds
+    (docs/notes-export.md)."""
 
+    def __init__(self, f: np.ndarray):
+        self.f = np.array(f, dtype=np.int64, copy=True).reshape(-1, 3)
+        self.alive = np.ones(len(self.f), dtype=bool)
+        flat = self.f.ravel()
+        order = np.argsort(flat, kind="stable")
+        self._faces = order // 3
+        n = int(flat.max()) + 1 if len(flat) else 0
+        self._start = np.searchsorted(flat[order], np.arange(n + 1))
+        self._gained: dict[int, list[int]] = {}
 
-def _neighbours(f: np.ndarray, a: int) -> set[int]:
-    return set(np.unique(f[np.any(f == a, axis=1)])) - {a}
+    def faces_of(self, x: int) -> np.ndarray:
+        """The live faces that hold vertex x, in order."""
+        base = (self._faces[self._start[x]:self._start[x + 1]]
+                if x + 1 < len(self._start) else np.zeros(0, np.int64))
+        extra = self._gained.get(x)
+        cand = np.unique(np.concatenate([base, extra]) if extra else base)
+        return cand[self.alive[cand] & (self.f[cand] == x).any(axis=1)]
 
+    def neighbours(self, x: int) -> set[int]:
+        return set(np.unique(self.f[self.faces_of(x)]).tolist()) - {x}
 
-def _collapse(f: np.ndarray, p: int, q: int) -> np.ndarray | None:
-    """Collapse edge pq onto p, or None when that would break the 2-manifold."""
-    faces = np.flatnonzero(np.any(f == p, axis=1) & np.any(f == q, axis=1))
-    if len(faces) != 2:
-        return None
-    opposite = {int(x) for x in f[faces].ravel()} - {p, q}
-    if _neighbours(f, p) & _neighbours(f, q) != opposite:
-        return None
-    out = np.delete(f, faces, axis=0)
-    out[out == q] = p
-    return out
+    def faces(self) -> np.ndarray:
+        return self.f[self.alive]
+
+    def collapse(self, p: int, q: int) -> np.ndarray | None:
+        """Collapse edge pq onto p; returns the faces changed (p's, after), or None when
+        that would break the 2-manifold (and nothing changes)."""
+        of_p, of_q = self.faces_of(p), self.faces_of(q)
+        both = np.intersect1d(of_p, of_q)
+        if len(both) != 2:
+            return None
+        opposite = {int(x) for x in self.f[both].ravel()} - {p, q}
+        if self.neighbours(p) & self.neighbours(q) != opposite:
+            return None
+        self.alive[both] = False
+        moved = of_q[self.alive[of_q]]
+        rows = self.f[moved]
+        rows[rows == q] = p
+        self.f[moved] = rows
+        self._gained.setdefault(p, []).extend(int(g) for g in moved)
+        return self.faces_of(p)
+
+    def flip(self, face: int, a: int, b: int, c: int) -> np.ndarray | None:
+        """Flip edge ab of face (a, b, c) with the face across it; returns the faces of a,
+        b, c and d (after), or None when edge cd exists or ab has no single face across."""
+        cand = np.intersect1d(self.faces_of(a), self.faces_of(b))
+        rows = self.f[cand]
+        across = cand[((rows == b) & (np.roll(rows, -1, axis=1) == a)).any(axis=1)]
+        if len(across) != 1:
+            return None
+        g = self.f[across[0]]
+        d = int(g[(list(g).index(a) + 1) % 3])  # g is (b, a, d) up to rotation
+        if d in (a, b, c) or d in self.neighbours(c):
+            return None
+        self.f[face] = (c, a, d)
+        self.f[across[0]] = (d, b, c)
+        self._gained.setdefault(d, []).append(face)
+        self._gained.setdefault(c, []).append(int(across[0]))
+        return np.unique(np.concatenate([self.faces_of(x) for x in (a, b, c, d)]))
 
 
 def _edges(p: np.ndarray, tri: list[int]) -> tuple[list[tuple[int, int]], list[float]]:
@@ -130,51 +179,55 @@ def _needle_edge(p: np.ndarray, tri: list[int], rel: float = NEEDLE_REL,
     return edges[k] if lengths[k] <= min(rel * max(lengths), max_length) else None
 
 
-def _flip(f: np.ndarray, face: int, a: int, b: int, c: int) -> np.ndarray | None:
-    """Flip edge ab of face (a, b, c) with the face across it, or None when edge cd exists."""
-    across = _faces_with_edge(f, b, a)
-    if len(across) != 1:
-        return None
-    g = f[across[0]]
-    d = int(g[(list(g).index(a) + 1) % 3])  # g is (b, a, d) up to rotation
-    if d in (a, b, c) or d in _neighbours(f, c):
-        return None
-    out = f.copy()
-    out[face] = (c, a, d)
-    out[across[0]] = (d, b, c)
-    return out
-
-
 def remove_degenerate_faces(v: np.ndarray, f: np.ndarray, max_steps: int = 1000,
                             float32: bool = True) -> tuple[np.ndarray, np.ndarray, int]:
     """Repair zero-area faces of a closed, consistently wound mesh (zero area as given, and
-    with ``float32`` also once rounded to float32: see :func:`degenerate_faces`).
+    with ``float32`` also once rounded to float32: see :func:`degenerate_faces`), the
+    lowest-numbered face first, each face at most once as it stands, up to ``max_steps``
+    faces; after each repair only the faces around it are judged again.
 
     Returns (vertices, faces, faces still degenerate). Vertices are unchanged (a collapsed
-    vertex is simply no longer used); faces keep their winding.
+    vertex is simply no longer used); faces keep their winding and order.
     """
-    f = np.array(f, dtype=np.int64, copy=True)
+    faces = _Faces(f)
     p32 = _stored(v, float32)
+    positions = [np.ascontiguousarray(v, np.float64)] + (
+        [np.ascontiguousarray(p32)] if float32 else [])
+    limits = [DEGENERATE_REL * float(np.linalg.norm(np.ptp(p, axis=0))) if len(p) else 0.0
+              for p in positions]
+
+    def zero(rows: np.ndarray) -> np.ndarray:
+        out = np.zeros(len(rows), bool)
+        for p, limit in zip(positions, limits, strict=True):
+            out |= _zero_area_kernel(p, np.ascontiguousarray(rows, np.int64), limit)
+        return out
+
+    zero_now = zero(faces.f)
+    heap = np.flatnonzero(zero_now).tolist()  # sorted: a heap already
     tried: set[tuple[int, ...]] = set()
-    for _ in range(max_steps):
-        bad = [int(i) for i in degenerate_faces(v, f, float32) if tuple(f[i]) not in tried]
-        if not bad:
-            break
-        i = bad[0]
-        tri = [int(x) for x in f[i]]
+    steps = 0
+    while heap and steps < max_steps:
+        i = heapq.heappop(heap)
+        tri = [int(x) for x in faces.f[i]]
+        if not (faces.alive[i] and zero_now[i]) or tuple(tri) in tried:
+            continue
+        steps += 1
         tried.add(tuple(tri))
         edges, lengths = _edges(p32, tri)
-        new = None
+        changed = None
         short = _needle_edge(p32, tri)
         if short is not None:  # a needle: its short edge goes
-            new = _collapse(f, *short)
-        if new is None:  # a cap (or a needle that cannot collapse): flip the long edge
+            changed = faces.collapse(*short)
+        if changed is None:  # a cap (or a needle that cannot collapse): flip the long edge
             k = int(np.argmax(lengths))
             a, b = edges[k]
-            new = _flip(f, i, a, b, tri[(k + 2) % 3])
-        if new is not None:
-            f = new
-    return v, f, len(degenerate_faces(v, f, float32))
+            changed = faces.flip(i, a, b, tri[(k + 2) % 3])
+        if changed is not None:
+            zero_now[changed] = zero(faces.f[changed])
+            for j in changed[zero_now[changed]]:
+                heapq.heappush(heap, int(j))
+    out = faces.faces()
+    return v, out, len(degenerate_faces(v, out, float32))
 
 
 def collapse_needles(v: np.ndarray, f: np.ndarray, faces: np.ndarray, *,
@@ -185,18 +238,16 @@ def collapse_needles(v: np.ndarray, f: np.ndarray, faces: np.ndarray, *,
     most ``rel`` of its longest (and at most ``max_length`` long), where the 2-manifold
     allows it (`_collapse`). Returns (faces, edges collapsed); vertices are unchanged and
     faces keep their winding."""
-    f = np.array(f, dtype=np.int64, copy=True)
+    editor = _Faces(f)
     p32 = _stored(v, float32)
-    edges = [_needle_edge(p32, [int(x) for x in f[i]], rel, max_length)
+    edges = [_needle_edge(p32, [int(x) for x in editor.f[i]], rel, max_length)
              for i in np.unique(np.asarray(faces, np.int64))]
     done = 0
     for edge in edges:
-        if edge is None:
-            continue
-        new = _collapse(f, *edge)  # None too when an earlier collapse took a or b
-        if new is not None:
-            f, done = new, done + 1
-    return f, done
+        # None too when an earlier collapse took a or b
+        if edge is not None and editor.collapse(*edge) is not None:
+            done += 1
+    return editor.faces(), done
 
 
 def move_vertices(v: np.ndarray, f: np.ndarray, vertices: np.ndarray, step: float
