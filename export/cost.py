@@ -20,13 +20,18 @@ import numpy as np
 from jampacked.core.cost import MEMORY_FRACTION, machine_memory
 from jampacked.core.errors import InputError
 
+from .connect import STRUT_SEGMENTS
+
 __all__ = ["BYTES_PER_TRIANGLE", "SECONDS_PER_TRIANGLE", "ExportCost", "check_export_cost",
            "estimate_export"]
 
 #: peak bytes per triangle written, per mode, beyond BASE_BYTES (parts: 1.82 kB measured on
-#: 104 YCB scans, 1.7M triangles; union: 2.05 kB on 250 low-poly fruit; connect adds struts
-#: to the union and is not measured apart: the union's figure with a margin)
+#: 104 YCB scans, 1.7M triangles; union: 2.05 kB on 250 low-poly fruit; connect: 2.31 kB on
+#: 17,924 balls of 80 triangles, counting a strut's triangles per object)
 BYTES_PER_TRIANGLE = {"parts": 1900.0, "union": 2100.0, "connect": 2300.0}
+#: triangles of one strut (a cylinder of STRUT_SEGMENTS sides): connect adds at most one
+#: per object (a spanning tree's edges), which on low-poly objects is half as much again
+STRUT_TRIANGLES = 4 * STRUT_SEGMENTS - 4
 #: seconds per triangle written, per mode (parts: at a load of 11-14 on this 2-core machine
 #: with every part's mesh written, as STL, OBJ and PLY are; a 3MF of instances took 1.9e-5;
 #: union and connect: bench/export_bench.py with nothing else running)
@@ -73,10 +78,12 @@ def estimate_export(mode: str, type_triangles: Sequence[int], type_index: np.nda
                     extra_triangles: int = 0) -> ExportCost:
     """The size and cost of exporting the objects of ``type_index`` (N,) whose types have
     ``type_triangles`` (T,) triangles each (after any simplification), plus
-    ``extra_triangles`` (a shell) in ``mode`` ("parts", "union" or "connect")."""
+    ``extra_triangles`` (a shell) in ``mode`` ("parts", "union" or "connect", which counts
+    a strut per object)."""
     counts = np.bincount(np.asarray(type_index, np.int64), minlength=len(type_triangles))
+    struts = STRUT_TRIANGLES * len(type_index) if mode == "connect" else 0
     triangles = float(np.dot(counts, np.asarray(type_triangles, np.float64))
-                      + extra_triangles)
+                      + extra_triangles + struts)
     return ExportCost(mode=mode, objects=int(len(type_index)), triangles=triangles,
                       memory=BASE_BYTES + BYTES_PER_TRIANGLE[mode] * triangles,
                       seconds=SECONDS_PER_TRIANGLE[mode] * triangles,

@@ -37,7 +37,22 @@ def test_estimate_counts_each_objects_triangles(monkeypatch):
     assert shell.triangles == 250 and c.fits and c.machine == 8 * GiB
 
 
-@pytest.mark.parametrize("mode", ["parts", "union"])
+def test_connect_counts_a_strut_per_object(monkeypatch):
+    # 17,924 balls of 80 triangles connected took 5.0 GiB at the peak against 3.3 GiB
+    # estimated: the struts (44 triangles each) were not counted
+    import manifold3d as m3
+
+    from jampacked.export.connect import STRUT_SEGMENTS, strut
+
+    monkeypatch.setattr(cost_module, "machine_memory", lambda: 64 * GiB)
+    assert strut(np.zeros(3), np.array([0.0, 0.0, 5.0]), 1.0).num_tri() == \
+        cost_module.STRUT_TRIANGLES == m3.Manifold.cylinder(5, 1, 1, STRUT_SEGMENTS).num_tri()
+    c = estimate_export("connect", [80], np.zeros(17_924, int))
+    assert c.triangles == 17_924 * (80 + cost_module.STRUT_TRIANGLES)
+    assert 4.8 * GiB < c.memory < 5.6 * GiB
+
+
+@pytest.mark.parametrize("mode", ["parts", "union", "connect"])
 def test_affordable_objects_is_the_count_that_fits(monkeypatch, mode):
     monkeypatch.setattr(cost_module, "machine_memory", lambda: 4 * GiB)
     tri = [16384, 1000]
