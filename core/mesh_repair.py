@@ -51,6 +51,11 @@ CRACK_TOLERANCE = 1e-5
 UNWELDED_SHARE = 0.5
 #: coordinates beyond this are refused: a volume (a length cubed) overflows past 1e102
 MAX_COORDINATE = 1e100
+#: a mesh so far from the origin that float64's step there exceeds this fraction of its
+#: size is refused: placing it composes its transforms at that distance, where each
+#: rounding moves it by a step (the file frame's matrices in the packing file, as users and
+#: checkers apply them); at 1e15 a 8-unit cube moved 1.6% and overlapped its neighbour
+FAR_PRECISION = 1e-7
 # A face whose height is below MERGE_TOLERANCE * diagonal is degenerate (zero area).
 # A connected piece whose area is below this fraction of the total area is a sliver.
 SLIVER_AREA_FRACTION = 1e-6
@@ -559,6 +564,21 @@ def _check_container_thickness(
 # the pipeline
 
 
+def _refuse_far_from_origin(vertices: np.ndarray, cap: str) -> None:
+    """A mesh whose distance from the origin leaves float64 too coarse for its size."""
+    reach = float(np.abs(vertices).max())
+    size = float(np.ptp(vertices, axis=0).max())
+    step = float(np.spacing(reach))
+    if size > 0 and step > FAR_PRECISION * size:
+        raise MeshError(
+            f"{cap} lies {reach:.3g} units from the origin but is only {size:.3g} across: "
+            f"that far out, positions step by {step:.3g} units ({step / size:.2g} of its "
+            "size), too coarse to place and check it. Move it near the origin in the "
+            "program that wrote it (set its origin to its geometry and apply the "
+            "transforms), then export it again."
+        )
+
+
 def check_and_repair(
     vertices: np.ndarray,
     faces: np.ndarray,
@@ -616,6 +636,7 @@ def check_and_repair(
             "its faces were inverted."
         )
     vertices, faces = _compact(vertices, faces)
+    _refuse_far_from_origin(vertices, cap)
     _verify_guarantees(vertices, faces, cap)
     if role == "container":
         _check_container_thickness(vertices, faces, volume, cap)

@@ -197,6 +197,19 @@ def test_clean_box_file(tmp_path):
     assert mesh.warnings == ()
 
 
+def test_a_mesh_too_far_from_the_origin_for_its_size_is_refused(tmp_path):
+    # the fuzzer's cube at -1e15 packed, and the packing file's matrices, applied as the
+    # README says, moved it by float64's step there (0.125): 0.84% overlap with a neighbour
+    v, f = unit_box()
+    path = write_obj(tmp_path / "far.obj", v * 4.0 - 1e15, f)
+    with pytest.raises(MeshError, match=r"far.obj' lies 1e\+15 units from the origin but "
+                       r"is only 16 across: .* step by 0.125 units .*Move it near the origin"):
+        load_mesh(path)
+    # a georeferenced part (6,000 km out, in mm, 16 mm across) is fine
+    assert load_mesh(write_obj(tmp_path / "utm.obj", v * 4.0 + 6e9, f)).volume == \
+        pytest.approx(24.0 * 64, rel=1e-6)
+
+
 def test_hole_is_an_error(tmp_path):
     v, f = unit_box()
     path = write_obj(tmp_path / "holed.obj", v, f[1:])
