@@ -162,14 +162,19 @@ def _geometry_evaluated(obj: bpy.types.Object, view_layer: bpy.types.ViewLayer) 
 
 
 def _instance_count(obj: bpy.types.Object, depsgraph: bpy.types.Depsgraph) -> int:
-    """How many instances the object's evaluated geometry draws (Geometry Nodes instances
-    not realized, particles, vertex or face instancing): ``to_mesh`` leaves them out."""
+    """How many instances with a surface the object's evaluated geometry draws beyond what
+    ``to_mesh`` reads (Geometry Nodes instances not realized, particles, vertex or face
+    instancing). A curve or text object with Geometry Nodes draws its own surface as one
+    instance, which ``to_mesh`` does read; instances without faces (points, curves) have
+    no surface to leave out."""
     if obj.instance_type == 'NONE' and not any(
             m.type in {'NODES', 'PARTICLE_SYSTEM'} for m in obj.modifiers):
         return 0  # nothing can instance: the scene's instances need not be walked
-    return sum(1 for inst in depsgraph.object_instances
-               if inst.is_instance and inst.parent is not None
-               and inst.parent.original == obj.original)
+    surfaces = sum(1 for inst in depsgraph.object_instances
+                   if inst.is_instance and inst.parent is not None
+                   and inst.parent.original == obj.original
+                   and inst.object.type == 'MESH' and len(inst.object.data.polygons))
+    return max(0, surfaces - (obj.type != 'MESH'))
 
 
 def read_input(obj: bpy.types.Object, what: str,

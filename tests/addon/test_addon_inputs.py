@@ -188,6 +188,23 @@ def _instance(bpy, name, rng):
     return empty
 
 
+def _nodes_pass_through(build_object):
+    """An object with a Geometry Nodes modifier that passes its geometry through: a curve's
+    surface then shows as one instance of it, which Pack reads (not an instance to
+    realize)."""
+    def build(bpy, name, rng):
+        obj = build_object(bpy, name, rng)
+        tree = bpy.data.node_groups.new(f"{name} nodes", 'GeometryNodeTree')
+        tree.interface.new_socket("Geometry", in_out='INPUT', socket_type='NodeSocketGeometry')
+        tree.interface.new_socket("Geometry", in_out='OUTPUT',
+                                  socket_type='NodeSocketGeometry')
+        tree.links.new(tree.nodes.new('NodeGroupInput').outputs[0],
+                       tree.nodes.new('NodeGroupOutput').inputs[0])
+        obj.modifiers.new("Pass", 'NODES').node_group = tree
+        return obj
+    return build
+
+
 def _node_instances(keep_mesh: bool):
     """An icosphere whose Geometry Nodes draw an instance: of a cube above it beside its own
     mesh (a leaf on a fruit), or of its whole mesh (Geometry to Instance)."""
@@ -302,6 +319,9 @@ TYPE_KINDS = [
     # Blender shows the instances; Pack packed the object without them, or said "no faces"
     Kind("nodes instance beside the mesh", _node_instances(True), INSTANCES, "read"),
     Kind("nodes instance only", _node_instances(False), INSTANCES, "read"),
+    Kind("bevelled curve, nodes", _nodes_pass_through(
+        lambda bpy, name, rng: _curve(bpy, name, bevel=0.5)), None),
+    Kind("plain, nodes", _nodes_pass_through(lambda bpy, name, rng: _ico(bpy, name)), None),
     # read with the identity transform (no depsgraph of this scene holds it)
     Kind("in another scene", _other_scene(_transformed((0.8, 0.8, 0.8))), OTHER_SCENE,
          "pick"),
