@@ -36,9 +36,11 @@ def previous_results(scene: bpy.types.Scene, container_name: str
     """The results of the container object ``container_name`` (renamed since or not)
     linked anywhere in the scene's collection tree."""
     target = bpy.data.objects.get(container_name)
-    return [c for c in scene.collection.children_recursive if is_result(c) and (
+    found = [c for c in scene.collection.children_recursive if is_result(c) and (
         container_of(c) == target if target is not None
         else c.get(summary.PREFIX + "container") == container_name)]
+    # a collection linked in two places is listed twice: once each, in order
+    return [c for k, c in enumerate(found) if c not in found[:k]]
 
 
 def remove_result(coll: bpy.types.Collection, keep_in: bpy.types.Collection) -> int:
@@ -85,7 +87,8 @@ LAYER_FLAGS = ("exclude", "hide_viewport", "holdout", "indirect_only")
 @dataclass
 class _Place:
     """Where a result sits and how it is set: its name, the collections it is linked in,
-    its own flags and, by (view layer, parent collection), its layer collection's flags."""
+    its own flags and, by (view layer, the names of the collections above it), each of its
+    layer collections' flags (a collection linked in two places has two)."""
 
     name: str
     parents: list
@@ -94,40 +97,47 @@ class _Place:
 
 
 def _layer_children(view_layer: bpy.types.ViewLayer):
-    """(parent layer collection, child layer collection) pairs of the whole view layer."""
-    stack = [view_layer.layer_collection]
+    """(names of the collections above, layer collection) of every layer collection of the
+    view layer below its root."""
+    stack = [((), view_layer.layer_collection)]
     while stack:
-        parent = stack.pop()
+        path, parent = stack.pop()
+        path = (*path, parent.collection.name)
         for child in parent.children:
-            yield parent, child
-            stack.append(child)
+            yield path, child
+            stack.append((path, child))
 
 
 def _place_of(scene: bpy.types.Scene, coll: bpy.types.Collection) -> _Place:
-    layers = {(vl.name, parent.collection.name): {k: getattr(child, k) for k in LAYER_FLAGS}
-              for vl in scene.view_layers for parent, child in _layer_children(vl)
+    layers = {(vl.name, path): {k: getattr(child, k) for k in LAYER_FLAGS}
+              for vl in scene.view_layers for path, child in _layer_children(vl)
               if child.collection == coll}
-    parents = [c for c in (scene.collection, *scene.collection.children_recursive)
-               if c.children.get(coll.name) == coll]
+    parents = []
+    for c in (scene.collection, *scene.collection.children_recursive):
+        if c.children.get(coll.name) == coll and c not in parents:
+            parents.append(c)
     return _Place(coll.name, parents, {k: getattr(coll, k) for k in COLLECTION_FLAGS},
                   layers)
 
 
 def _put_in_place(scene: bpy.types.Scene, new: bpy.types.Collection, place: _Place) -> None:
     """Link ``new`` where the replaced result was, with its settings; keep the name the
-    artist gave it (a "Jampacked ..." name follows the container instead)."""
-    parents = [c for c in place.parents if c.children.get(new.name) is None]
+    artist gave it (a "Jampacked ..." name follows the container instead). A parent that
+    moved into ``new`` with the removed results' contents is left out (a cycle)."""
+    inside = set(new.children_recursive)
+    parents = [c for c in place.parents if c != new and c not in inside]
     for parent in parents:
-        parent.children.link(new)
-    if place.parents and scene.collection not in place.parents:
+        if parent.children.get(new.name) is None:
+            parent.children.link(new)
+    if parents and scene.collection not in parents:
         scene.collection.children.unlink(new)
     if not place.name.startswith("Jampacked "):
         new.name = place.name
     for key, value in place.flags.items():
         setattr(new, key, value)
     for vl in scene.view_layers:
-        for parent, child in _layer_children(vl):
-            flags = place.layers.get((vl.name, parent.collection.name))
+        for path, child in _layer_children(vl):
+            flags = place.layers.get((vl.name, path))
             if child.collection == new and flags is not None:
                 for key, value in flags.items():
                     setattr(child, key, value)

@@ -397,6 +397,58 @@ def test_a_second_pack_takes_the_first_ones_place(bpy, addon, scene):
     assert layer.holdout and layer.indirect_only and not layer.exclude
 
 
+def test_a_result_linked_in_two_places_is_replaced_in_both(bpy, addon, scene):
+    """A result linked at the root and under "Renders", and "Renders" itself linked at the
+    root and under "Q": the collection listed twice was removed twice (ReferenceError), and
+    a parent listed twice was linked twice, after the old result was gone."""
+    assert bpy.ops.jampacked.pack() == {'FINISHED'}
+    coll = scene.settings.result
+    renders, q = bpy.data.collections.new("Renders"), bpy.data.collections.new("Q")
+    root = bpy.context.scene.collection
+    root.children.link(renders)
+    root.children.link(q)
+    q.children.link(renders)
+    renders.children.link(coll)  # and it stays at the root
+    layers = bpy.context.view_layer.layer_collection
+    layers.children[coll.name].exclude = True
+    layers.children["Renders"].children[coll.name].holdout = True
+    layers.children["Q"].children["Renders"].children[coll.name].indirect_only = True
+    scene.settings.seed = 2
+    assert bpy.ops.jampacked.pack() == {'FINISHED'}
+    (new,) = set(_results(bpy))
+    assert _packing(addon, new).seed == 2
+    assert new.name in root.children and new.name in renders.children
+    layers = bpy.context.view_layer.layer_collection
+    at_root, in_renders = layers.children[new.name], layers.children["Renders"].children[
+        new.name]
+    in_q = layers.children["Q"].children["Renders"].children[new.name]
+    assert at_root.exclude and not at_root.holdout
+    assert in_renders.holdout and not in_renders.indirect_only
+    assert in_q.indirect_only and not in_q.holdout
+
+
+def test_a_result_moved_into_one_it_replaces_goes_to_the_root(bpy, addon, scene):
+    """The last result moved under a collection the artist made inside an earlier result
+    that this Pack removes too: its place moves into the new result (a cycle)."""
+    assert bpy.ops.jampacked.pack() == {'FINISHED'}
+    earlier = scene.settings.result
+    scene.settings.keep_previous = True
+    scene.settings.seed = 2
+    assert bpy.ops.jampacked.pack() == {'FINISHED'}
+    last = scene.settings.result
+    group = bpy.data.collections.new("X")
+    earlier.children.link(group)
+    group.children.link(last)
+    bpy.context.scene.collection.children.unlink(last)
+    scene.settings.keep_previous = False
+    scene.settings.seed = 3
+    assert bpy.ops.jampacked.pack() == {'FINISHED'}
+    (new,) = set(_results(bpy))
+    assert _packing(addon, new).seed == 3
+    assert new.name in bpy.context.scene.collection.children
+    assert "X" in new.children  # what the artist put in a removed result is kept
+
+
 def test_keep_previous_keeps_both(bpy, addon, scene):
     scene.settings.keep_previous = True
     assert bpy.ops.jampacked.pack() == {'FINISHED'}
