@@ -54,9 +54,9 @@ follow from them); any other file is packed again, saying why. Export files are 
 again when missing, changed since written, or made with other export settings (recorded
 in OUT/<scene>.exports.json); those of a packing made since are removed. Each scene's
 warnings are printed and go in the summary's message column; the summary keeps the rows
-of other batch files run into OUT. Ctrl-C stops: finished scenes stay written, and the scene being packed here
-writes its best certified packing so far, which the next run packs again (exit status
-130). Exit status:
+of other batch files run into OUT. Ctrl-C stops: finished scenes stay written, and the
+scene being packed here writes its best certified packing so far, which the next run
+packs again (exit status 130). Exit status:
 0 every scene packed or skipped, 1 a scene failed or the batch file is bad (the message
 names the scene and key), 2 bad arguments.
 """
@@ -121,7 +121,7 @@ def cmd_batch(args: argparse.Namespace) -> int:
             err.print(f"note: {escape(r.spec.id)} exported again: {escape(why)}",
                       highlight=False, soft_wrap=True)
         for why in r.removed:
-            err.print(f"note: {escape(r.spec.id)} removed {escape(why)}",
+            err.print(f"note: {escape(r.spec.id)}: {escape(why)}",
                       highlight=False, soft_wrap=True)
         for w in r.warnings():
             warn(err, f"{r.spec.id}: {w}")

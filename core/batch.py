@@ -65,7 +65,8 @@ class SceneResult:
     repacked: str = ""
     #: the export files made again on a skip, each with why ("scene.stl: missing")
     reexported: list[str] = field(default_factory=list)
-    #: earlier runs' export files removed as no longer this scene's, each with why
+    #: what became of earlier runs' export files that are no longer this scene's
+    #: ("removed scene.stl: ...", or why one was left)
     removed: list[str] = field(default_factory=list)
 
     def warnings(self) -> list[str]:
@@ -79,7 +80,7 @@ class SceneResult:
         if self.repacked:
             out.append(f"packed again: the earlier file was not trusted: {self.repacked}")
         out += [f"exported again: {r}" for r in self.reexported]
-        out += [f"removed {r}" for r in self.removed]
+        out += self.removed
         return out + [f"warning: {w}" for w in self.warnings()]
 
     def row(self) -> dict:
@@ -336,7 +337,7 @@ def write_summary(results: list[SceneResult], path: str | os.PathLike) -> None:
 def _summary_rows(path: str | os.PathLike) -> list[dict]:
     """The rows of an earlier summary at `path`, or [] when there is none readable."""
     try:
-        with open(path, newline="", encoding="utf-8") as f:
+        with open(path, newline="", encoding="utf-8-sig") as f:  # as a spreadsheet saves it
             rows = list(csv.DictReader(f))
     except (OSError, UnicodeDecodeError, csv.Error):
         return []

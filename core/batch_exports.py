@@ -98,16 +98,18 @@ def drop_outdated(spec: SceneSpec, digest: str | None, out: Path,
             continue  # made again, not a plain name in `out`, or gone
         try:
             if file_sha256(path) != sha:
-                notes.append(f"{name}: left, made from an earlier packing or settings but "
+                notes.append(f"left {name}: made from an earlier packing or settings, but "
                              "changed since")
                 continue
             path.unlink()
         except OSError as exc:
-            notes.append(f"{name}: could not be removed ({exc.strerror or exc})")
+            notes.append(f"could not remove {name}, made from an earlier packing or "
+                         f"settings: {exc.strerror or exc}")
             continue
-        notes.append(f"{name}: an export of an earlier packing or settings, not made again")
-    if not spec.export:
-        try:
+        notes.append(f"removed {name}: an export of an earlier packing or settings, not "
+                     "made again")
+    if not spec.export and not any(note.startswith(("left", "could not")) for note in notes):
+        try:  # it describes nothing now
             exports_record(out, spec).unlink()
         except OSError:
             pass

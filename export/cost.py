@@ -29,8 +29,9 @@ __all__ = ["BYTES_PER_TRIANGLE", "SECONDS_PER_TRIANGLE", "ExportCost", "check_ex
 #: 104 YCB scans, 1.7M triangles; union: 2.05 kB on 250 low-poly fruit; connect: 2.31 kB on
 #: 17,924 balls of 80 triangles, counting a strut's triangles per object)
 BYTES_PER_TRIANGLE = {"parts": 1900.0, "union": 2100.0, "connect": 2300.0}
-#: triangles of one strut (a cylinder of STRUT_SEGMENTS sides): connect adds at most one
-#: per object (a spanning tree's edges), which on low-poly objects is half as much again
+#: triangles of one strut (a cylinder of STRUT_SEGMENTS sides): connect adds about one per
+#: object (a spanning tree's edges, one more per further body of the shell), which on
+#: low-poly objects is half as much again
 STRUT_TRIANGLES = 4 * STRUT_SEGMENTS - 4
 #: seconds per triangle written, per mode (parts: at a load of 11-14 on this 2-core machine
 #: with every part's mesh written, as STL, OBJ and PLY are; a 3MF of instances took 1.9e-5;

@@ -323,14 +323,14 @@ def test_exports_of_a_replaced_packing_are_removed(packed, tmp_path):
     assert again.status == "packed" and again.repacked
     assert not (tmp_path / "x-s2.stl").exists()
     assert (tmp_path / "x-s2.3mf").read_bytes() != earlier
-    assert again.removed == ["x-s2.stl: an export of an earlier packing or settings, not "
-                             "made again"]
+    assert again.removed == ["removed x-s2.stl: an export of an earlier packing or "
+                             "settings, not made again"]
     # no exports asked any more: those of the earlier packing go, and their record
     [last] = run_batch([dataclasses.replace(spec, export=(), seed=4)], tmp_path)
     assert last.status == "packed" and not (tmp_path / "x-s2.3mf").exists()
     assert not (tmp_path / "x-s2.exports.json").exists()
-    assert last.removed == ["x-s2.3mf: an export of an earlier packing or settings, not "
-                            "made again"]
+    assert last.removed == ["removed x-s2.3mf: an export of an earlier packing or "
+                            "settings, not made again"]
 
 
 def test_an_export_edited_since_is_left_and_said_so(packed, tmp_path):
@@ -340,5 +340,6 @@ def test_an_export_edited_since_is_left_and_said_so(packed, tmp_path):
     (tmp_path / "x-s2.stl").write_bytes(b"solid mine\nendsolid mine\n")
     [again] = run_batch([dataclasses.replace(spec, export=(), seed=3)], tmp_path)
     assert again.status == "packed" and (tmp_path / "x-s2.stl").is_file()
-    assert again.removed == ["x-s2.stl: left, made from an earlier packing or settings but "
+    assert again.removed == ["left x-s2.stl: made from an earlier packing or settings, but "
                              "changed since"]
+    assert (tmp_path / "x-s2.exports.json").is_file()  # still its record
