@@ -364,12 +364,18 @@ def _one_body(packing: Packing, scene: PlacedScene, shell: m3.Manifold | None,
                                         shell is not None)
     out.volume = cleaned.volume
     if options.mode == "connect" and out.bodies != 1:
+        d = out.connector_diameter
+        if out.connectors_refused:  # the graph fell apart where struts would leave
+            why = (f"{out.connectors_refused} struts would have left the container and were "
+                   "refused, which left objects with no strut to the rest. Try thinner "
+                   f"struts than these ({d:.3g} across), which fit narrower passages, e.g. "
+                   f"--connector {d / 2:.2g}")
+        else:
+            why = ("every object had a strut, but some did not join what they touch. Try "
+                   f"thicker struts than these ({d:.3g} across), e.g. --connector "
+                   f"{2 * d:.2g}")
         raise MeshError(f"connect made {out.bodies} bodies instead of one; nothing was "
-                        "written. The struts could not tie every object in (struts that "
-                        "would leave the container are refused). Try thicker struts than "
-                        f"these ({out.connector_diameter:.3g} across), e.g. --connector "
-                        f"{2 * out.connector_diameter:.2g}, or export with --mode union or "
-                        "--mode parts.")
+                        f"written: {why}, or export with --mode union or --mode parts.")
     if float32 and left > 0:
         _check_float32(cleaned.vertices, cleaned.faces, float32, count)
     return [(cleaned.vertices, cleaned.faces)], ["jampacked"]
@@ -395,6 +401,7 @@ def _struts(packing: Packing, scene: PlacedScene, shell: m3.Manifold | None,
     plan = connect_scene(scene, diameter, shell, options.shell or 0.0, should_cancel=cancel,
                          progress=lambda f, m: report(0.3 + 0.3 * f, m), variant=variant)
     out.connectors = len(plan.struts)
+    out.connectors_refused = plan.refused
     out.connector_diameter = diameter
     out.connector_length = plan.total_length
     out.fused = plan.fused

@@ -22,9 +22,10 @@ class ExportReport:
     triangles_saved: triangles --resolution removed; resolution_deviation: how far that
     moved a surface at most (measured, container units). connectors / connector_length /
     connector_diameter: struts added (connect mode), their total visible length and their
-    diameter (container units). fused: tree edges
-    whose solids already overlapped. min_gap: smallest gap between parts (parts mode; None
-    when no two parts are near), clearance: the packing's clearance. voids_filled /
+    diameter (container units); connectors_refused: struts dropped because they would
+    have left the container. fused: tree edges whose solids already overlapped. min_gap:
+    smallest gap between parts (parts mode; None when no two parts are near), clearance:
+    the packing's clearance. voids_filled /
     voids_filled_volume: sealed voids made solid (see ExportOptions.fill_voids) and their
     volume (container units cubed).
     """
@@ -39,6 +40,7 @@ class ExportReport:
     connectors: int = 0
     connector_length: float = 0.0
     connector_diameter: float = 0.0
+    connectors_refused: int = 0
     fused: int = 0
     min_gap: float | None = None
     clearance: float = 0.0
@@ -86,7 +88,8 @@ class ExportReport:
             "triangles_saved": self.triangles_saved,
             "resolution_deviation": self.resolution_deviation, "connectors": self.connectors,
             "connector_length": self.connector_length,
-            "connector_diameter": self.connector_diameter, "fused": self.fused,
+            "connector_diameter": self.connector_diameter,
+            "connectors_refused": self.connectors_refused, "fused": self.fused,
             "min_gap": self.min_gap, "clearance": self.clearance, "volume": self.volume,
             "voids_filled": self.voids_filled, "voids_filled_volume": self.voids_filled_volume,
             "shell": self.shell.as_dict() if self.shell else None,

@@ -265,6 +265,33 @@ def test_shell_edges_start_at_the_vertex_nearest_the_shell():
     assert near >= 5 and far >= 5
 
 
+def test_connect_that_falls_apart_says_which_way_to_change_the_struts(apart, tmp_path,
+                                                                        monkeypatch):
+    # every strut of one object runs out through the wall, so all are refused and it is
+    # left alone: the message said to try thicker struts, which leave the container more
+    # (an independent check: 2 bodies at --connector 3, 14 at 6)
+    import jampacked.export.connect as connect
+
+    real = connect._strut_between
+    lone: list[np.ndarray] = []
+
+    def strut(pa, pb, diameter, to_shell, thickness, centre_a, centre_b, variant=0):
+        if not lone:
+            lone.append(centre_a)
+        if any(c is not None and np.allclose(c, lone[0]) for c in (centre_a, centre_b)):
+            return real(pa, pa + np.array([200.0, 0.0, 0.0]), diameter, to_shell,
+                        thickness, centre_a, centre_b, variant)
+        return real(pa, pb, diameter, to_shell, thickness, centre_a, centre_b, variant)
+
+    monkeypatch.setattr(connect, "_strut_between", strut)
+    out = tmp_path / "c.3mf"
+    with pytest.raises(MeshError, match=r"connect made 2 bodies instead of one; nothing was "
+                       r"written: \d+ struts would have left the container and were refused.*"
+                       r"Try thinner struts than these \(2 across\).*--connector 1\b"):
+        export_packing(apart, out, ExportOptions(mode="connect", connector=2.0))
+    assert not out.exists()
+
+
 def test_connect_fuses_touching_objects_without_struts(overlapping, tmp_path):
     rep = export_packing(overlapping, tmp_path / "c.stl", ExportOptions(mode="connect"))
     assert rep.bodies == 1 and rep.passed
@@ -354,7 +381,7 @@ def test_connect_that_leaves_bodies_apart_names_a_strut_size_to_try(apart, tmp_p
     from jampacked.export import assemble
 
     monkeypatch.setattr(assemble, "connect_scene", lambda *a, **k: SimpleNamespace(
-        struts=[], total_length=0.0, fused=0))  # struts that tie nothing in
+        struts=[], total_length=0.0, fused=0, refused=0))  # struts that tie nothing in
     with pytest.raises(MeshError, match=r"8 bodies instead of one.*these \(0\.8 across\), "
                                         r"e\.g\. --connector 1\.6"):
         export_packing(apart, tmp_path / "c.3mf", ExportOptions(mode="connect", connector=0.8))
