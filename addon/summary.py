@@ -100,6 +100,7 @@ _BLENDER_WORDS = (
     # the whole phrase first: a Clearance field takes its unit ("0.2 mm") in any scene
     ("--clearance (e.g. --clearance 0.2 for 0.2 mm)", "a Clearance (e.g. 0.2 mm)"),
     ("export with --mode union or --mode connect", "export in Union or Connect mode"),
+    ("export with --mode union or --mode parts", "export in Union or Parts mode"),
     ("; then export again.", "; then pack again."),
     ("(--container-size and --type-scale) and pack again.",
      "(the scene's Unit Scale, Scene Properties > Units) and pack again."),
@@ -120,6 +121,7 @@ _BLENDER_WORDS = (
     ("--mode parts", "Parts mode"),
     ("Ctrl-C stops them", "Finish Now stops them"),
     ("--resolution", "Resolution"),
+    ("--connector", "Connector"),
 )
 
 

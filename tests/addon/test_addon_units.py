@@ -187,6 +187,12 @@ def test_engine_messages_in_blender_words():
     assert summary.in_blender_words("Scale the objects down (--type-scale / type_scale, "
                                     "0.5)") == "Scale the objects down (the type objects' " \
         "scale, 0.5)"
+    # connect's advice named --connector and --mode in the add-on's Export
+    assert summary.in_blender_words(
+        "connect made 2 bodies instead of one; nothing was written: ... e.g. --connector "
+        "1.5, or export with --mode union or --mode parts.") == (
+        "Connect made 2 bodies instead of one; nothing was written: ... e.g. Connector 1.5, "
+        "or export in Union or Parts mode.")
 
 
 def test_the_mix_warnings_in_blender_words():
