@@ -88,9 +88,9 @@ class Surface:
         centroids = tris.mean(axis=1)
         self._centroids = centroids
         radii = np.linalg.norm(tris - centroids[:, None], axis=2).max(axis=1)
-        self.radius = float(radii.max()) if len(radii) else 0.0
+        largest = float(radii.max()) if len(radii) else 0.0
         self.tree = cKDTree(centroids)
-        level = np.floor(np.log2(np.maximum(radii, self.radius * 1e-9 + 1e-300)))
+        level = np.floor(np.log2(np.maximum(radii, largest * 1e-9 + 1e-300)))
         self._groups = [(idx, cKDTree(centroids[idx]), float(radii[idx].max()))
                         for idx in (np.flatnonzero(level == lv) for lv in np.unique(level))]
 
