@@ -68,16 +68,35 @@ def _zero_area_kernel(p: np.ndarray, f: np.ndarray, limit: float) -> np.ndarray:
     return out
 
 
-def _zero_area(p: np.ndarray, f: np.ndarray) -> np.ndarray:
-    diagonal = float(np.linalg.norm(np.ptp(p, axis=0)))
-    return _zero_area_kernel(np.ascontiguousarray(p, np.float64),
-                             np.ascontiguousarray(f, np.int64), DEGENERATE_REL * diagonal)
-
-
 def _stored(v: np.ndarray, float32: bool) -> np.ndarray:
     """The positions as a file stores them: rounded to float32 with ``float32`` (STL, PLY),
     else as given (3MF, OBJ: float64)."""
     return v.astype(np.float32).astype(np.float64) if float32 else v
+
+
+class _ZeroArea:
+    """Which faces (rows of vertex indices into v) have zero area at the positions as given
+    and, with ``float32``, also once rounded to float32; each position set's limit (from
+    its bounding box) found once, so that rows can be judged a few at a time."""
+
+    def __init__(self, v: np.ndarray, float32: bool):
+        self.positions = [np.ascontiguousarray(p, np.float64)
+                          for p in ([v, _stored(v, True)] if float32 else [v])]
+        self.limits = [DEGENERATE_REL * float(np.linalg.norm(np.ptp(p, axis=0)))
+                       if len(p) else 0.0 for p in self.positions]
+
+    def __call__(self, rows: np.ndarray) -> np.ndarray:
+        out = np.zeros(len(rows), bool)
+        rows = np.ascontiguousarray(rows, np.int64)
+        for p, limit in zip(self.positions, self.limits, strict=True):
+            out |= _zero_area_kernel(p, rows, limit)
+        return out
+
+
+def _zero_area(p: np.ndarray, f: np.ndarray) -> np.ndarray:
+    """(F,) faces of zero area at positions p as given (the kernel's numpy reference is in
+    tests/export/test_validate_kernels.py)."""
+    return _ZeroArea(p, False)(f)
 
 
 def degenerate_faces(v: np.ndarray, f: np.ndarray, float32: bool = True) -> np.ndarray:
@@ -87,10 +106,7 @@ def degenerate_faces(v: np.ndarray, f: np.ndarray, float32: bool = True) -> np.n
     a 3MF, and repairing them there folds the surface."""
     if len(f) == 0:
         return np.zeros(0, np.int64)
-    zero = _zero_area(v, f)
-    if float32:
-        zero |= _zero_area(_stored(v, True), f)
-    return np.flatnonzero(zero)
+    return np.flatnonzero(_ZeroArea(v, float32)(f))
 
 
 class _Faces:
@@ -191,17 +207,7 @@ def remove_degenerate_faces(v: np.ndarray, f: np.ndarray, max_steps: int = 1000,
     """
     faces = _Faces(f)
     p32 = _stored(v, float32)
-    positions = [np.ascontiguousarray(v, np.float64)] + (
-        [np.ascontiguousarray(p32)] if float32 else [])
-    limits = [DEGENERATE_REL * float(np.linalg.norm(np.ptp(p, axis=0))) if len(p) else 0.0
-              for p in positions]
-
-    def zero(rows: np.ndarray) -> np.ndarray:
-        out = np.zeros(len(rows), bool)
-        for p, limit in zip(positions, limits, strict=True):
-            out |= _zero_area_kernel(p, np.ascontiguousarray(rows, np.int64), limit)
-        return out
-
+    zero = _ZeroArea(v, float32)
     zero_now = zero(faces.f)
     heap = np.flatnonzero(zero_now).tolist()  # sorted: a heap already
     tried: set[tuple[int, ...]] = set()
