@@ -36,12 +36,11 @@ def export_scene(spec: SceneSpec, packing_file: str, digest: str | None, out: Pa
     again are removed (`drop_outdated`). Returns the error ("" if none: a failed export
     leaves the packing as it is), why each file was made again (with `stale_only`) and the
     files removed, with why."""
-    settings = {"mode": spec.export_mode, "shell": spec.export_shell}
+    settings = _settings(spec)
     record = _read_record(exports_record(out, spec))
     if not spec.export:
         return "", [], drop_outdated(spec, digest, out, record=record)
-    made = record.get("files", {}) if (record.get("packing") == digest
-                                       and record.get("settings") == settings) else {}
+    made = record.get("files", {}) if _current(record, digest, spec) else {}
     paths = [out / f"{spec.id}.{fmt}" for fmt in spec.export]
     again: list[str] = []
     if stale_only:
@@ -88,8 +87,7 @@ def drop_outdated(spec: SceneSpec, digest: str | None, out: Path,
     left, with why."""
     if record is None:
         record = _read_record(exports_record(out, spec))
-    settings = {"mode": spec.export_mode, "shell": spec.export_shell}
-    if not record or (record.get("packing") == digest and record.get("settings") == settings):
+    if not record or _current(record, digest, spec):
         return []
     notes = []
     for name, sha in record["files"].items():
@@ -114,6 +112,16 @@ def drop_outdated(spec: SceneSpec, digest: str | None, out: Path,
         except OSError:
             pass
     return notes
+
+
+def _settings(spec: SceneSpec) -> dict:
+    """The export settings a record keeps, as the scene asks for them."""
+    return {"mode": spec.export_mode, "shell": spec.export_shell}
+
+
+def _current(record: dict, digest: str | None, spec: SceneSpec) -> bool:
+    """Whether `record` describes exports of the packing `digest` with the scene's settings."""
+    return record.get("packing") == digest and record.get("settings") == _settings(spec)
 
 
 def _stale_export(path: Path, record: dict, made: dict, settings: dict,
