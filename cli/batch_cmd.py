@@ -5,6 +5,7 @@ from __future__ import annotations
 
 import argparse
 import contextlib
+from pathlib import Path
 
 from rich.markup import escape
 from rich.progress import BarColumn, MofNCompleteColumn, Progress, TextColumn, TimeElapsedColumn
@@ -53,8 +54,9 @@ sha256 still match, it is certified, its placements are the ones certified and i
 follow from them); any other file is packed again, saying why. Export files are made
 again when missing, changed since written, or made with other export settings (recorded
 in OUT/<scene>.exports.json); those of a packing made since are removed. Each scene's
-warnings are printed and go in the summary's message column; the summary keeps the rows
-of other batch files run into OUT. Ctrl-C stops: finished scenes stay written, and the
+warnings are printed and go in the summary's message column; the summary's batch column
+names the batch file, and a rerun replaces that file's rows and keeps those of other batch
+files run into OUT. Ctrl-C stops: finished scenes stay written, and the
 scene being packed here writes its best certified packing so far, which the next run
 packs again (exit status 130). Exit status:
 0 every scene packed or skipped, 1 a scene failed or the batch file is bad (the message
@@ -103,7 +105,8 @@ def cmd_batch(args: argparse.Namespace) -> int:
                 stopping = " [yellow](stopping: Ctrl-C)[/]" if cancel.requested else ""
                 bar.update(task, completed=done, description=escape(message) + stopping)
 
-        results = run_batch(scenes, args.output, client, progress, cancel, checked)
+        results = run_batch(scenes, args.output, client, progress, cancel, checked,
+                            batch=Path(args.file).name)
     if not args.quiet:
         print_results(results, out)
         out.print(f"wrote {args.output}/{SUMMARY}", highlight=False)

@@ -39,7 +39,7 @@ from .summary import number
 
 SUMMARY = "summary.csv"
 COLUMNS = ("id", "status", "seed", "container", "types", "count", "density", "tvd",
-           "nni_mean", "certified", "seconds", "file", "message")
+           "nni_mean", "certified", "seconds", "file", "batch", "message")
 #: what a scene stopped by Ctrl-C while packing says in the summary
 CANCELLED_NOTE = ("stopped by Ctrl-C before the end: its best certified packing so far is "
                   "written, not exported, and the next run packs it again")
@@ -136,13 +136,15 @@ def scene_file(out_dir: str | os.PathLike, spec: SceneSpec) -> Path:
 def run_batch(scenes: list[SceneSpec], out_dir: str | os.PathLike, client=None,
               progress: Callable[[int, int, str], None] | None = None,
               should_cancel: Callable[[], bool] | None = None,
-              checked: dict[str, tuple[Packing | None, str]] | None = None
-              ) -> list[SceneResult]:
+              checked: dict[str, tuple[Packing | None, str]] | None = None,
+              batch: str = "") -> list[SceneResult]:
     """Pack every scene not already done and verified in `out_dir`; returns one result per
     scene, in the batch's order, and writes `out_dir`/summary.csv. client: a
     distributed.Client (its workers run the scenes) or None (here, one after another).
     progress(done, total, message) after each scene; should_cancel() is polled. checked:
-    `check_done` of scenes by id, where the caller has already run it."""
+    `check_done` of scenes by id, where the caller has already run it. batch: the batch
+    file's name, which the summary's rows record (a rerun of that file replaces all of its
+    rows, so that a scene taken out of it leaves the summary)."""
     out = Path(out_dir)
     check_output(scenes, out)
     if not out.is_dir():
@@ -221,7 +223,7 @@ def run_batch(scenes: list[SceneSpec], out_dir: str | os.PathLike, client=None,
             results.setdefault(spec.id, SceneResult(spec, "cancelled",
                                                     message="not run (cancelled)"))
         ordered = [results[s.id] for s in scenes]
-        write_summary(ordered, out / SUMMARY)
+        write_summary(ordered, out / SUMMARY, batch)
     return ordered
 
 
@@ -313,19 +315,20 @@ def _run_on_cluster(client, todo: list[SceneSpec], finish, cancel: Callable[[], 
             client.cancel(list(pending))
 
 
-def write_summary(results: list[SceneResult], path: str | os.PathLike) -> None:
-    """The batch's summary table as CSV (one row per scene), written atomically. Rows of
-    other scenes the file holds (another batch file's, run into the same folder) are kept
-    first, as they were."""
+def write_summary(results: list[SceneResult], path: str | os.PathLike, batch: str = ""
+                  ) -> None:
+    """The batch's summary table as CSV (one row per scene), written atomically. Rows the
+    file holds of other batch files run into the same folder are kept first, as they were;
+    the rows of this batch file (``batch``, its name) are replaced by this run's."""
     ids = {r.spec.id for r in results}
     buf = io.StringIO()
     w = csv.DictWriter(buf, fieldnames=COLUMNS, lineterminator="\n")
     w.writeheader()
     for row in _summary_rows(path):
-        if row.get("id") not in ids:
+        if row.get("id") not in ids and not (batch and row.get("batch") == batch):
             w.writerow({k: row.get(k) or "" for k in COLUMNS})
     for r in results:
-        w.writerow(r.row())
+        w.writerow({**r.row(), "batch": batch})
     try:
         with atomic_output(path, "w") as f:
             f.write(buf.getvalue())
@@ -335,10 +338,15 @@ def write_summary(results: list[SceneResult], path: str | os.PathLike) -> None:
 
 
 def _summary_rows(path: str | os.PathLike) -> list[dict]:
-    """The rows of an earlier summary at `path`, or [] when there is none readable."""
+    """The rows of an earlier summary at `path`, or [] when there is none readable. A
+    spreadsheet may have saved it with semicolons or tabs between the fields (as Excel does
+    where the decimal mark is a comma)."""
     try:
         with open(path, newline="", encoding="utf-8-sig") as f:  # as a spreadsheet saves it
-            rows = list(csv.DictReader(f))
+            text = f.read()
+        header = text.partition("\n")[0]
+        delimiter = max(",;\t", key=header.count)
+        rows = list(csv.DictReader(io.StringIO(text, newline=""), delimiter=delimiter))
     except (OSError, UnicodeDecodeError, csv.Error):
         return []
     return [r for r in rows if isinstance(r.get("id"), str) and r["id"]]

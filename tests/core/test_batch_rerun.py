@@ -343,3 +343,39 @@ def test_an_export_edited_since_is_left_and_said_so(packed, tmp_path):
     assert again.removed == ["left x-s2.stl: made from an earlier packing or settings, but "
                              "changed since"]
     assert (tmp_path / "x-s2.exports.json").is_file()  # still its record
+
+
+def test_a_scene_taken_out_of_its_batch_file_leaves_the_summary(packed, tmp_path):
+    # the rows of a batch file's earlier run stayed after the file dropped the scene, and
+    # looked like scenes of the current batch
+    shutil.copy(packed, scene_file(tmp_path, SPEC))
+    other = dataclasses.replace(SPEC, id="big", container="box:5x5x5", types=(P1,))
+    run_batch([SPEC], tmp_path, batch="a.toml")
+    run_batch([other, dataclasses.replace(SPEC, id="gone")], tmp_path, batch="b.toml")
+    run_batch([other], tmp_path, batch="b.toml")  # "gone" taken out of b.toml
+    with open(tmp_path / "summary.csv", newline="") as f:
+        rows = list(csv.DictReader(f))
+    assert [(r["id"], r["batch"]) for r in rows] == [("x-s2", "a.toml"), ("big", "b.toml")]
+
+
+@pytest.mark.parametrize("delimiter", [";", "\t"])
+def test_a_summary_a_spreadsheet_saved_with_semicolons_keeps_its_rows(packed, tmp_path,
+                                                                       delimiter):
+    # Excel saves a CSV with semicolons where the decimal mark is a comma; the other
+    # batch's rows were read as one unknown column and lost
+    shutil.copy(packed, scene_file(tmp_path, SPEC))
+    run_batch([SPEC], tmp_path, batch="a.toml")
+    path = tmp_path / "summary.csv"
+    with open(path, newline="") as f:
+        rows = list(csv.DictReader(f))
+    rows[0]["density"] = rows[0]["density"].replace(".", ",")
+    with open(path, "w", newline="", encoding="utf-8-sig") as f:
+        w = csv.DictWriter(f, fieldnames=list(rows[0]), delimiter=delimiter)
+        w.writeheader()
+        w.writerows(rows)
+    other = dataclasses.replace(SPEC, id="big", container="box:5x5x5", types=(P1,))
+    run_batch([other], tmp_path, batch="b.toml")
+    with open(path, newline="") as f:
+        again = list(csv.DictReader(f))
+    assert [(r["id"], r["batch"]) for r in again] == [("x-s2", "a.toml"), ("big", "b.toml")]
+    assert again[0]["density"] == rows[0]["density"]
