@@ -68,15 +68,16 @@ def rod_and_balls(folder: Path, rod_length: float = 36.0,
     return [str(rod), str(ball)]
 
 
-def lemon_and_balls(folder: Path) -> list[str]:
-    """The low-poly YCB lemon x750 and balls of radius 5 as mesh files in `folder`: the
-    lemon fits box:40 with its margins, but only at the centre in one orientation."""
+def lemon_and_balls(folder: Path, ball_radius: float = 5.0) -> list[str]:
+    """The low-poly YCB lemon x750 and balls (of radius 5: about 60 fit) as mesh files in
+    `folder`: the lemon fits box:40 with its margins, but only at the centre in one
+    orientation."""
     import trimesh
 
     lemon, ball = folder / "lemon.stl", folder / "ball.stl"
     fruit = trimesh.load(mesh_path("fruit/ycb_lowpoly/014_lemon.obj"), force="mesh")
     fruit.apply_scale(750.0).export(lemon)
-    trimesh.creation.icosphere(subdivisions=2, radius=5.0).export(ball)
+    trimesh.creation.icosphere(subdivisions=2, radius=ball_radius).export(ball)
     return [str(lemon), str(ball)]
 
 
