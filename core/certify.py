@@ -121,11 +121,12 @@ class Certifier:
         0: one per core (`check_pool.usable_processes`); 1: none."""
         self.container = container
         # intersections with `outside` are volume outside, and min_gap to it is the wall gap
-        self.outside, self.types = check_solids(
-            (container.vertices, container.faces),
-            list(zip(type_vertices, type_faces, strict=True)))
+        self.solids = check_solids((container.vertices, container.faces),
+                                   list(zip(type_vertices, type_faces, strict=True)))
+        scale = self.solids.scale
         # an object wholly beyond this box misses `outside` too: it is outside entirely
-        self.outside_box = np.asarray(self.outside.bounding_box(), np.float64).reshape(2, 3)
+        self.outside_box = np.asarray(self.solids.outside.bounding_box(),
+                                      np.float64).reshape(2, 3) / scale
         self.vertices = type_vertices
         self.faces = type_faces
         self.processes = usable_processes(processes)
@@ -137,8 +138,9 @@ class Certifier:
         g = container.grid
         self._wall_values = np.minimum(g.values, GRID_BAND * g.spacing)
         # hulls of the solids' own (float32) vertices: the points the exact checks read
-        self.hulls = hull_table([hull_points(np.asarray(s.to_mesh().vert_properties)[:, :3])
-                                 for s in self.types])
+        self.hulls = hull_table([
+            hull_points(np.asarray(s.to_mesh().vert_properties, np.float64)[:, :3] / scale)
+            for s in self.solids.types])
         self.coordinate_size = float(np.abs(container.vertices).max()
                                      + np.linalg.norm(self.hulls[0], axis=1).max(initial=0.0))
 
@@ -264,7 +266,7 @@ class Certifier:
         lo, hi, depth = memo.lo[ids], memo.hi[ids], memo.depth[ids]
         # the solids are float32: bounds from the float64 vertices may be off by its rounding
         slack = 1e-6 * self.coordinate_size
-        solid = PlacedSolids(self.types, typ, matrices)
+        solid = PlacedSolids(self.solids, typ, matrices)
         everyone = np.ones(len(typ), bool)
 
         def known(gap: float | None, search: float) -> float | None:
@@ -285,7 +287,7 @@ class Certifier:
             i, j = pair
             a, b = int(ids[i]), int(ids[j])
             got = known(memo.pairs.get((min(a, b), max(a, b)), (None, None))[0], search)
-            return got if got is not None else float(solid(i).min_gap(solid(j), search))
+            return got if got is not None else solid.gap(i, j, search)
 
         wall_lower = (depth - self.max_edge[typ] - WALL_READ_ERROR * self.container.grid.spacing
                       - slack)
@@ -296,7 +298,7 @@ class Certifier:
 
         def wall_gap(i: int, search: float) -> float:
             got = known(memo.walls.get(int(ids[i]), (None, None, False))[0], search)
-            return got if got is not None else float(solid(i).min_gap(self.outside, search))
+            return got if got is not None else solid.gap(i, -1, search)
 
         return (least_gap(pairs_within, pair_gap, base, limit),
                 least_gap(walls_within, wall_gap, base, limit))
@@ -326,7 +328,7 @@ class Certifier:
         worker processes (`check_pool`), or here again should they fail."""
         ticker = _Ticker(progress, len(checks))
         out = np.empty((len(checks), 2))
-        solid = PlacedSolids(self.types, typ, matrices)
+        solid = PlacedSolids(self.solids, typ, matrices)
         start = time.perf_counter()
         done = 0
         while done < len(checks):
@@ -341,8 +343,8 @@ class Certifier:
                     self._pool_failed(exc)
                     ticker.count = done
             part = checks[done:done + PROBE_CHECKS]
-            out[done:done + len(part)] = run_checks(solid, self.outside, vol, part,
-                                                    clearance, ticker.step)
+            out[done:done + len(part)] = run_checks(solid, vol, part, clearance,
+                                                    ticker.step)
             done += len(part)
         ticker.finish()
         return out

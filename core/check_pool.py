@@ -95,7 +95,7 @@ def _start(container: tuple[np.ndarray, np.ndarray], types: list[tuple], counter
     if hasattr(os, "sched_setaffinity"):
         cores = sorted(os.sched_getaffinity(0))
         os.sched_setaffinity(0, {cores[k % len(cores)]})
-    _WORKER["outside"], _WORKER["types"] = check_solids(container, types)
+    _WORKER["solids"] = check_solids(container, types)
 
 
 def _ready(processes: int) -> bool:
@@ -127,8 +127,8 @@ def _main_script_hidden() -> Iterator[None]:
 
 def _chunk(typ: np.ndarray, matrices: np.ndarray, volume: np.ndarray, checks: np.ndarray,
            clearance: float) -> np.ndarray:
-    solid = PlacedSolids(_WORKER["types"], typ, matrices)
-    return run_checks(solid, _WORKER["outside"], volume, checks, clearance)
+    return run_checks(PlacedSolids(_WORKER["solids"], typ, matrices), volume, checks,
+                      clearance)
 
 
 class CheckPool:

@@ -14,7 +14,9 @@ processes start quickly.
 
 from __future__ import annotations
 
+import math
 from collections.abc import Callable, Sequence
+from dataclasses import dataclass
 
 import numpy as np
 
@@ -27,14 +29,42 @@ KEPT_FACES = 500_000
 GAP_SEARCH = 1.25
 
 
+#: the exact checks scale a scene whose smallest mesh spans less than this many units up by
+#: a power of two until it spans this much: manifold3d's triangle distance (PhysX's) takes a
+#: triangle whose edges' cross product is shorter than about 3e-8 units for degenerate and
+#: reads a gap of 0 beside it (docs/notes-core.md); a power of two scales floats exactly
+CHECK_SPAN = 1.0
+
+
+def check_scale(meshes: Sequence[np.ndarray]) -> float:
+    """The power of two the exact checks scale lengths by, for meshes given by their (V, 3)
+    vertices (the container's and each type's): 1 where the smallest spans CHECK_SPAN units
+    or more along its longest axis."""
+    span = min(float(np.ptp(v, axis=0).max()) for v in meshes)
+    if not 0.0 < span < CHECK_SPAN:
+        return 1.0
+    return 2.0 ** math.ceil(math.log2(CHECK_SPAN / span))
+
+
+@dataclass
+class CheckSolids:
+    """The solids every check reads, in the container frame scaled by ``scale``: the
+    container's outside and each type's solid (local frame)."""
+
+    outside: object
+    types: list
+    scale: float
+
+
 def check_solids(container: tuple[np.ndarray, np.ndarray],
-                 types: list[tuple[np.ndarray, np.ndarray]]) -> tuple[object, list]:
+                 types: list[tuple[np.ndarray, np.ndarray]]) -> CheckSolids:
     """The solids every check reads: the container's outside (from its (V, 3) vertices and
     (F, 3) faces) and each type's solid (local frame), in float32 as certification uses
-    them. The certifier and its workers both build them here, so they check the same
-    solids."""
-    return (outside_of(*container, double=False),
-            [to_solid(v, f, double=False) for v, f in types])
+    them, scaled by `check_scale`. The certifier and its workers both build them here, so
+    they check the same solids."""
+    scale = check_scale([container[0], *(v for v, _ in types)])
+    return CheckSolids(outside_of(container[0] * scale, container[1], double=False),
+                       [to_solid(v * scale, f, double=False) for v, f in types], scale)
 
 
 def shortfall(gap: float | None, clearance: float) -> float | None:
@@ -80,14 +110,18 @@ def least_gap(candidates: Callable[[float], tuple[np.ndarray, Sequence]],
 
 
 class PlacedSolids:
-    """Object i's solid in the container frame, made when a check needs it and kept while
-    the kept ones hold at most KEPT_FACES triangles (the latest one always), least recently
-    used out first: making (transforming) a solid costs several times a gap query with it,
-    and holding every object's would grow memory by a mesh per object."""
+    """Object i's solid in the container frame (scaled as the solids are), made when a check
+    needs it and kept while the kept ones hold at most KEPT_FACES triangles (the latest one
+    always), least recently used out first: making (transforming) a solid costs several
+    times a gap query with it, and holding every object's would grow memory by a mesh per
+    object."""
 
-    def __init__(self, types: list, typ: np.ndarray, matrices: np.ndarray):
-        self.types, self.typ, self.matrices = types, typ, matrices
-        self.faces = [s.num_tri() for s in types]
+    def __init__(self, solids: CheckSolids, typ: np.ndarray, matrices: np.ndarray):
+        self.types, self.typ, self.scale = solids.types, typ, solids.scale
+        self.outside = solids.outside
+        self.matrices = np.array(matrices[:, :3, :4], np.float64)
+        self.matrices[:, :, 3] *= self.scale
+        self.faces = [s.num_tri() for s in solids.types]
         self.kept: dict[int, object] = {}  # insertion order is use order
         self.kept_faces = 0
 
@@ -95,7 +129,7 @@ class PlacedSolids:
         i = int(i)
         got = self.kept.pop(i, None)
         if got is None:
-            got = self.types[self.typ[i]].transform(self.matrices[i, :3, :4].tolist())
+            got = self.types[self.typ[i]].transform(self.matrices[i].tolist())
             self.kept_faces += self.faces[self.typ[i]]
             while self.kept and self.kept_faces > KEPT_FACES:
                 old = next(iter(self.kept))
@@ -104,26 +138,34 @@ class PlacedSolids:
         self.kept[i] = got
         return got
 
+    def gap(self, i: int, j: int, search: float) -> float:
+        """manifold3d's least gap between objects i and j (j < 0: i and the wall), where
+        below `search`, else `search`; container units."""
+        other = self.outside if j < 0 else self(j)
+        return float(self(i).min_gap(other, search * self.scale)) / self.scale
 
-def run_checks(solid: Callable[[int], object], outside, volume: np.ndarray,
-               checks: np.ndarray, clearance: float,
-               tick: Callable[[], None] | None = None) -> np.ndarray:
-    """Run checks (K, 2) (module doc) on solid(i) (object i placed) and `outside`; volume
-    (N,) each object's volume. Returns (K, 2): gap and ratio of each, NaN where not
-    measured. tick() is called after each check."""
+    def overlap(self, i: int, j: int) -> float:
+        """The volume objects i and j share (j < 0: of i outside the container)."""
+        other = self.outside if j < 0 else self(j)
+        return float((self(i) ^ other).volume()) / self.scale ** 3
+
+
+def run_checks(solid: PlacedSolids, volume: np.ndarray, checks: np.ndarray,
+               clearance: float, tick: Callable[[], None] | None = None) -> np.ndarray:
+    """Run checks (K, 2) (module doc) on the placed solids; volume (N,) each object's
+    volume. Returns (K, 2): gap and ratio of each, NaN where not measured. tick() is called
+    after each check."""
     out = np.full((len(checks), 2), np.nan)
     for k, (a, b) in enumerate(checks):
-        sa = solid(a)
-        other = outside if b < 0 else solid(b)
         least = volume[a] if b < 0 else min(volume[a], volume[b])
         if clearance > 0:
-            gap = sa.min_gap(other, GAP_SEARCH * clearance)
+            gap = solid.gap(a, b, GAP_SEARCH * clearance)
             out[k, 0] = gap
             if shortfall(gap, clearance) is None:  # a gap of at least c > 0: apart
                 if tick is not None:
                     tick()
                 continue
-        out[k, 1] = (sa ^ other).volume() / least
+        out[k, 1] = solid.overlap(a, b) / least
         if tick is not None:
             tick()
     return out
