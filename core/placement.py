@@ -104,10 +104,10 @@ def place_once(solver: Solver, q: np.ndarray, s1: float, f_min: float,
     (`stacking.stack_start`); the others, and every attempt elsewhere, from phase 1's
     grown lattice. The types of `given_up` (`Attempt.given_up`) are not packed; where no
     pass placed a type of a share over the mix tolerance that phase 1 tried and never grew
-    (`TypeFailures.never_grew`), and the mix held the others back from holes they fit
-    (`phase2`'s "mix_held"), the attempt starts again without it on `fresh()`, a new
-    solver, and keeps the denser run (its timings then hold both runs, its phase
-    statistics the kept one's).
+    (`TypeFailures.never_grew`; any type, where phase 1 tried nothing), and the mix held
+    the others back from holes they fit (`phase2`'s "mix_held"), the attempt starts again
+    without it on `fresh()`, a new solver, and keeps the denser run (its timings then hold
+    both runs, its phase statistics the kept one's).
     """
     vol = solver.t.volume
     ph, cav = options.phases, options.cavity
@@ -181,14 +181,16 @@ def place_once(solver: Solver, q: np.ndarray, s1: float, f_min: float,
         timings={"phase1": t1 - t0, "phase2": t2 - t1, "extra": t3 - t2},
         given_up=list(given_up))
     tried = dict(map(tuple, st1.extra.get("never_grew", [])))
-    never = [t for t in never_placed(solver.s, q_packed) if t in tried]
+    # a phase 1 that tried nothing (a thin tray's lattice may hold no point) says nothing of
+    # any type: then each type no pass placed counts
+    never = [t for t in never_placed(solver.s, q_packed) if t in tried or not st1.inserted]
     if (fresh is None or not never or not att.mix_held
             or q_packed[never].sum() <= cav.max_tvd or stop()):
         return att
     # the mix held the others back for a type that grew in no try: again without it
     report(0.05, f"{len(never)} type(s) never grew: the attempt starts again without them")
-    given_up = (*given_up, *({"type": t, "tries": tried[t], "grown": 0, "restarted": True}
-                             for t in never))
+    given_up = (*given_up, *({"type": t, "tries": tried.get(t, 0), "grown": 0,
+                              "restarted": True} for t in never))
     q_next = shares_without(q_asked, list(given_up))
     s1 = s1 * (float(q_next @ vol) / float(q @ vol)) ** (1.0 / 3.0)  # their mean volume
     again = place_once(fresh(), q_asked, s1, f_min, rng, stop, margin, options, c_volume,

@@ -66,9 +66,11 @@ def run_warnings(names: Sequence[str], shares: np.ndarray, counts: np.ndarray, t
     for g in given_up:
         i = g["type"]
         if g.get("restarted"):
-            why = (f"none of its {g['tries']} tries in the first phase grew, nor one in the "
-                   "cavity passes, while the mix held the other types back from holes they "
-                   "fit, so the packing started again without it")
+            first = (f"none of its {g['tries']} tries in the first phase grew, nor one in "
+                     "the cavity passes" if g["tries"] else
+                     "the first phase tried none of it, and no cavity pass placed one")
+            why = (f"{first}, while the mix held the other types back from holes they fit, "
+                   "so the packing started again without it")
         else:
             why = (f"in the first phase {g['grown']} of its {g['tries']} tries grew, "
                    f"against {g['against_grown']} of {g['against_tries']} of "

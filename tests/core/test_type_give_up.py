@@ -266,3 +266,36 @@ def test_a_stop_as_the_attempt_starts_again_keeps_the_first_run(tmp_path):
              should_cancel=lambda: bool(again))
     assert again and p.report.stopped == "cancelled"
     assert p.n == 3 and p.report.given_up == []
+
+
+def _star_prism(path) -> str:
+    """A five-pointed star 10 across and 2 thick (closed, outward)."""
+    angle = np.linspace(0, 2 * np.pi, 11)[:-1]
+    radius = np.where(np.arange(10) % 2 == 0, 5.0, 2.0)
+    rim = np.c_[radius * np.cos(angle), radius * np.sin(angle)]
+    v = np.vstack([np.c_[rim, np.zeros(10)], np.c_[rim, np.full(10, 2.0)], [[0, 0, 0],
+                                                                              [0, 0, 2]]])
+    f = []
+    for i in range(10):
+        j = (i + 1) % 10
+        f += [[20, j, i], [21, 10 + i, 10 + j], [i, j, 10 + j], [i, 10 + j, 10 + i]]
+    star = trimesh.Trimesh(v, f)
+    trimesh.repair.fix_normals(star)
+    star.export(path)
+    return str(path)
+
+
+def test_a_type_phase_1_never_tried_and_no_pass_placed_is_given_up(tmp_path):
+    """A tray 3.1 deep with a 0.5 clearance: phase 1's lattice holds no point, the star
+    (2 thick) fits no cavity with its margins, and the mix held the plates back for it: 5
+    plates (10.1%), where 10 fit. The restart waited for a type phase 1 tried and never
+    grew; where phase 1 tried nothing at all, every type no pass placed counts."""
+    plate = tmp_path / "plate.stl"
+    trimesh.creation.box((10.0, 10.0, 1.0)).export(plate)
+    p = pack("box:40x40x3.1", [str(plate), _star_prism(tmp_path / "star.stl")], [0.7, 0.3],
+             seed=1, clearance=0.5)
+    assert np.bincount(p.type_index, minlength=2).tolist() == [10, 0]
+    assert p.report.given_up == [{"type": 1, "tries": 0, "grown": 0, "restarted": True}]
+    [w] = p.report.warnings
+    assert ("was given up: the first phase tried none of it, and no cavity pass placed one, "
+            "while the mix held the other types back") in w
