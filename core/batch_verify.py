@@ -40,7 +40,7 @@ def check_done(spec: SceneSpec, path: Path) -> tuple[Packing | None, str]:
         return None, "made for other meshes or another seed"
     changed = _changed_settings(spec, p)
     if changed:
-        return None, f"made with another {changed}"
+        return None, f"made with a different '{changed}'"
     problems = verify_sources(p)
     if problems:
         return None, problems[0]

@@ -108,7 +108,7 @@ def test_a_file_made_with_other_shares_is_packed_again(packed, tmp_path, shares)
     assert check_done(spec, scene_file(tmp_path, spec))[0] is not None
     done, why = check_done(dataclasses.replace(SPEC, shares=shares),
                            scene_file(tmp_path, spec))
-    assert done is None and why == "made with another shares"
+    assert done is None and why == "made with a different 'shares'"
 
 
 def test_a_verified_file_with_unreadable_timings_is_skipped_and_summarised(copy):

@@ -183,7 +183,7 @@ def test_a_rerun_skips_verified_scenes_and_packs_the_rest_again(tmp_path):
     # a scene whose settings changed since its file was written is packed again
     changed = [scenes[0], dataclasses.replace(scenes[1], clearance=0.05)]
     assert check_done(changed[1], scene_file(tmp_path, changed[1]))[1] == \
-        "made with another clearance"
+        "made with a different 'clearance'"
     assert [r.status for r in run_batch(changed, tmp_path)] == ["skipped", "packed"]
 
 
