@@ -251,13 +251,15 @@ def outside_fractions(geom: Geometry, certifier, typ: np.ndarray,
                       matrices: np.ndarray) -> np.ndarray:
     """Exact volume fraction of each object outside the container (manifold3d booleans
     against the container itself, so it holds at any distance from it)."""
+    from jampacked.core.exact_checks import PlacedSolids
     from jampacked.core.solids import to_solid
 
-    inside = to_solid(geom.container_vertices, geom.container_faces, double=False)
+    scale = certifier.solids.scale  # the certifier's solids are scaled by it
+    inside = to_solid(geom.container_vertices * scale, geom.container_faces, double=False)
+    placed = PlacedSolids(certifier.solids, typ, matrices)
     out = np.empty(len(typ))
     for i in range(len(typ)):
-        obj = certifier.types[typ[i]].transform(matrices[i, :3, :4].tolist())
-        inter = (obj ^ inside).volume()
+        inter = (placed(i) ^ inside).volume() / scale ** 3
         out[i] = min(max(1.0 - inter / geom.type_volumes[typ[i]], 0.0), 1.0)
     return out
 
@@ -294,12 +296,13 @@ def certify_placements(geom: Geometry, certifier, typ: np.ndarray, matrices: np.
     idx = np.flatnonzero(~escaped)
     rep = certifier.certify(typ[idx], matrices[idx], 0.0, tol)
     # per bad pair: exact intersection volume / smaller volume (the report keeps the worst)
+    from jampacked.core.exact_checks import PlacedSolids
+
+    placed = PlacedSolids(certifier.solids, typ, matrices)
     pair_ratios = []
     for i, j in rep.bad_pairs:
         a, b = idx[i], idx[j]
-        oa = certifier.types[typ[a]].transform(matrices[a, :3, :4].tolist())
-        ob = certifier.types[typ[b]].transform(matrices[b, :3, :4].tolist())
-        pair_ratios.append(float((oa ^ ob).volume() / min(vols[typ[a]], vols[typ[b]])))
+        pair_ratios.append(placed.overlap(a, b) / min(vols[typ[a]], vols[typ[b]]))
     wall_ratios = [float(outside[idx[i]]) for i in rep.bad_wall]
     # removed as pack() removes them: minding the mix, not below its tolerance or the mix
     # the placement had

@@ -55,8 +55,8 @@ follow from them); any other file is packed again, saying why. Export files are 
 again when missing, changed since written, or made with other export settings (recorded
 in OUT/<scene>.exports.json); those of a packing made since are removed. Each scene's
 warnings are printed and go in the summary's message column; the summary's batch column
-names the batch file, and a rerun replaces that file's rows and keeps those of other batch
-files run into OUT. Ctrl-C stops: finished scenes stay written, and the
+holds the batch file's path, and a rerun replaces that file's rows and keeps those of other
+batch files run into OUT. Ctrl-C stops: finished scenes stay written, and the
 scene being packed here writes its best certified packing so far, which the next run
 packs again (exit status 130). Exit status:
 0 every scene packed or skipped, 1 a scene failed or the batch file is bad (the message
@@ -106,7 +106,7 @@ def cmd_batch(args: argparse.Namespace) -> int:
                 bar.update(task, completed=done, description=escape(message) + stopping)
 
         results = run_batch(scenes, args.output, client, progress, cancel, checked,
-                            batch=Path(args.file).name)
+                            batch=str(Path(args.file).resolve()))
     if not args.quiet:
         print_results(results, out)
         out.print(f"wrote {args.output}/{SUMMARY}", highlight=False)

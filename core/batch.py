@@ -340,13 +340,19 @@ def write_summary(results: list[SceneResult], path: str | os.PathLike, batch: st
 def _summary_rows(path: str | os.PathLike) -> list[dict]:
     """The rows of an earlier summary at `path`, or [] when there is none readable. A
     spreadsheet may have saved it with semicolons or tabs between the fields (as Excel does
-    where the decimal mark is a comma)."""
+    where the decimal mark is a comma), and in the Windows code page."""
     try:
-        with open(path, newline="", encoding="utf-8-sig") as f:  # as a spreadsheet saves it
-            text = f.read()
+        raw = Path(path).read_bytes()
+    except OSError:
+        return []
+    try:
+        text = raw.decode("utf-8-sig")  # as a spreadsheet saves it
+    except UnicodeDecodeError:  # Excel's "CSV" on Windows: the system's code page
+        text = raw.decode("cp1252", errors="replace")
+    try:
         header = text.partition("\n")[0]
         delimiter = max(",;\t", key=header.count)
         rows = list(csv.DictReader(io.StringIO(text, newline=""), delimiter=delimiter))
-    except (OSError, UnicodeDecodeError, csv.Error):
+    except csv.Error:
         return []
     return [r for r in rows if isinstance(r.get("id"), str) and r["id"]]

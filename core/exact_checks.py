@@ -40,7 +40,11 @@ def check_scale(meshes: Sequence[np.ndarray]) -> float:
     """The power of two the exact checks scale lengths by, for meshes given by their (V, 3)
     vertices (the container's and each type's): 1 where the smallest spans CHECK_SPAN units
     or more along its longest axis."""
-    span = min(float(np.ptp(v, axis=0).max()) for v in meshes)
+    return span_scale(min(float(np.ptp(v, axis=0).max()) for v in meshes))
+
+
+def span_scale(span: float) -> float:
+    """`check_scale` for the smallest mesh's span (units)."""
     if not 0.0 < span < CHECK_SPAN:
         return 1.0
     return 2.0 ** math.ceil(math.log2(CHECK_SPAN / span))
@@ -63,7 +67,8 @@ def check_solids(container: tuple[np.ndarray, np.ndarray],
     them, scaled by `check_scale`. The certifier and its workers both build them here, so
     they check the same solids."""
     scale = check_scale([container[0], *(v for v, _ in types)])
-    return CheckSolids(outside_of(container[0] * scale, container[1], double=False),
+    return CheckSolids(outside_of(container[0] * scale, container[1], double=False,
+                                  margin=scale),
                        [to_solid(v * scale, f, double=False) for v, f in types], scale)
 
 
@@ -141,13 +146,15 @@ class PlacedSolids:
     def gap(self, i: int, j: int, search: float) -> float:
         """manifold3d's least gap between objects i and j (j < 0: i and the wall), where
         below `search`, else `search`; container units."""
+        a = self(i)
         other = self.outside if j < 0 else self(j)
-        return float(self(i).min_gap(other, search * self.scale)) / self.scale
+        return float(a.min_gap(other, search * self.scale)) / self.scale
 
     def overlap(self, i: int, j: int) -> float:
         """The volume objects i and j share (j < 0: of i outside the container)."""
+        a = self(i)
         other = self.outside if j < 0 else self(j)
-        return float((self(i) ^ other).volume()) / self.scale ** 3
+        return float((a ^ other).volume()) / self.scale ** 3
 
 
 def run_checks(solid: PlacedSolids, volume: np.ndarray, checks: np.ndarray,

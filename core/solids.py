@@ -39,14 +39,15 @@ def solid_arrays(solid: m3.Manifold) -> tuple[np.ndarray, np.ndarray]:
             np.asarray(mesh.tri_verts, np.int64))
 
 
-def outside_of(vertices: np.ndarray, faces: np.ndarray, *, double: bool = True
-               ) -> m3.Manifold:
+def outside_of(vertices: np.ndarray, faces: np.ndarray, *, double: bool = True,
+               margin: float = 1.0) -> m3.Manifold:
     """The region just outside a closed container mesh ((V, 3) positions, (F, 3) faces): a
-    box around it, padded by a tenth of its largest extent plus one unit, minus the
-    container. Intersecting a solid with it gives the volume outside the container; its
-    `min_gap` to a solid is the wall gap. double as in `to_solid`."""
+    box around it, padded by a tenth of its largest extent plus `margin` (one unit, in
+    the frame the vertices were scaled from), minus the container. Intersecting a solid
+    with it gives the volume outside the container; its `min_gap` to a solid is the wall
+    gap. double as in `to_solid`."""
     lo, hi = vertices.min(axis=0), vertices.max(axis=0)
-    pad = 0.1 * float((hi - lo).max()) + 1.0
+    pad = 0.1 * float((hi - lo).max()) + margin
     box = m3.Manifold.cube((hi - lo + 2 * pad).tolist(), True).translate(
         ((lo + hi) / 2).tolist())
     return box - to_solid(vertices, faces, double=double)

@@ -19,6 +19,7 @@ import numpy as np
 from scipy.spatial import cKDTree
 
 from jampacked.core.errors import InputError, MeshError
+from jampacked.core.exact_checks import span_scale
 from jampacked.core.solids import solid_arrays, to_solid
 
 __all__ = ["box_gaps", "near_pairs", "require_gap", "separate_parts", "smallest_gap"]
@@ -154,8 +155,19 @@ def separate_parts(solids: list[m3.Manifold], clearance: float, *,
                                     axis=1).max())
     lower = box_gaps(lo, hi, pairs)
 
+    # scaled up where parts are tiny, as certification does (`exact_checks.check_scale`)
+    scale = span_scale(float((hi - lo).max(axis=1).min()))
+    scaled: dict[int, m3.Manifold] = {}
+
+    def at_scale(i: int) -> m3.Manifold:
+        if scale == 1.0:
+            return solids[i]
+        if i not in scaled:
+            scaled[i] = solids[i].scale([scale] * 3)
+        return scaled[i]
+
     def gap(i: int, j: int, search: float) -> float:
-        return float(solids[i].min_gap(solids[j], search))
+        return float(at_scale(i).min_gap(at_scale(j), search * scale)) / scale
 
     worst, where = smallest_gap(gap, pairs, lower, farthest, clearance)
     _require(worst, where, clearance, GAP_TOLERANCE, "")
@@ -164,11 +176,11 @@ def separate_parts(solids: list[m3.Manifold], clearance: float, *,
 
         def solid32(i: int) -> m3.Manifold:
             if i not in rounded:
-                rounded[i] = to_solid(*bodies[i], double=False)
+                rounded[i] = to_solid(bodies[i][0] * scale, bodies[i][1], double=False)
             return rounded[i]
 
         def gap32(i: int, j: int, search: float) -> float:
-            return float(solid32(i).min_gap(solid32(j), search))
+            return float(solid32(i).min_gap(solid32(j), search * scale)) / scale
 
         worst, where = smallest_gap(gap32, pairs, lower - shift, farthest, clearance)
         files = ", ".join(float32)

@@ -140,7 +140,7 @@ def test_batch_writes_each_packing_and_a_summary_and_a_rerun_skips_them(folder):
         rows = list(csv.DictReader(f))
     assert [r["status"] for r in rows] == ["packed"] * 4
     assert all(r["certified"] == "True" and int(r["count"]) > 0 for r in rows)
-    assert {r["batch"] for r in rows} == {path.name}
+    assert {r["batch"] for r in rows} == {str(path.resolve())}
     assert sorted(p.name for p in out.glob("*.json")) == sorted(f"{r['id']}.json" for r in rows)
 
     before = (out / "small-c1-s1.json").read_bytes()

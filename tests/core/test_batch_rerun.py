@@ -358,9 +358,10 @@ def test_a_scene_taken_out_of_its_batch_file_leaves_the_summary(packed, tmp_path
     assert [(r["id"], r["batch"]) for r in rows] == [("x-s2", "a.toml"), ("big", "b.toml")]
 
 
-@pytest.mark.parametrize("delimiter", [";", "\t"])
+@pytest.mark.parametrize("delimiter, encoding", [(";", "utf-8-sig"), ("\t", "utf-8-sig"),
+                                                 (";", "cp1252")])
 def test_a_summary_a_spreadsheet_saved_with_semicolons_keeps_its_rows(packed, tmp_path,
-                                                                       delimiter):
+                                                                       delimiter, encoding):
     # Excel saves a CSV with semicolons where the decimal mark is a comma; the other
     # batch's rows were read as one unknown column and lost
     shutil.copy(packed, scene_file(tmp_path, SPEC))
@@ -369,7 +370,8 @@ def test_a_summary_a_spreadsheet_saved_with_semicolons_keeps_its_rows(packed, tm
     with open(path, newline="") as f:
         rows = list(csv.DictReader(f))
     rows[0]["density"] = rows[0]["density"].replace(".", ",")
-    with open(path, "w", newline="", encoding="utf-8-sig") as f:
+    rows[0]["message"] = "vérifié"  # Excel on Windows saves its code page, not UTF-8
+    with open(path, "w", newline="", encoding=encoding) as f:
         w = csv.DictWriter(f, fieldnames=list(rows[0]), delimiter=delimiter)
         w.writeheader()
         w.writerows(rows)
@@ -378,4 +380,4 @@ def test_a_summary_a_spreadsheet_saved_with_semicolons_keeps_its_rows(packed, tm
     with open(path, newline="") as f:
         again = list(csv.DictReader(f))
     assert [(r["id"], r["batch"]) for r in again] == [("x-s2", "a.toml"), ("big", "b.toml")]
-    assert again[0]["density"] == rows[0]["density"]
+    assert again[0]["density"] == rows[0]["density"] and again[0]["message"] == "vérifié"

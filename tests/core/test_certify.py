@@ -465,3 +465,21 @@ def test_a_tiny_scene_reads_the_gaps_of_the_same_scene_at_full_size(size):
         assert rep.certified
         gaps.append(rep.min_wall_gap / k)
     assert gaps[1] == pytest.approx(gaps[0], rel=1e-5) and 0.5 < gaps[0] < 0.6
+
+
+def test_a_tiny_scene_measures_an_object_outside_as_at_full_size():
+    """The outside solid's padding (a tenth of the container and one unit) was one unit of
+    the scaled frame: 1/256 of a unit around a 0.01 cube, so a ball wholly outside that
+    straddled the padded box's face counted only its part inside the box (about half)."""
+    ratios = []
+    for k in (1.0, 0.01):
+        cube = trimesh.creation.box(extents=(k, k, k))
+        cont = build_container(cube.vertices, cube.faces, float(cube.volume), 0.05 * k)
+        ball = trimesh.creation.icosphere(subdivisions=3, radius=0.2 * k)
+        cert = Certifier(cont, [np.asarray(ball.vertices)], [np.asarray(ball.faces)],
+                         np.array([ball.volume]), np.array([ball.edges_unique_length.max()]))
+        m = np.eye(4)[None].copy()
+        m[0, 0, 3] = (0.6 + 1.0 / 256 / 0.01) * k  # wholly outside; at 0.01 (scale 256, for
+        # the ball) on the face of the padding's box
+        ratios.append(cert.certify(np.zeros(1, np.int64), m).worst_outside)
+    assert ratios == [pytest.approx(1.0, abs=1e-6)] * 2

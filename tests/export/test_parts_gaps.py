@@ -177,3 +177,33 @@ def test_near_the_origin_a_gap_just_above_the_clearance_is_kept_as_stored():
         b = m3.Manifold.cube((5.0, 5.0, 5.0)).translate((128.0 + gap, 0.0, 0.0))
         assert separate_parts([a, b], 0.2, float32=["out.stl"])[1] == pytest.approx(
             gap, abs=1e-5)
+
+
+@pytest.mark.parametrize("size", [1e-4, 1e-5])
+def test_tiny_parts_report_the_gap_of_the_same_parts_at_full_size(size):
+    """manifold3d's triangle distance takes a triangle whose edges' cross product is below
+    about 3e-8 units for degenerate: two balls 6e-4 across read a gap 0.6% too large (the
+    unsafe way). The check now scales tiny parts up, as certification does."""
+    from scipy.spatial.transform import Rotation
+
+    from jampacked.core.solids import to_solid
+    from jampacked.export.parts import separate_parts
+
+    ball = _ball()
+    rng = np.random.default_rng(0)
+    for t in range(3):
+        turn = Rotation.random(2, random_state=t).as_matrix()
+        d = rng.normal(size=3)
+        offset = 6.6 * d / np.linalg.norm(d)
+        gaps = []
+        for k in (1.0, size):
+            solids = [to_solid((ball.vertices @ turn[0].T) * k, ball.faces),
+                      to_solid((ball.vertices @ turn[1].T + offset) * k, ball.faces)]
+            gaps.append(separate_parts(solids, 0.5 * k)[1] / k)
+        assert gaps[1] == pytest.approx(gaps[0], rel=1e-6) and 0.6 < gaps[0] < 0.62
+
+
+def _ball():
+    import trimesh
+
+    return trimesh.creation.icosphere(subdivisions=3, radius=3.0)
