@@ -251,7 +251,9 @@ def plan_connectors(objects: Sequence[PlacedObject], diameter: float, *,
     ea_arr, eb_arr = np.asarray(ea), np.asarray(eb)
     gap_arr = np.maximum(np.asarray(gaps), 0.0)
     nodes = n + len(shells)
-    scale = float(np.ptp(centres, axis=0).max()) + 1.0
+    # the scene's size, relative at any units: one unit added made a tiny scene's fused
+    # threshold (1e-9 x scale^3) most of an object's volume
+    scale = float(np.ptp(centres, axis=0).max()) + max(radii, default=0.0)
     # objects that overlap are fused by the union whether or not the tree holds their edge:
     # weighed by their vertices' distance they were left out, and a strut elsewhere closed
     # a loop around them. Their edges weigh 0 (so the tree takes them, "fused")

@@ -1319,3 +1319,31 @@ def test_a_fill_that_hides_the_objects_says_how_to_see_them():
     assert "11% of the print's volume" in w and "--window" in w and "--keep-voids" in w
     assert _large_fill_warning(16.0, 1e5, shell=True) == []  # pockets between objects
     assert _large_fill_warning(LARGE_FILL * 1e5, 1e5, shell=True) == []
+
+
+@pytest.mark.parametrize("size", [1e-3, 1e-4])
+def test_a_tiny_scene_fuses_the_objects_the_same_scene_fuses_at_full_size(size):
+    """The fused test's threshold (1e-9 x the scene's size cubed) took the size as the
+    centres' spread plus one unit: 1e-9 of a unit cubed, most of an object's volume in a
+    scene a thousandth of a unit across, so overlapping objects got struts instead."""
+    import trimesh
+
+    from jampacked.core.solids import to_solid
+    from jampacked.export.closest import Surface
+    from jampacked.export.connect import PlacedObject, plan_connectors
+
+    cube = trimesh.creation.box(extents=(2.0, 2.0, 2.0))
+    plans = []
+    for k in (1.0, size):
+        objects = []
+        for x in (0.0, 1.99, 4.5):  # the first two overlap by 0.01 x 2 x 2, the third apart
+            m = np.eye(4)
+            m[:3, :3] *= k
+            m[0, 3] = x * k
+            v = np.asarray(cube.vertices) * k + [x * k, 0.0, 0.0]
+            objects.append(PlacedObject(to_solid(v, np.asarray(cube.faces)), v, m,
+                                        Surface(np.asarray(cube.vertices),
+                                                np.asarray(cube.faces))))
+        plan = plan_connectors(objects, 0.5 * k)
+        plans.append((plan.fused, len(plan.struts)))
+    assert plans[0] == (1, 1) and plans[1] == plans[0]
