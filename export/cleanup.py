@@ -196,11 +196,14 @@ def _needle_edge(p: np.ndarray, tri: list[int], rel: float = NEEDLE_REL,
 
 
 def remove_degenerate_faces(v: np.ndarray, f: np.ndarray, max_steps: int = 1000,
-                            float32: bool = True) -> tuple[np.ndarray, np.ndarray, int]:
+                            float32: bool = True, max_collapse: float = 0.0
+                            ) -> tuple[np.ndarray, np.ndarray, int]:
     """Repair zero-area faces of a closed, consistently wound mesh (zero area as given, and
     with ``float32`` also once rounded to float32: see :func:`degenerate_faces`), the
     lowest-numbered face first, each face at most once as it stands, up to ``max_steps``
-    faces; after each repair only the faces around it are judged again.
+    faces; after each repair only the faces around it are judged again. Where faces are
+    left (a strip of caps whose flips only make more caps), each has its shortest edge
+    collapsed if that edge is at most ``max_collapse`` long.
 
     Returns (vertices, faces, faces still degenerate). Vertices are unchanged (a collapsed
     vertex is simply no longer used); faces keep their winding and order.
@@ -232,6 +235,22 @@ def remove_degenerate_faces(v: np.ndarray, f: np.ndarray, max_steps: int = 1000,
             zero_now[changed] = zero(faces.f[changed])
             for j in changed[zero_now[changed]]:
                 heapq.heappush(heap, int(j))
+    if max_collapse > 0.0:
+        left = np.flatnonzero(faces.alive & zero(faces.f)).tolist()
+        while left and steps < max_steps:
+            changed = None
+            for i in left:
+                tri = [int(x) for x in faces.f[i]]
+                edges, lengths = _edges(p32, tri)
+                k = int(np.argmin(lengths))
+                if lengths[k] <= max_collapse:
+                    changed = faces.collapse(*edges[k])
+                    if changed is not None:
+                        steps += 1
+                        break
+            if changed is None:
+                break
+            left = np.flatnonzero(faces.alive & zero(faces.f)).tolist()
     out = faces.faces()
     return v, out, len(degenerate_faces(v, out, float32))
 

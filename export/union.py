@@ -122,7 +122,10 @@ def clean_arrays(result: m3.Manifold, float32: bool = False,
     check = check_cancel or (lambda: None)
 
     def cleaned(m: m3.Manifold) -> tuple[np.ndarray, np.ndarray, int]:
-        v, f, left = remove_degenerate_faces(*solid_arrays(m), float32=float32)
+        v, f = solid_arrays(m)
+        size = float(np.linalg.norm(np.ptp(v, axis=0))) if len(v) else 0.0
+        v, f, left = remove_degenerate_faces(v, f, float32=float32,
+                                             max_collapse=CROSSING_SLIVER_LEN_REL * size)
         check()
         if left > 0 or len(f) == 0:
             return v, f, left

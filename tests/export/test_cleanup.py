@@ -143,3 +143,23 @@ def test_collapsing_needles_matches_its_reference():
     got = collapse_needles(v, f, faces, rel=1.0)
     np.testing.assert_array_equal(got[0], want[0])
     assert got[1] == want[1] > 10
+
+
+def test_a_cap_no_flip_repairs_has_its_short_edge_collapsed_within_the_limit(monkeypatch):
+    """A union's window cut at --resolution 0.05 left a strip of caps (edges 0.7, 3.9 and
+    4.6 micrometres) whose flips only made more caps: "1 degenerate face", and the export
+    was refused as a defect. Where faces are left, a cap's shortest edge is collapsed if it
+    is at most max_collapse long (here every flip is refused, as along that strip)."""
+    from jampacked.export import cleanup
+
+    v = np.array([[0.0, 0.0, 0.0], [0.15e-3, 0.0, 0.0], [1e-3, 0.0, 0.0],
+                  [0.5e-3, -1e-3, 0.0], [0.5e-3, 1e-3, 0.0]])
+    a, p, b, x, y = range(5)
+    f = np.array([[a, p, b], [p, a, x], [b, p, x], [a, b, y]])
+    monkeypatch.setattr(cleanup._Faces, "flip", lambda *args: None)
+    _, same, left = cleanup.remove_degenerate_faces(v, f, float32=False)
+    assert left == 1 and np.array_equal(same, f)
+    _, kept, left = cleanup.remove_degenerate_faces(v, f, float32=False, max_collapse=0.1e-3)
+    assert left == 1 and np.array_equal(kept, f)  # 0.15e-3 is over the limit
+    _, out, left = cleanup.remove_degenerate_faces(v, f, float32=False, max_collapse=0.2e-3)
+    assert left == 0 and out.tolist() == [[b, a, x], [a, b, y]]
