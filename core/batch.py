@@ -143,7 +143,7 @@ def run_batch(scenes: list[SceneSpec], out_dir: str | os.PathLike, client=None,
     distributed.Client (its workers run the scenes) or None (here, one after another).
     progress(done, total, message) after each scene; should_cancel() is polled. checked:
     `check_done` of scenes by id, where the caller has already run it. batch: the batch
-    file's name, which the summary's rows record (a rerun of that file replaces all of its
+    file's path, which the summary's rows record (a rerun of that file replaces all of its
     rows, so that a scene taken out of it leaves the summary)."""
     out = Path(out_dir)
     check_output(scenes, out)
@@ -319,7 +319,7 @@ def write_summary(results: list[SceneResult], path: str | os.PathLike, batch: st
                   ) -> None:
     """The batch's summary table as CSV (one row per scene), written atomically. Rows the
     file holds of other batch files run into the same folder are kept first, as they were;
-    the rows of this batch file (``batch``, its name) are replaced by this run's."""
+    the rows of this batch file (``batch``, its path) are replaced by this run's."""
     ids = {r.spec.id for r in results}
     buf = io.StringIO()
     w = csv.DictWriter(buf, fieldnames=COLUMNS, lineterminator="\n")

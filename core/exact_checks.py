@@ -32,7 +32,8 @@ GAP_SEARCH = 1.25
 #: the exact checks scale a scene whose smallest mesh spans less than this many units up by
 #: a power of two until it spans this much: manifold3d's triangle distance (PhysX's) takes a
 #: triangle whose edges' cross product is shorter than about 3e-8 units for degenerate and
-#: reads a gap of 0 beside it (docs/notes-core.md); a power of two scales floats exactly
+#: misreads the gap beside it, as 0 or too large (docs/notes-core.md); a power of two
+#: scales floats exactly
 CHECK_SPAN = 1.0
 
 
