@@ -251,7 +251,9 @@ class Certifier:
         return rep
 
     def least_gaps(self, typ: np.ndarray, matrices: np.ndarray, clearance: float,
-                   memo: CheckMemo, ids: np.ndarray) -> tuple[float | None, float | None]:
+                   memo: CheckMemo, ids: np.ndarray,
+                   known: tuple[float | None, float | None] = (None, None)
+                   ) -> tuple[float | None, float | None]:
         """The exact least gap between two objects and between an object and the wall
         (container units) of objects (typ (N,), matrices (N,4,4)) just certified with
         clearance > 0, `memo` and `ids`. The checks read gaps only up to GAP_SEARCH x the
@@ -259,8 +261,11 @@ class Certifier:
         larger than each gap: a pair's boxes apart, an object's least vertex depth less
         its longest edge and the grid's error (as `certify` proves objects deep inside).
         None: no pair, or no object and the wall, within twice the largest object's
-        bounding radius (or 16 clearances, if more)."""
+        bounding radius (or 16 clearances, if more). known: the certification's least pair
+        and wall gaps (its report's), which bound the least where below GAP_SEARCH x the
+        clearance (measured there exactly)."""
         base = GAP_SEARCH * clearance
+        bounds = [g if g is not None and g < base else None for g in known]
         reach = np.linalg.norm(self.hulls[0], axis=1).max(initial=0.0)
         limit = max(16.0 * clearance, 2.0 * float(reach))
         lo, hi, depth = memo.lo[ids], memo.hi[ids], memo.depth[ids]
@@ -300,8 +305,8 @@ class Certifier:
             got = known(memo.walls.get(int(ids[i]), (None, None, False))[0], search)
             return got if got is not None else solid.gap(i, -1, search)
 
-        return (least_gap(pairs_within, pair_gap, base, limit),
-                least_gap(walls_within, wall_gap, base, limit))
+        return (least_gap(pairs_within, pair_gap, base, limit, bounds[0]),
+                least_gap(walls_within, wall_gap, base, limit, bounds[1]))
 
     @staticmethod
     def _touching_pairs(lo: np.ndarray, hi: np.ndarray, check: np.ndarray,

@@ -83,7 +83,7 @@ def shortfall(gap: float | None, clearance: float) -> float | None:
 
 def least_gap(candidates: Callable[[float], tuple[np.ndarray, Sequence]],
               measure: Callable[[object, float], float], start: float,
-              limit: float) -> float | None:
+              limit: float, bound: float | None = None) -> float | None:
     """The exact least gap over a set of checks, or None where none is below `limit`.
 
     candidates(s) gives the checks whose gap may be below s: (K,) lower bounds on their
@@ -92,7 +92,11 @@ def least_gap(candidates: Callable[[float], tuple[np.ndarray, Sequence]],
     check with the lowest bound within `start` (or within a doubled search, where none is)
     is searched until it reads a gap, doubling up to `limit`; that gap bounds the least,
     and the checks that may lie below it then run from the lowest bound up, each
-    searching only below the least gap found so far. Lengths in container units."""
+    searching only below the least gap found so far. bound: a gap already measured among
+    them, which bounds the least from the start (the check with the lowest bound may lie
+    far beyond it, and searching it out costs most). Lengths in container units."""
+    if bound is not None and bound < limit:
+        return _least_below(candidates, measure, bound, limit)
     search = start
     while True:
         lower, keys = candidates(search)
@@ -106,7 +110,14 @@ def least_gap(candidates: Callable[[float], tuple[np.ndarray, Sequence]],
     while best >= search and search < limit:
         search = min(2.0 * search, limit)
         best = measure(keys[first], search)
-    best = min(best, search)
+    return _least_below(candidates, measure, min(best, search), limit)
+
+
+def _least_below(candidates: Callable[[float], tuple[np.ndarray, Sequence]],
+                 measure: Callable[[object, float], float], best: float,
+                 limit: float) -> float | None:
+    """`least_gap` once a gap `best` bounds the least: the checks that may lie below it,
+    from the lowest bound up, each searching below the least found so far."""
     lower, keys = candidates(best)
     for k in np.argsort(lower, kind="stable").tolist():
         if lower[k] >= best:

@@ -128,7 +128,7 @@ def certify_and_repair(solver: Solver, certifier: Certifier, clearance: float,
             if clearance > 0:  # the checks read gaps only up to their search distance
                 final.min_pair_gap, final.min_wall_gap = certifier.least_gaps(
                     s.typ[idx], placement_matrices(s.quat[idx], s.pos[idx], s.scale[idx]),
-                    clearance, memo, idx)
+                    clearance, memo, idx, (final.min_pair_gap, final.min_wall_gap))
             return final.as_dict(), stats
         _removed(stats, remove_offenders(solver, idx, final, shares, target))
 

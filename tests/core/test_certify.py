@@ -315,6 +315,33 @@ def test_least_gap_is_the_brute_force_minimum(seed):
         assert got is None
 
 
+@pytest.mark.parametrize("seed", range(4))
+def test_least_gap_from_a_known_gap_searches_no_check_beyond_it(seed):
+    """The check with the lowest bound was searched first, out to its own gap: a pair 10
+    clearances apart whose boxes overlap took 9.4 s of min_gap where the certification had
+    measured a gap of 1.0 clearance already. From a known gap no search reaches past it."""
+    rng = np.random.default_rng(seed)
+    gaps = rng.uniform(1.0, 12.0, 50)
+    lower = gaps * rng.uniform(0.0, 1.0, 50)
+    lower[int(np.argmax(gaps))] = 0.0  # the farthest check has the lowest bound
+    searched = []
+
+    def candidates(s):
+        k = np.flatnonzero(lower < s)
+        return lower[k], k.tolist()
+
+    def measure(k, search):
+        searched.append(search)
+        return min(gaps[k], search)
+
+    known = float(np.sort(gaps)[3])  # a gap measured already, not the least
+    assert exact_checks.least_gap(candidates, measure, 0.5, 20.0, known) == gaps.min()
+    assert max(searched) <= known
+    searched.clear()
+    assert exact_checks.least_gap(candidates, measure, 0.5, 20.0) == gaps.min()
+    assert max(searched) >= gaps.max()  # without it, the farthest was searched out
+
+
 def test_least_gaps_are_measured_beyond_the_checks_search(certifier):
     """Balls 4 c apart and 2.6 c from the wall: the checks read 1.25 c for every gap, the
     least gaps are each the exact min_gap."""
