@@ -236,21 +236,24 @@ def remove_degenerate_faces(v: np.ndarray, f: np.ndarray, max_steps: int = 1000,
             for j in changed[zero_now[changed]]:
                 heapq.heappush(heap, int(j))
     if max_collapse > 0.0:
-        left = np.flatnonzero(faces.alive & zero(faces.f)).tolist()
+        left = set(np.flatnonzero(faces.alive & zero(faces.f)).tolist())
         while left and steps < max_steps:
             changed = None
-            for i in left:
+            for i in sorted(left):
                 tri = [int(x) for x in faces.f[i]]
                 edges, lengths = _edges(p32, tri)
                 k = int(np.argmin(lengths))
                 if lengths[k] <= max_collapse:
                     changed = faces.collapse(*edges[k])
                     if changed is not None:
-                        steps += 1
                         break
             if changed is None:
                 break
-            left = np.flatnonzero(faces.alive & zero(faces.f)).tolist()
+            steps += 1
+            # only the faces around the collapse changed: judged again, as above
+            now = zero(faces.f[changed])
+            left = {j for j in left if faces.alive[j]} - set(changed[~now].tolist())
+            left |= set(changed[now].tolist())
     out = faces.faces()
     return v, out, len(degenerate_faces(v, out, float32))
 
