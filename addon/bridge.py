@@ -240,11 +240,24 @@ class PackRequest:
     signatures: list[str] = field(default_factory=list)
 
 
+def _flush_edit_mode(context: bpy.types.Context) -> None:
+    """Write the edits of every object in Edit Mode to its data (it stays in Edit Mode), so
+    that every reader sees what the viewport shows: the evaluated mesh Pack reads follows
+    the edit, while the mesh data (the result's type meshes, what Export reads) held the
+    mesh as it was on entering Edit Mode."""
+    if context.view_layer is None or not context.mode.startswith('EDIT'):
+        return
+    for obj in context.view_layer.objects:
+        if obj.mode == 'EDIT':
+            obj.update_from_editmode()
+
+
 def gather_pack(context: bpy.types.Context) -> PackRequest:
     """Read the Jampacked settings and the input meshes (world space, modifiers applied).
 
     Raises InputError with a message that names the object and says what to do.
     """
+    _flush_edit_mode(context)
     s = context.scene.jampacked
     container = _require_mesh(s.container, "container", context.scene)
     if not len(s.types):

@@ -65,6 +65,27 @@ def test_export_refuses_a_moved_container(bpy, addon, packed, tmp_path):
     assert not (tmp_path / "x.stl").exists()
 
 
+def test_export_refuses_a_type_mesh_being_edited(bpy, addon, packed, tmp_path):
+    """An edit of a placed object's shared mesh, still in Edit Mode, is an edit: Export
+    leaves Edit Mode first, so that it reads the mesh as the viewport shows it."""
+    import bmesh
+
+    packed.settings.filepath = str(tmp_path / "x.stl")
+    placed = next(o for o in packed.settings.result.objects if o.type == 'MESH')
+    bpy.context.view_layer.objects.active = placed
+    bpy.ops.object.mode_set(mode='EDIT')
+    try:
+        bm = bmesh.from_edit_mesh(placed.data)
+        bmesh.ops.scale(bm, vec=(1.5, 1.5, 1.5), verts=bm.verts)
+        bmesh.update_edit_mesh(placed.data)
+        with pytest.raises(RuntimeError, match=f"The mesh '{placed.data.name}' of type .* "
+                                               "was edited after packing"):
+            bpy.ops.jampacked.export()
+    finally:
+        bpy.ops.object.mode_set(mode='OBJECT')
+    assert not (tmp_path / "x.stl").exists()
+
+
 def test_export_needs_a_packing(bpy, addon, scene, tmp_path):
     scene.settings.filepath = str(tmp_path / "x.stl")
     with pytest.raises(RuntimeError, match="no packing to export: run Pack first"):

@@ -629,12 +629,14 @@ def test_a_deleted_object_is_refused(bpy, addon):
 
 def test_edits_in_edit_mode_are_read(bpy, addon):
     """A type being edited is packed as the viewport shows it (the evaluated mesh follows
-    the edit), not as its mesh data was on entering edit mode."""
+    the edit), not as its mesh data was on entering edit mode; the result's objects are
+    what was packed (they were made from the mesh data as it was: a flattened type gave
+    overlapping full-size objects under a "certified" result)."""
     import bmesh
 
     box = cube_object(bpy, "Box", scale=(3.0, 3.0, 3.0))
     ico = _ico(bpy, "Ico")
-    _settings(bpy, box, [ico])
+    s = _settings(bpy, box, [ico])
     bpy.context.view_layer.objects.active = ico
     bpy.ops.object.mode_set(mode='EDIT')
     try:
@@ -642,10 +644,17 @@ def test_edits_in_edit_mode_are_read(bpy, addon):
         bmesh.ops.scale(bm, vec=(0.5, 0.5, 0.5), verts=bm.verts)
         bmesh.update_edit_mesh(ico.data)
         request = addon.bridge.gather_pack(bpy.context)
+        assert bpy.ops.jampacked.pack() == {'FINISHED'}
+        assert ico.mode == 'EDIT'  # the artist's edit goes on
     finally:
         bpy.ops.object.mode_set(mode='OBJECT')
     extent = np.ptp(request.types[0].vertices, axis=0)
     assert extent.max() == pytest.approx(1.0, rel=0.1)  # radius 1 scaled by 0.5
+    placed = [o for o in s.result.objects if o.type == 'MESH']
+    assert placed
+    local = np.array([v.co for v in placed[0].data.vertices])
+    assert np.ptp(local, axis=0).max() * placed[0].scale[0] == pytest.approx(extent.max(),
+                                                                         rel=1e-4)
 
 
 def test_messages_for_objects_without_a_surface(bpy, addon):
