@@ -73,9 +73,9 @@ def object_triangles(obj: bpy.types.Object, depsgraph: bpy.types.Depsgraph, *,
 
     The object must have geometry (:data:`GEOMETRY_TYPES`; curves, text, surfaces and
     metaballs give the mesh Blender shows). In world space a transform that mirrors (an odd
-    number of negative scale factors) reverses the triangles' winding; with ``outward`` the
-    triangles are re-wound to face outward, as Blender shows them (Pack's inputs); without
-    it they keep the mesh's winding (Validate reports such an object as inside out).
+    number of negative scale factors) reverses the triangles' winding; with ``outward`` they
+    are re-wound to face as Blender shows and exports them (Pack's and Validate's inputs);
+    without it they keep the mesh's winding.
     """
     if not apply_modifiers and obj.type == 'MESH':
         m = matrix_np(obj.matrix_world) if world else None
@@ -445,11 +445,13 @@ def _remove(ids: list[Any]) -> None:
 
 def make_real(coll: bpy.types.Collection, which: str, type_index: int = -1
               ) -> list[bpy.types.Object]:
-    """Turn instances of an instanced result into objects that share the type meshes,
-    placed exactly as an object result places them (the points object's double-precision
-    placements, not the points' single precision), and remove their points. ``which``:
-    'ALL', 'SELECTED' (points selected in Edit Mode) or 'TYPE' (the instances of type
-    ``type_index``). Returns the new objects."""
+    """Turn instances of an instanced result into objects that share the type meshes, where
+    the instances are drawn: an instance still at its placement is placed exactly as an
+    object result places it (the points object's double-precision placements, not the
+    points' single precision); one moved with the points object or its point, at its drawn
+    matrix. Their points are removed, and the points object with the last of them.
+    ``which``: 'ALL', 'SELECTED' (points selected in Edit Mode) or 'TYPE' (the instances of
+    type ``type_index``). Returns the new objects."""
     obj = instances.points_object(coll)
     if obj is None:
         raise _input_error(f"'{coll.name}' has no instances: its objects are real already.")
@@ -466,7 +468,8 @@ def make_real(coll: bpy.types.Collection, which: str, type_index: int = -1
                 }.get(which, f"'{obj.name}' has no instances left")
         raise _input_error(what + ".")
     exact = instances.placements(obj)
-    if exact is None or len(exact) <= int(points["indices"].max(initial=-1)):
+    if exact is None or len(exact) <= int(points["indices"].max(initial=-1)) \
+            or points["indices"].min(initial=0) < 0:
         raise _input_error(f"'{obj.name}' lacks its placements (property "
                            f"'{instances.PLACEMENTS_KEY}' missing or damaged): pack again.")
     meshes = []
@@ -479,13 +482,25 @@ def make_real(coll: bpy.types.Collection, which: str, type_index: int = -1
     if len(meshes) != len(names) or not np.isin(exact[:, 8], np.arange(len(names))).all():
         raise _input_error(f"'{coll.name}' does not record its types and meshes: pack "
                            "again.")
+    picked = np.flatnonzero(mask)
+    types = result_edits.point_types(obj, points, len(names), coll.name)[picked]
+    index = points["indices"][picked].astype(np.int64)
+    drawn = result_edits.instance_matrices(obj, points, picked)
+    rows = exact[index]
+    same = (rows[:, 8].astype(np.int64) == types) & result_edits.same_placement(drawn, rows)
     made = []
-    for i in points["indices"][mask]:
-        p = exact[int(i)]
-        t = int(p[8])
-        made.append(place_object(coll, f"{names[t]} {int(i) + 1}", t, int(i), p[:4], p[4:7],
-                                 p[7], *meshes[t]))
-    instances.drop_points(obj, mask)
+    for k, i in enumerate(index.tolist()):
+        t, p = int(types[k]), rows[k]
+        placed = place_object(coll, f"{names[t]} {i + 1}", t, i, p[:4], p[4:7], p[7],
+                              *meshes[t])
+        if not same[k]:
+            placed.matrix_world = Matrix(drawn[k].tolist())
+        made.append(placed)
+    if mask.all():
+        instances.remove(obj)
+        coll[instances.KIND_KEY] = "objects"
+    else:
+        instances.drop_points(obj, mask)
     return made
 
 

@@ -447,7 +447,8 @@ class JAMPACKED_OT_make_real(bpy.types.Operator):
         for obj in made:
             obj.select_set(True)
         context.view_layer.objects.active = made[-1]
-        left = len(instances.points_object(coll).data.vertices)
+        points = instances.points_object(coll)
+        left = len(points.data.vertices) if points is not None else 0
         note(self, context, 'INFO', f"Made {len(made)} object(s) real in '{coll.name}'; "
                                     f"{left} instance(s) left.")
         return {'FINISHED'}
@@ -577,7 +578,8 @@ class JAMPACKED_OT_validate(bpy.types.Operator):
             if obj.mode == 'EDIT':
                 obj.update_from_editmode()
                 depsgraph = context.evaluated_depsgraph_get()
-            tris = bridge.object_triangles(obj, depsgraph, apply_modifiers=apply_modifiers)
+            tris = bridge.object_triangles(obj, depsgraph, apply_modifiers=apply_modifiers,
+                                           outward=True)
             report = engine.validate_triangles(tris)
             selectable = (tris.n_polygons == len(obj.data.polygons)
                           and len(tris.vertices) == len(obj.data.vertices))

@@ -20,7 +20,7 @@ from typing import Any
 import bpy
 import numpy as np
 
-from . import instances
+from . import instances, summary
 
 #: custom property of a placed object: its placement's index in the packing
 INDEX_KEY = "jampacked_index"
@@ -50,7 +50,20 @@ def _error(message: str) -> Exception:
     return InputError(message)
 
 
-def _same(m: np.ndarray, exact: np.ndarray) -> np.ndarray:
+def instance_matrices(points: bpy.types.Object, pts: dict[str, np.ndarray],
+                      picked: np.ndarray | None = None) -> np.ndarray:
+    """(K, 4, 4) world matrices of the instances the points object draws (those
+    ``picked``, all by default): its own world matrix times each point's placement.
+    ``pts``: the points' arrays (`instances.read_points`)."""
+    from jampacked.core.rotations import placement_matrices
+
+    sel = slice(None) if picked is None else picked
+    local = placement_matrices(pts["rotations"][sel], pts["translations"][sel],
+                               pts["scales"][sel])
+    return np.einsum("ij,kjl->kil", np.array(points.matrix_world, np.float64), local)
+
+
+def same_placement(m: np.ndarray, exact: np.ndarray) -> np.ndarray:
     """(K,) whether each matrix m (K, 4, 4) is its placement ``exact`` (K, 9: w x y z, t,
     s, type) up to single precision."""
     from jampacked.core.rotations import placement_matrices
@@ -80,6 +93,47 @@ def _decompose(m: np.ndarray, label: Callable[[int], str]) -> np.ndarray:
             "each object at one scale along every axis. Undo that change (or set its scale "
             "the same on X, Y and Z), then export again.")
     return np.concatenate([matrix_to_quat(r), m[:, :3, 3], s[:, None]], axis=1)
+
+
+def point_types(points: bpy.types.Object, pts: dict[str, np.ndarray], n_types: int,
+                result: str) -> np.ndarray:
+    """The points' types (int64), each checked to be one of the result's ``n_types``."""
+    pt = pts["types"].astype(np.int64)
+    if len(pt) and not ((pt >= 0) & (pt < n_types)).all():
+        k = int(np.flatnonzero((pt < 0) | (pt >= n_types))[0])
+        raise _error(f"point {k} of '{points.name}' has type {pt[k]}, which '{result}' does "
+                     "not have: undo the edit of its points, or pack again.")
+    return pt
+
+
+def held_now(coll: bpy.types.Collection) -> tuple[int, dict[int, float]]:
+    """How many placed objects and instances the result ``coll`` holds now, and each type's
+    sum of their scales cubed (their volume over the type's at scale 1). Placed objects are
+    those whose mesh is a type mesh of the result; a scale is the cube root of a world
+    matrix's determinant."""
+    meshes = {}
+    for t, name in enumerate(coll.get(summary.PREFIX + "type_meshes", [])):
+        mesh = bpy.data.meshes.get(str(name))
+        if mesh is not None:
+            meshes[mesh.as_pointer()] = t
+    points = instances.points_object(coll)
+    cubes: dict[int, float] = {}
+    count = 0
+    for obj in coll.all_objects:
+        if obj == points or obj.type != 'MESH' or obj.data is None:
+            continue
+        t = meshes.get(obj.data.as_pointer())
+        if t is not None:
+            count += 1
+            cubes[t] = cubes.get(t, 0.0) + abs(obj.matrix_world.to_3x3().determinant())
+    if points is not None:
+        pts = instances.read_points(points.data)
+        det = abs(points.matrix_world.to_3x3().determinant())
+        scale3 = pts["scales"].astype(np.float64) ** 3 * det
+        for t in np.unique(pts["types"]).tolist():
+            cubes[int(t)] = cubes.get(int(t), 0.0) + float(scale3[pts["types"] == t].sum())
+        count += len(scale3)
+    return count, cubes
 
 
 def _index_by_name(obj: bpy.types.Object, names: list[str]) -> int:
@@ -125,17 +179,8 @@ def current_placements(coll: bpy.types.Collection, packing: Any,
     n_objects = len(objects)
     if points is not None:
         pts = instances.read_points(points.data)
-        w = np.array(points.matrix_world, np.float64)
-        pt = pts["types"].astype(np.int64)
-        if len(pt) and not ((pt >= 0) & (pt < len(type_meshes))).all():
-            k = int(np.flatnonzero((pt < 0) | (pt >= len(type_meshes)))[0])
-            raise _error(f"point {k} of '{points.name}' has type {pt[k]}, which "
-                         f"'{coll.name}' does not have: undo the edit of its points, or pack "
-                         "again.")
-        from jampacked.core.rotations import placement_matrices
-
-        local = placement_matrices(pts["rotations"], pts["translations"], pts["scales"])
-        m = np.concatenate([m, np.einsum("ij,kjl->kil", w, local)])
+        pt = point_types(points, pts, len(type_meshes), coll.name)
+        m = np.concatenate([m, instance_matrices(points, pts)])
         types = np.concatenate([types, pt])
         index = np.concatenate([index, pts["indices"].astype(np.int64)])
 
@@ -150,7 +195,7 @@ def current_placements(coll: bpy.types.Collection, packing: Any,
 
     known = (index >= 0) & (index < packing.n)
     rows = exact[np.where(known, index, 0)]
-    same = known & (rows[:, 8].astype(np.int64) == types) & _same(m, rows)
+    same = known & (rows[:, 8].astype(np.int64) == types) & same_placement(m, rows)
     if same.all() and np.array_equal(np.sort(index), np.arange(packing.n)):
         return None, left_out
     removed_only = bool(same.all()) and len(np.unique(index)) == len(index)

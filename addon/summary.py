@@ -43,6 +43,9 @@ DESCRIPTIONS = {
     "stopped": "Why placement stopped early (deadline: time budget; cancelled: finished "
                "early), empty when it ran to the end",
     "time_s": "Seconds the packing took",
+    "type_volumes": "Mesh volume of each type at scale 1 (scene units^3), in the order of "
+                    "type_names",
+    "container_volume": "Mesh volume of the container (scene units^3)",
     "warnings": "What the run warns about (a type never placed, a mix off its shares, a "
                 "time budget that ended early), one sentence each",
 }
@@ -76,7 +79,10 @@ def collection_properties(packing: Packing) -> dict[str, Any]:
         "seed": int(summ.seed),
         "fidelity": summ.fidelity,
         "stopped": summ.stopped or "",
+        "type_volumes": [float(t.volume) for t in packing.types],
     }
+    if packing.container_volume > 0:
+        out["container_volume"] = float(packing.container_volume)
     for key in ("density", "tvd", "nni_mean", "worst_overlap", "worst_outside",
                 "min_pair_gap", "min_wall_gap", "clearance"):
         value = _number(getattr(summ, key))
@@ -139,10 +145,23 @@ def warnings(props: Mapping[str, Any]) -> list[str]:
     return [str(w) for w in _get(props, "warnings", [])]
 
 
-def panel_lines(props: Mapping[str, Any], mm_per_unit: float | None = None
-                ) -> list[tuple[str, str]]:
+def density_now(props: Mapping[str, Any], scale_cubes: Mapping[int, float]) -> float | None:
+    """The density of what a result holds now: ``scale_cubes`` maps each type index to the
+    sum of its placed objects' scale cubed; None for a result that does not record its
+    volumes."""
+    volumes = list(_get(props, "type_volumes", []))
+    container = _number(_get(props, "container_volume"))
+    if not container or any(not 0 <= t < len(volumes) for t in scale_cubes):
+        return None
+    return sum(float(volumes[t]) * c for t, c in scale_cubes.items()) / container
+
+
+def panel_lines(props: Mapping[str, Any], mm_per_unit: float | None = None,
+                now: tuple[int, float | None] | None = None) -> list[tuple[str, str]]:
     """(label, value) rows for the panel, read from a result collection's properties;
-    with `mm_per_unit` (`units.mm_per_unit`) the gaps in millimetres, as exported."""
+    with `mm_per_unit` (`units.mm_per_unit`) the gaps in millimetres, as exported. The
+    figures are the packing's; ``now`` (objects, density or None) is what the result holds
+    now, shown where an artist deleted or added placed objects."""
     def pct(x: Any) -> str:
         v = _number(x)
         return "-" if v is None else f"{v:.1%}"
@@ -165,6 +184,9 @@ def panel_lines(props: Mapping[str, Any], mm_per_unit: float | None = None
         rows.append((name, f"{c}  ({pct(share)} / {pct(target)})  NNI {num(r, '.2f')}"))
     rows.append(("Objects", str(total)))
     rows.append(("Density", pct(_get(props, "density"))))
+    if now is not None and now[0] != total:
+        rows.append(("Holds now", f"{now[0]} objects" + ("" if now[1] is None
+                                                          else f", {pct(now[1])}")))
     rows.append(("TVD", num(_get(props, "tvd"), ".3f")))
     rows.append(("NNI mean", num(_get(props, "nni_mean"), ".2f")))
     certified = _get(props, "certified")

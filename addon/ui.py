@@ -3,7 +3,7 @@
 # No "from __future__ import annotations": Blender reads class annotations.
 import bpy
 
-from . import instances, summary, units, worker
+from . import instances, result_edits, summary, units, worker
 
 
 class JAMPACKED_UL_types(bpy.types.UIList):
@@ -127,8 +127,11 @@ class JAMPACKED_PT_result(_Sidebar, bpy.types.Panel):
         layout.label(text=coll.name, icon='OUTLINER_COLLECTION')
         col = layout.column(align=True)
         unit = context.scene.unit_settings
+        count, cubes = result_edits.held_now(coll)
+        now = (count, summary.density_now(coll, cubes))
         for label, value in summary.panel_lines(coll, units.mm_per_unit(unit.system,
-                                                                         unit.scale_length)):
+                                                                         unit.scale_length),
+                                                now):
             row = col.row()
             row.label(text=label)
             row.label(text=value)

@@ -173,10 +173,10 @@ def test_instanced_pack_is_one_undo_step(bpy, addon, scene):
 
 def test_make_all_real_gives_the_object_result(bpy, addon, scene):
     """Make Real (all): objects sharing the type meshes at the object result's matrices, no
-    instances left; one undo step brings the instances back."""
+    instances left, nor the points object (it stayed, empty); one undo step brings the
+    instances back."""
     coll = _pack(bpy, 'INSTANCES')
     packing = _packing(addon, coll)
-    points = addon.instances.points_object(coll)
     bpy.ops.ed.undo_push(message="before make real")
     assert bpy.ops.jampacked.make_real('EXEC_DEFAULT', True, which='ALL') == {'FINISHED'}
     real = [o for o in coll.objects if "jampacked_type" in o.keys()]
@@ -188,7 +188,9 @@ def test_make_all_real_gives_the_object_result(bpy, addon, scene):
         assert obj["jampacked_type"] == t
         assert obj.data.name == f"Jampacked {packing.types[t].name}"
         np.testing.assert_allclose(_matrix(obj), mats[i], atol=1e-6)
-    assert len(points.data.vertices) == 0 and _instances(bpy, points) == []
+    assert addon.instances.points_object(coll) is None
+    assert sorted(o.name for o in coll.objects) == sorted(o.name for o in real)
+    assert coll["jampacked_result_kind"] == "objects" and not _jam_node_groups(bpy)
     assert sorted(o.name for o in bpy.context.selected_objects) == sorted(o.name for o in real)
     bpy.ops.ed.undo()
     coll = bpy.context.scene.jampacked.result
@@ -279,6 +281,35 @@ def test_panels_show_the_choice_and_make_real(bpy, addon, scene):
                    for name, args, _kw in _draw_all(bpy, addon))
 
 
+def test_the_panel_says_what_a_result_holds_after_deletions(bpy, addon, scene):
+    """The Result panel's figures are the packing's; once objects or instances are deleted
+    it adds what the result holds now (it kept showing the packing's count and density)."""
+    from test_addon_register import _draw_all, _labels
+
+    for kind, delete in (('INSTANCES', 3), ('OBJECTS', 2)):
+        coll = _pack(bpy, kind)
+        packing = _packing(addon, coll)
+        count, cubes = addon.result_edits.held_now(coll)
+        assert count == packing.n
+        assert addon.summary.density_now(coll, cubes) == pytest.approx(
+            coll["jampacked_density"], rel=1e-5)
+        assert "Holds now" not in _labels(_draw_all(bpy, addon))
+        gone = np.arange(delete)
+        if kind == 'INSTANCES':
+            mask = np.zeros(packing.n, bool)
+            mask[gone] = True
+            addon.instances.drop_points(addon.instances.points_object(coll), mask)
+        else:
+            for obj in [o for o in coll.objects if o["jampacked_index"] in gone]:
+                bpy.data.objects.remove(obj)
+        kept = np.setdiff1d(np.arange(packing.n), gone)
+        volume = sum(packing.types[t].volume for t in packing.type_index[kept])
+        labels = _labels(_draw_all(bpy, addon))
+        assert "Holds now" in labels, kind
+        assert (f"{packing.n - delete} objects, {volume / packing.container_volume:.1%}"
+                in labels), (kind, labels)
+
+
 def test_make_real_refuses_damaged_placements(bpy, addon, scene):
     """The points object's placements cut short (edited by a script): a clear error, no
     object made, the instances kept."""
@@ -293,6 +324,44 @@ def test_make_real_refuses_damaged_placements(bpy, addon, scene):
         bpy.ops.jampacked.make_real(which='ALL')
     assert {o.name for o in bpy.data.objects} == objects
     assert len(points.data.vertices) == n
+
+
+def test_make_real_places_objects_where_the_instances_are_drawn(bpy, addon, scene):
+    """The points object moved and turned, and one point moved in Edit Mode: the objects
+    made real are where the instances were drawn (they went back to the packing's places,
+    where Export had refused the moved instances)."""
+    import bmesh
+
+    coll = _pack(bpy, 'INSTANCES')
+    packing = _packing(addon, coll)
+    points = addon.instances.points_object(coll)
+    points.location = (0.0, 0.0, 0.5)
+    points.rotation_euler = (0.0, 0.0, 0.3)
+    bpy.context.view_layer.objects.active = points
+    points.select_set(True)
+    bpy.ops.object.mode_set(mode='EDIT')
+    bm = bmesh.from_edit_mesh(points.data)
+    bm.verts.ensure_lookup_table()
+    bm.verts[2].co.x += 0.25
+    bmesh.update_edit_mesh(points.data)
+    bpy.ops.object.mode_set(mode='OBJECT')
+    drawn = _instances(bpy, points)
+    assert len(drawn) == packing.n
+    assert bpy.ops.jampacked.make_real(which='ALL') == {'FINISHED'}
+    real = [o for o in coll.objects if "jampacked_type" in o.keys()]
+    assert len(real) == packing.n
+    for obj in real:
+        m = _matrix(obj)
+        d = [np.abs(m - mat).max() for _, mat in drawn]
+        k = int(np.argmin(d))
+        assert d[k] < 1e-5 and drawn[k][0] == obj.data.name
+    # where the points object sits still, the placement is the packing's, exactly
+    coll = _pack(bpy, 'INSTANCES')
+    assert bpy.ops.jampacked.make_real(which='ALL') == {'FINISHED'}
+    mats = packing.matrices()
+    for obj in coll.objects:
+        i = obj["jampacked_index"]
+        np.testing.assert_allclose(_matrix(obj), mats[i], atol=1e-6)
 
 
 def test_make_real_from_edit_mode(bpy, addon, scene):

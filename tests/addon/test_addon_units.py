@@ -145,6 +145,16 @@ def test_collection_properties_and_panel_lines():
     assert rows["Density"] == "41.0%" and rows["Certified"] == "yes"
     assert rows["apple"].startswith("2  (66.7% / 50.0%)  NNI 1.20")
     assert rows["lemon"].endswith("NNI -")
+    # what the result holds now, where it differs from the packing (volumes 1, box 1000)
+    stored = {summary.PREFIX + k: v for k, v in props.items()}
+    assert summary.density_now(stored, {0: 2.0, 1: 1.0}) == pytest.approx(0.003)
+    assert "Holds now" not in dict(summary.panel_lines(stored, now=(3, 0.003)))
+    assert dict(summary.panel_lines(stored, now=(2, 0.002)))["Holds now"] == \
+        "2 objects, 0.2%"
+    old = {k: v for k, v in stored.items() if not k.endswith("volume") and
+           not k.endswith("volumes")}  # a result made before the volumes were stored
+    assert summary.density_now(old, {0: 2.0}) is None
+    assert dict(summary.panel_lines(old, now=(2, None)))["Holds now"] == "2 objects"
     # gaps in millimetres, as exported (a scene in metres: 1000 mm per unit); None: "-"
     gaps = {summary.PREFIX + k: v for k, v in props.items()}
     gaps.update({summary.PREFIX + "clearance": 0.0002, summary.PREFIX + "min_pair_gap": 0.00021})

@@ -65,15 +65,20 @@ def test_validate_finds_and_selects_a_hole_and_a_flipped_face(bpy, addon):
 
 
 def test_validate_uses_world_space_and_modifiers(bpy, addon):
-    # a negative scale turns a closed cube inside out in world space
+    # a negative scale reverses a closed cube's winding in world space, yet Blender shows
+    # and exports it outward (it was reported inside out, and Make Manifold could not mend
+    # it); a cube modelled inside out stays inside out under the mirror
     mirrored = cube_object(bpy, "Mirrored", scale=(-1.0, 1.0, 1.0))
+    inside_out = cube_object(bpy, "Inside out", faces=[f[::-1] for f in CUBE_FACES],
+                             scale=(-1.0, 1.0, 1.0), location=(-10.0, 0.0, 0.0))
     # a Solidify modifier makes the open cube closed (and changes its topology)
     holed = cube_object(bpy, "Holed", faces=CUBE_FACES[:-1], location=(10.0, 0.0, 0.0))
     holed.modifiers.new("Solidify", 'SOLIDIFY').thickness = 0.2
-    _select_only(bpy, [mirrored, holed])
+    _select_only(bpy, [mirrored, inside_out, holed])
     bpy.ops.jampacked.validate()
     reports = {r.object_name: r for r in bpy.context.window_manager.jampacked_validation.reports}
-    assert not reports["Mirrored"].passed and "inside out" in reports["Mirrored"].summary
+    assert reports["Mirrored"].passed, reports["Mirrored"].summary
+    assert not reports["Inside out"].passed and "inside out" in reports["Inside out"].summary
     assert reports["Holed"].passed
     assert "Apply Modifiers" in reports["Holed"].note  # cannot select on a changed topology
     with pytest.raises(RuntimeError, match="turn off Apply Modifiers"):
