@@ -8,6 +8,7 @@ from __future__ import annotations
 
 import argparse
 import contextlib
+from collections.abc import Callable
 
 from rich.markup import escape
 
@@ -18,6 +19,7 @@ from jampacked.cli.interrupt import CancelOnInterrupt
 from jampacked.cli.reports import consoles, notes_only, print_summary, progress_bar, warn
 from jampacked.cli.scene import DEFAULT_CONTAINER_SIZE, DEFAULT_TYPE_SCALE, resolve_scene
 from jampacked.core.api import pack
+from jampacked.core.errors import OutputError
 from jampacked.core.numba_cache import compile_hint
 from jampacked.core.options import CavityPassOptions, PackOptions
 from jampacked.core.packing import save_packing
@@ -55,6 +57,21 @@ nothing is saved before the first object is placed); press Ctrl-C twice to abort
 saving. Exit status: 0 done, 1 the engine refused
 (the message says why and how to fix it), 2 bad arguments.
 """
+
+
+def _written(what: str, path: str, write: Callable[[], object], saved: str | None = None
+             ) -> None:
+    """Run ``write``; a file system's refusal (a full disk, a name too long, a folder made
+    read-only during the run) is an error that names the file and the cause, and says
+    what was saved, instead of a traceback."""
+    try:
+        write()
+    except OSError as exc:
+        kept = (f"the packing was saved to '{saved}'" if saved
+                else "nothing was saved, and the file there before is as it was")
+        raise OutputError(f"cannot write {what} '{path}' ({exc.strerror or exc}); {kept}. "
+                          "Free some space, or give an output in a folder with room and "
+                          "write permission, and pack again.") from exc
 
 
 def add_pack_parser(sub: argparse._SubParsersAction) -> None:
@@ -169,7 +186,7 @@ def cmd_pack(args: argparse.Namespace) -> int:
                   + (f" and {escape(args.preview)}" if args.preview else "")
                   + " left as they were)", highlight=False)
         return EXIT_INTERRUPTED
-    save_packing(packing, args.output)
+    _written("the packing", args.output, lambda: save_packing(packing, args.output))
     for w in packing.report.warnings:
         warn(err, w)
     hint = compile_hint(packing.timings.get("compile", 0.0))
@@ -180,7 +197,9 @@ def cmd_pack(args: argparse.Namespace) -> int:
     if args.preview:
         from jampacked.cli.preview import write_preview
 
-        write_preview(packing, args.preview, axis=args.preview_axis)
+        _written("the preview", args.preview,
+                 lambda: write_preview(packing, args.preview, axis=args.preview_axis),
+                 saved=args.output)
     if not args.quiet:
         out.print(f"wrote {args.output}" + (f" and {args.preview}" if args.preview else ""),
                   highlight=False)

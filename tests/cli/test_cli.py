@@ -332,6 +332,30 @@ def test_ctrl_c_before_any_object_keeps_the_output_files(tmp_path, monkeypatch, 
     assert preview.read_bytes() == b"an earlier preview"
 
 
+@pytest.mark.parametrize("failing", ["save_packing", "write_preview"])
+def test_a_full_disk_is_an_error_that_names_the_file(failing, tmp_path, monkeypatch, capsys):
+    """The file system refusing the packing or its preview (a full disk) ended in a
+    traceback; it is an error naming the file and the cause, and what was saved."""
+    import jampacked.cli.preview as preview_module
+
+    def full(*_args, **_kwargs):
+        raise OSError(28, "No space left on device")
+
+    module = pack_cmd if failing == "save_packing" else preview_module
+    monkeypatch.setattr(module, failing, full)
+    out, png = tmp_path / "p.json", tmp_path / "p.png"
+    rc = main(["pack", "box:30x30x30", "--type", str(P1), *SMALL, "-q", "-o", str(out),
+               "--preview", str(png)])
+    err = " ".join(capsys.readouterr().err.split())
+    assert rc == 1 and "Traceback" not in err
+    what, path = (("the packing", out) if failing == "save_packing" else ("the preview", png))
+    assert f"cannot write {what} '{path}' (No space left on device)" in err, err
+    if failing == "save_packing":
+        assert "nothing was saved" in err and not out.exists()
+    else:
+        assert f"the packing was saved to '{out}'" in err and load_packing(out).n > 0
+
+
 def test_ctrl_c_while_the_engine_is_imported_stops_cleanly(tmp_path):
     """A Ctrl-C in the first second (the imports) stops the command with status 130 and no
     traceback; it was swallowed by an import (the run went on) or printed one."""
