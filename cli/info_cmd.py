@@ -44,8 +44,8 @@ def cmd_info(args: argparse.Namespace) -> int:
     out, err = consoles()
     packing = load_packing(args.packing)
     print_summary(packing, out, title=f"packing {args.packing}")
-    for w in packing.report.warnings:
-        warn(err, w)
+    for w in packing.report.warnings:  # the run's, recorded in the file: not news
+        warn(err, w, "warned when packed")
     problems = [f"[red]source:[/] {escape(p)}" for p in verify_sources(packing)]
     if only_clearance_changed(packing):
         problems.insert(0, f"[red]clearance:[/] the packing {escape(uncertified_since(packing))}"

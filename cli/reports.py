@@ -20,6 +20,7 @@ from rich.progress import BarColumn, Progress, TaskProgressColumn, TextColumn, T
 from rich.table import Table
 
 from jampacked.cli.interrupt import CancelOnInterrupt
+from jampacked.core.errors import plural
 from jampacked.core.mesh_files import length_unit
 from jampacked.core.packing import Packing, is_spec
 from jampacked.core.placement import REPEATED, STACK_FULL
@@ -36,9 +37,9 @@ def consoles() -> tuple[Console, Console]:
     return Console(file=sys.stdout), Console(file=sys.stderr)
 
 
-def warn(err: Console, message: str) -> None:
-    """``warning: MESSAGE`` on ``err`` (the stderr console)."""
-    err.print(f"[yellow]warning:[/] {escape(message)}", highlight=False, soft_wrap=True)
+def warn(err: Console, message: str, label: str = "warning") -> None:
+    """``LABEL: MESSAGE`` on ``err`` (the stderr console)."""
+    err.print(f"[yellow]{label}:[/] {escape(message)}", highlight=False, soft_wrap=True)
 
 
 def notes_only(err: Console) -> Callable[[float, str], None]:
@@ -181,7 +182,7 @@ def print_summary(packing: Packing, console: Console, title: str | None = None) 
                                f"pairs, {'-' if s.walls_checked is None else s.walls_checked}"
                                " objects near the wall")
     if s.repair is not None:
-        summary.add_row("repair", f"{s.repair.rounds} rounds, {s.repair.moved} moved, "
+        summary.add_row("repair", f"{plural(s.repair.rounds, 'round')}, {s.repair.moved} moved, "
                                   f"{s.repair.removed} removed"
                                   + (f" ({s.repair.for_mix} of them for the type mix)"
                                      if s.repair.for_mix else ""))

@@ -162,6 +162,23 @@ def test_info_prints_summary_and_checks_sources(packed, capsys):
     assert "sources: all 2 mesh files present and unchanged" in so
 
 
+def test_info_gives_the_run_s_warnings_as_recorded(packed, capsys, tmp_path):
+    """The warnings a packing records are the run's, not news ("warning:" read as if info
+    had found something), and one repair round is "1 round"."""
+    from jampacked.core.packing import save_packing
+    from jampacked.core.report import RepairStats
+
+    p = load_packing(packed[1])
+    p.report.warnings = ["the time budget ended early"]
+    p.report.repair = RepairStats(rounds=1, moved=2)
+    save_packing(p, tmp_path / "warned.json")
+    assert main(["info", str(tmp_path / "warned.json")]) == 0
+    captured = capsys.readouterr()
+    assert "warned when packed: the time budget ended early" in captured.err
+    assert "warning:" not in captured.err
+    assert "1 round, 2 moved, 0 removed" in captured.out
+
+
 def test_info_lists_the_attempts_and_the_time_of_those_not_kept(packed, capsys):
     d, out, *_ = packed
     doc = json.loads(out.read_text())
