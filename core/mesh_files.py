@@ -244,12 +244,19 @@ def length_unit(path: str | None) -> str:
     return "mm" if path and extension(path) == "3mf" else "units"
 
 
-def _binary_stl_damage(data: bytes) -> str | None:
-    """What is wrong with a binary STL whose size does not match the triangle count in its
-    header (a download or copy cut short), or None (it matches, or the file is ASCII)."""
+def _stl_damage(data: bytes) -> str | None:
+    """What is wrong with an STL cut short (a download or copy): a binary one whose size
+    does not match the triangle count in its header, an ASCII one without its closing
+    ``endsolid``; None where neither is seen."""
     head = data[:4096].removeprefix(b"\xef\xbb\xbf").lstrip()
     if head[:5].lower() == b"solid" and b"\0" not in head:
-        return None  # ASCII (a binary header may start with "solid" too; its numbers hold 0s)
+        # ASCII (a binary header may start with "solid" too; its numbers hold 0s)
+        lines = data.rstrip().rsplit(b"\n", 1)
+        if lines[-1].strip()[:8].lower() == b"endsolid":
+            return None
+        facets = data.lower().count(b"endfacet")
+        return (f"it ends after {facets:,} whole facets without the 'endsolid' line that "
+                "closes an ASCII STL, so it was cut short")
     if len(data) < 84:
         return f"it has {len(data)} bytes, fewer than a binary STL's 84-byte header"
     count = int.from_bytes(data[80:84], "little")
@@ -316,7 +323,7 @@ def read_arrays(path: str, data: bytes, label: str, notes: list[str] | None = No
         arrays = _stl_arrays(data)
         if arrays is not None:
             return arrays
-        damage = _binary_stl_damage(data)  # worded only for a file no reader took
+        damage = _stl_damage(data)  # worded only for a file no reader took
         if damage:
             raise MeshError(f"{label} is not a whole STL file: {damage}. Copy or export it "
                             "again.")

@@ -589,3 +589,21 @@ def test_a_binary_stl_cut_short_is_named_as_such(tmp_path):
     padded.write_bytes(whole + b"\0" * 50)
     with pytest.raises(MeshError, match="holds more than its header says"):
         read_mesh_arrays(padded)
+
+
+def test_an_ascii_stl_cut_short_is_named_as_such(tmp_path):
+    # cut after its 5th facet, it was "no triangles (empty, points or lines only)"
+    text = trimesh.exchange.stl.export_stl_ascii(trimesh.creation.box((10, 20, 30)))
+    end = 0
+    for _ in range(5):
+        end = text.index("endfacet", end) + len("endfacet")
+    cut = tmp_path / "cut.stl"
+    cut.write_text(text[:end] + "\n")
+    with pytest.raises(MeshError, match=r"cut\.stl' is not a whole STL file: it ends after 5 "
+                                        r"whole facets without the 'endsolid' line"):
+        load_mesh(cut)
+    # a file cut inside a facet says so too, with the facets before it
+    inside = tmp_path / "inside.stl"
+    inside.write_text(text[:end + 40])
+    with pytest.raises(MeshError, match="ends after 5 whole facets"):
+        read_mesh_arrays(inside)
