@@ -37,3 +37,41 @@ class CancelOnInterrupt:
         if self._installed:
             signal.signal(signal.SIGINT, self._restore())
             self._installed = False
+
+
+class Terminated(BaseException):  # noqa: N818 - a signal, as KeyboardInterrupt is
+    """SIGTERM or SIGHUP arrived: the run stops as a second Ctrl-C stops it."""
+
+    def __init__(self, signum: int) -> None:
+        super().__init__(signum)
+        self.signum = signum
+
+
+class TerminateCleanly:
+    """While active, SIGTERM (a process manager, `kill`) and SIGHUP (a closed terminal) raise
+    :class:`Terminated` in the main thread, so that every ``finally`` and ``except
+    BaseException`` runs: staged temporary files are removed, outputs stay as they were.
+    By default these signals ended the process on the spot, leaving an export's staged
+    files behind. Does nothing outside the main thread."""
+
+    SIGNALS = tuple(getattr(signal, name) for name in ("SIGTERM", "SIGHUP")
+                    if hasattr(signal, name))
+
+    def __init__(self) -> None:
+        self._previous: dict[int, object] = {}
+
+    @staticmethod
+    def _handler(signum, frame) -> None:
+        raise Terminated(signum)
+
+    def __enter__(self) -> TerminateCleanly:
+        if threading.current_thread() is threading.main_thread():
+            for signum in self.SIGNALS:
+                self._previous[signum] = signal.getsignal(signum)
+                signal.signal(signum, self._handler)
+        return self
+
+    def __exit__(self, *exc) -> None:
+        for signum, previous in self._previous.items():
+            signal.signal(signum, previous)
+        self._previous.clear()

@@ -21,7 +21,7 @@ from collections.abc import Sequence
 
 from jampacked.cli.args import UsageError
 from jampacked.cli.exits import EXIT_ERROR, EXIT_INTERRUPTED, EXIT_USAGE, print_error
-from jampacked.cli.interrupt import CancelOnInterrupt
+from jampacked.cli.interrupt import CancelOnInterrupt, TerminateCleanly, Terminated
 from jampacked.core.errors import JampackedError
 
 
@@ -61,7 +61,11 @@ def main(argv: Sequence[str] | None = None) -> int:
         return exc.code if isinstance(exc.code, int) else (0 if exc.code is None else 2)
     _configure_logging(args.debug)
     try:
-        return int(args.run(args))
+        with TerminateCleanly():
+            return int(args.run(args))
+    except Terminated as exc:
+        print("terminated", file=sys.stderr)
+        return 128 + exc.signum
     except UsageError as exc:
         if args.debug:
             raise

@@ -110,6 +110,38 @@ def test_a_second_interrupt_while_validating_leaves_no_file_and_no_temporary(tmp
     assert _temporaries(tmp_path) == []
 
 
+@pytest.mark.parametrize("signame", ["SIGTERM", "SIGHUP"])
+def test_cli_terminated_while_writing_leaves_no_temporary(signame, tmp_path, monkeypatch,
+                                                          capsys):
+    """SIGTERM (kill, a process manager) or SIGHUP (a closed terminal) while the second
+    file is validated: they ended the process on the spot and left the first file's staged
+    temporary; now the previous files stay, nothing hidden is left, the status is 128 + the
+    signal's number."""
+    import signal
+
+    from jampacked.cli.main import main
+    from jampacked.export import io
+
+    signum = getattr(signal, signame)
+    before = signal.getsignal(signum)
+    src = _cubes(tmp_path)
+    a3, astl = _old_outputs(tmp_path, "a.3mf", "a.stl")
+    calls = []
+
+    def terminated(path, **kw):
+        calls.append(path)
+        if len(calls) == 2:
+            signal.raise_signal(signum)
+        return validate_file(path, **kw)
+
+    monkeypatch.setattr(io, "validate_file", terminated)
+    rc = main(["export", str(src), "--mode", "union", "-o", str(a3), "-o", str(astl), "-q"])
+    assert rc == 128 + signum and "terminated" in capsys.readouterr().err
+    assert a3.read_bytes() == OLD and astl.read_bytes() == OLD
+    assert _temporaries(tmp_path) == []
+    assert signal.getsignal(signum) is before  # restored
+
+
 # --------------------------------------------------------------------------- all or nothing
 
 
