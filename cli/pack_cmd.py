@@ -53,9 +53,10 @@ examples:
       packing as --attempts 4 alone).
 
 Ctrl-C stops early: the best certified packing found so far is saved (exit status 130;
-nothing is saved before the first object is placed); press Ctrl-C twice to abort without
-saving. Exit status: 0 done, 1 the engine refused
-(the message says why and how to fix it), 2 bad arguments.
+nothing is saved before the first object is placed); press it again once the progress
+line says "stopping: Ctrl-C" to abort without saving (presses before that count as one).
+Exit status: 0 done, 1 the engine refused (the message says why and how to fix it), 2 bad
+arguments.
 """
 
 
