@@ -67,11 +67,14 @@ def _matrix_list(m: np.ndarray) -> list[list[float]]:
 
 def _relative(path: str, base_dir: str) -> str:
     """`path` relative to `base_dir` with POSIX separators; absolute if no relative path exists
-    (e.g. another drive on Windows)."""
+    (e.g. another drive on Windows). Both are resolved first: a relative path between a
+    symlink's spelling and a real folder (or two spellings) leads elsewhere once ".." is
+    taken from the other side."""
+    real = os.path.realpath(path)
     try:
-        rel = os.path.relpath(os.path.abspath(path), base_dir)
+        rel = os.path.relpath(real, os.path.realpath(base_dir))
     except ValueError:
-        rel = os.path.abspath(path)
+        rel = real
     return rel.replace(os.sep, "/")
 
 
@@ -90,7 +93,8 @@ def _same_file(a: str, b: str) -> bool:
 def save_packing(packing: Packing, path: str | os.PathLike) -> None:
     """Write `packing` as JSON to `path`, atomically (temp file + os.replace).
 
-    Mesh paths are stored relative to the JSON file's directory; spec strings verbatim.
+    Mesh paths are stored relative to the JSON file's real (symlinks resolved) directory;
+    spec strings verbatim.
     Raises InputError if `path` is the container or a type mesh file (inputs are never
     overwritten), if its directory does not exist, or if a value cannot be written.
     """
@@ -284,9 +288,13 @@ def _placement_arrays(raw: list, types: int) -> tuple[np.ndarray, ...] | None:
 
 
 def _resolve(p: str | None, base_dir: str) -> str | None:
+    """A stored mesh path as an absolute path; `base_dir` is the packing file's real folder
+    (relative paths are written between real locations). Resolved, not normalised: ".." after
+    a symlink in a hand-written path means the link target's parent, as the file system
+    reads it."""
     if p is None or is_spec(p) or os.path.isabs(p):
         return p
-    return os.path.normpath(os.path.join(base_dir, p))
+    return os.path.realpath(os.path.join(base_dir, p))
 
 
 def load_packing(path: str | os.PathLike) -> Packing:
@@ -325,7 +333,8 @@ def load_packing(path: str | os.PathLike) -> Packing:
         )
     if version < 1:
         raise r.fail(f"invalid version {version}")
-    base_dir = os.path.dirname(src)
+    # the real folder: the paths were written relative to it, wherever the file is opened from
+    base_dir = os.path.dirname(os.path.realpath(src))
 
     cont = r.dict_(r.get(doc, "container", ""), "container")
     cpath = r.mesh_path(r.get(cont, "path", "container"), "container.path")

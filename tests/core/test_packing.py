@@ -208,6 +208,23 @@ def test_round_trip_preserves_everything(scene):
     assert out2.read_text() == out.read_text()
 
 
+def test_paths_are_relative_between_real_folders(scene):
+    # written through a symlinked folder, the paths were relative to the link's spelling
+    # ("../meshes/..." from tmp/link), so opened from its real folder tmp/out/sub they led
+    # to tmp/out/meshes, which does not exist
+    tmp, files, p = scene
+    (tmp / "out" / "sub").mkdir()
+    (tmp / "link").symlink_to(tmp / "out" / "sub")
+    save_packing(p, tmp / "link" / "p.json")
+    doc = json.loads((tmp / "out" / "sub" / "p.json").read_text())
+    assert doc["container"]["path"] == "../../meshes/container.stl"
+    for where in (tmp / "out" / "sub" / "p.json", tmp / "link" / "p.json"):
+        q = load_packing(where)
+        assert q.container_path == files["container.stl"]
+        assert [t.path for t in q.types] == [files["apple.obj"], files["lemon.obj"]]
+        assert verify_sources(q) == []
+
+
 def test_empty_packing_round_trip(tmp_path):
     p = Packing("box:1x2x3", None, np.eye(4), 6.0, [TypeRecord("a", None, None, 1.0,
                 np.eye(4), 0.5)], np.zeros(0, int), np.zeros((0, 4)), np.zeros((0, 3)),
