@@ -1,7 +1,9 @@
 """The packing JSON file: `save_packing`, `load_packing`, `verify_sources`.
 
 The file (``"format": "jampacked.packing"``, ``"version": 2``) names meshes by path, relative
-to the JSON file's directory (POSIX separators), plus sha256. Container spec strings such as
+to the JSON file's real directory (POSIX separators), by absolute path ("absolute_path"; older
+files lack it and still load) and by sha256. A mesh is looked for at its
+relative path first, then at its absolute one (`_located`). Container spec strings such as
 ``"box:43.4x41.8x45.0"`` are stored verbatim. Version 2 writes what `pack()` was asked for as
 "inputs" and what the run did as "report" (`core/report.py`); version-1 files, which held
 both in one flat "params" object, are still read (unknown keys are ignored).
@@ -93,8 +95,8 @@ def _same_file(a: str, b: str) -> bool:
 def save_packing(packing: Packing, path: str | os.PathLike) -> None:
     """Write `packing` as JSON to `path`, atomically (temp file + os.replace).
 
-    Mesh paths are stored relative to the JSON file's real (symlinks resolved) directory;
-    spec strings verbatim.
+    Mesh paths are stored relative to the JSON file's real (symlinks resolved) directory and
+    as real absolute paths; spec strings verbatim.
     Raises InputError if `path` is the container or a type mesh file (inputs are never
     overwritten), if its directory does not exist, or if a value cannot be written.
     """
@@ -124,12 +126,18 @@ def save_packing(packing: Packing, path: str | os.PathLike) -> None:
             return p
         return _relative(p, out_dir)
 
+    def absolute(p: str | None) -> str | None:
+        if p is None or is_spec(p):
+            return None
+        return os.path.realpath(p).replace(os.sep, "/")
+
     mats = packing.matrices()
     doc = {
         "format": FORMAT,
         "version": VERSION,
         "container": {
             "path": rel(packing.container_path),
+            "absolute_path": absolute(packing.container_path),
             "sha256": packing.container_sha256,
             "frame_from_file": _matrix_list(packing.frame_from_file),
             "volume": float(packing.container_volume),
@@ -138,6 +146,7 @@ def save_packing(packing: Packing, path: str | os.PathLike) -> None:
             {
                 "name": t.name,
                 "path": rel(t.path),
+                "absolute_path": absolute(t.path),
                 "sha256": t.sha256,
                 "share": float(t.share),
                 "local_from_file": _matrix_list(t.local_from_file),
@@ -287,6 +296,23 @@ def _placement_arrays(raw: list, types: int) -> tuple[np.ndarray, ...] | None:
     return k.astype(np.int64), m, q, t, s
 
 
+def _located(p: str | None, absolute: str | None, base_dir: str) -> str | None:
+    """Where a mesh is: its `path` resolved against the packing file's real folder if a file
+    is there, else its `absolute_path` (older files have none) if a file is there, else the
+    former (so that a message names the path the user can edit).
+
+    `path` first: a project folder moved or copied with its meshes finds the meshes beside
+    it, not the originals (which may have changed or gone); a `path` edited by hand is
+    honoured. `absolute_path` then: a packing file moved alone still finds meshes that
+    stayed where they were."""
+    resolved = _resolve(p, base_dir)
+    if resolved is None or is_spec(resolved) or os.path.isfile(resolved):
+        return resolved
+    if absolute and os.path.isabs(absolute) and os.path.isfile(absolute):
+        return os.path.normpath(absolute)
+    return resolved
+
+
 def _resolve(p: str | None, base_dir: str) -> str | None:
     """A stored mesh path as an absolute path; `base_dir` is the packing file's real folder
     (relative paths are written between real locations). Resolved, not normalised: ".." after
@@ -300,7 +326,8 @@ def _resolve(p: str | None, base_dir: str) -> str | None:
 def load_packing(path: str | os.PathLike) -> Packing:
     """Read a packing JSON file written by `save_packing`.
 
-    Relative mesh paths are resolved against the JSON file's directory into absolute paths.
+    Relative mesh paths are resolved against the JSON file's real directory into absolute
+    paths; where no file is there, the recorded absolute path is taken if a file is there.
     Raises InputError, naming the file, if it cannot be read or parsed, has another format or
     a newer version, or lacks a field / holds a bad value (matrix shape, type index, a
     placement matrix that disagrees with its rotation/translation/scale, ...).
@@ -340,7 +367,8 @@ def load_packing(path: str | os.PathLike) -> Packing:
     cpath = r.mesh_path(r.get(cont, "path", "container"), "container.path")
     if not cpath:
         raise r.fail("container.path must be a non-empty string")
-    container_path = _resolve(cpath, base_dir)
+    container_path = _located(cpath, r.mesh_path(cont.get("absolute_path"),
+                                                 "container.absolute_path"), base_dir)
     container_sha = r.opt_str(r.get(cont, "sha256", "container"), "container.sha256")
     frame = r.matrix(r.get(cont, "frame_from_file", "container"), "container.frame_from_file")
     cvol = r.number(r.get(cont, "volume", "container"), "container.volume")
@@ -357,7 +385,9 @@ def load_packing(path: str | os.PathLike) -> Packing:
         types.append(
             TypeRecord(
                 name=name,
-                path=_resolve(r.mesh_path(r.get(t, "path", w), f"{w}.path"), base_dir),
+                path=_located(r.mesh_path(r.get(t, "path", w), f"{w}.path"),
+                              r.mesh_path(t.get("absolute_path"), f"{w}.absolute_path"),
+                              base_dir),
                 sha256=r.opt_str(r.get(t, "sha256", w), f"{w}.sha256"),
                 share=r.number(r.get(t, "share", w), f"{w}.share"),
                 local_from_file=r.matrix(r.get(t, "local_from_file", w), f"{w}.local_from_file"),
@@ -564,7 +594,10 @@ def verify_sources(packing: Packing) -> list[str]:
         if p is None:
             continue
         if not os.path.isfile(p):
-            problems.append(f"{label}: mesh file {p} is missing; restore it or re-run the packing")
+            problems.append(f"{label}: mesh file {p} is missing; restore it, or edit its "
+                            '"path" in the packing file to point to where the file is now '
+                            "(absolute, or relative to the packing file's folder), or re-run "
+                            "the packing")
             continue
         if sha is None:
             continue

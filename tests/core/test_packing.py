@@ -5,6 +5,7 @@ from __future__ import annotations
 import json
 import os
 import re
+import shutil
 
 import numpy as np
 import pytest
@@ -223,6 +224,61 @@ def test_paths_are_relative_between_real_folders(scene):
         assert q.container_path == files["container.stl"]
         assert [t.path for t in q.types] == [files["apple.obj"], files["lemon.obj"]]
         assert verify_sources(q) == []
+
+
+def test_a_packing_moved_alone_finds_the_meshes_where_they_stayed(scene):
+    # only relative paths were written: the moved file looked for tmp/elsewhere/meshes/...
+    tmp, files, p = scene
+    save_packing(p, tmp / "out" / "p.json")
+    doc = json.loads((tmp / "out" / "p.json").read_text())
+    assert doc["container"]["absolute_path"] == files["container.stl"]
+    assert [t["absolute_path"] for t in doc["types"]] == [files["apple.obj"], files["lemon.obj"]]
+    (tmp / "elsewhere" / "deeper").mkdir(parents=True)
+    moved = tmp / "elsewhere" / "deeper" / "p.json"
+    os.replace(tmp / "out" / "p.json", moved)
+    q = load_packing(moved)
+    assert q.container_path == files["container.stl"]
+    assert [t.path for t in q.types] == [files["apple.obj"], files["lemon.obj"]]
+    assert verify_sources(q) == []
+
+
+def test_a_project_moved_with_its_meshes_finds_its_own_copies(scene):
+    # the relative path comes first: a copy of the project uses the copied meshes, not the
+    # originals it was copied from (which still exist here)
+    tmp, _, p = scene
+    save_packing(p, tmp / "out" / "p.json")
+    shutil.copytree(tmp / "meshes", tmp / "copy" / "meshes")
+    shutil.copytree(tmp / "out", tmp / "copy" / "out")
+    q = load_packing(tmp / "copy" / "out" / "p.json")
+    copies = tmp / "copy" / "meshes"
+    assert q.container_path == str(copies / "container.stl")
+    assert [t.path for t in q.types] == [str(copies / "apple.obj"), str(copies / "lemon.obj")]
+    assert verify_sources(q) == []
+
+
+def test_a_file_without_absolute_paths_still_loads(saved):
+    out, doc = saved
+    del doc["container"]["absolute_path"]
+    for t in doc["types"]:
+        del t["absolute_path"]
+    _write(out, doc)
+    q = load_packing(out)
+    assert verify_sources(q) == []
+
+
+def test_a_mesh_at_neither_path_is_named_with_the_way_to_point_to_it(scene):
+    tmp, files, p = scene
+    save_packing(p, tmp / "out" / "p.json")
+    (tmp / "elsewhere" / "deeper").mkdir(parents=True)
+    os.replace(tmp / "out" / "p.json", tmp / "elsewhere" / "deeper" / "p.json")
+    os.remove(files["apple.obj"])
+    q = load_packing(tmp / "elsewhere" / "deeper" / "p.json")
+    # the path named is the one "path" gives, which the message says to edit
+    assert q.types[0].path == str(tmp / "elsewhere" / "meshes" / "apple.obj")
+    problems = verify_sources(q)
+    assert len(problems) == 1
+    assert re.search(r"type 'apple': mesh file .*apple\.obj is missing; .*edit its \"path\" in "
+                     r"the packing file to point to where the file is now", problems[0])
 
 
 def test_empty_packing_round_trip(tmp_path):
