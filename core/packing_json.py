@@ -335,7 +335,9 @@ def load_packing(path: str | os.PathLike) -> Packing:
     src = os.path.abspath(os.fspath(path))
     r = _Reader(src)
     try:
-        with open(src, encoding="utf-8") as f:
+        # utf-8-sig: a byte order mark (which Windows editors write) is skipped; without one
+        # it reads as utf-8
+        with open(src, encoding="utf-8-sig") as f:
             doc = json.load(f)
     except OSError as exc:
         raise InputError(f"cannot read packing file {src}: {exc.strerror or exc}") from exc

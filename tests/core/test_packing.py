@@ -423,6 +423,14 @@ def test_type_index_out_of_range(saved):
     _bad(out, doc, "type is -1")
 
 
+def test_a_file_with_a_byte_order_mark_loads(saved):
+    # a packing saved by a Windows editor starts with a UTF-8 BOM: it was "not valid JSON"
+    out, doc = saved
+    out.write_bytes(b"\xef\xbb\xbf" + json.dumps(doc).encode())
+    q = load_packing(out)
+    assert q.n == 5 and verify_sources(q) == []
+
+
 def test_not_json_and_missing_file(tmp_path):
     f = tmp_path / "broken.json"
     f.write_text('{"format": "jampacked.packing", "version": 1, "contai')
