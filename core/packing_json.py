@@ -422,6 +422,16 @@ def load_packing(path: str | os.PathLike) -> Packing:
             raise r.fail(f"{w}.rotation must be a non-zero quaternion [w, x, y, z]")
         translations[i] = r.vector(r.get(p, "translation", w), 3, f"{w}.translation")
         scales[i] = r.number(r.get(p, "scale", w), f"{w}.scale")
+    # A scale of 0 makes an object vanish and a negative one mirrors it (another shape than
+    # the type that was packed, which certification and export would take as it is).
+    bad = np.flatnonzero(~(scales > 0))
+    if bad.size:
+        i = int(bad[0])
+        others = f" (and {bad.size - 1} more placements)" if bad.size > 1 else ""
+        raise r.fail(f"placements[{i}].scale must be > 0, got {scales[i]:g}{others}: "
+                     f"{'a negative scale mirrors' if scales[i] < 0 else '0 shrinks'} the "
+                     "object", "a finished packing has scale 1: set it back (its matrix "
+                     "with it) or remove the placement, or pack again")
     # The matrix is redundant; a hand-edited file must not say two different things.
     expected = placement_matrices(rotations, translations, scales)
     tol = 1e-6 * np.maximum(1.0, np.abs(expected).max(axis=(1, 2)))

@@ -127,9 +127,10 @@ def check_placements(packing: Packing, type_radius: np.ndarray, lo: np.ndarray,
     type_radius: (T,) largest distance of each type's vertices from its local origin; lo, hi:
     the container's bounds, container frame and units. Singular transforms (a zero or
     non-finite scale, a zero or non-finite rotation, a non-finite translation) would make
-    objects vanish from the export, and an object far outside the container (its centre
-    further from the container's bounds than its own size, or larger than the container)
-    leaves manifold3d nothing it can compute with: both raise InputError.
+    objects vanish from the export, a negative scale would mirror them, and an object far
+    outside the container (its centre further from the container's bounds than its own
+    size, or larger than the container) leaves manifold3d nothing it can compute with: all
+    raise InputError.
     """
     where = f"the packing file {source}" if source else "the packing"
     q = packing.rotations
@@ -150,6 +151,13 @@ def check_placements(packing: Packing, type_radius: np.ndarray, lo: np.ndarray,
             f"cannot export: {where} has singular placements, which would vanish from the "
             f"export: {'; '.join(problems)}. A finished packing has scale 1 and unit "
             "quaternions: re-run the packing, or fix or remove these placements.")
+    # a negative scale mirrors the object: the export would hold a shape no type has
+    mirrored = np.flatnonzero(s < 0)
+    if mirrored.size:
+        raise InputError(
+            f"cannot export: {where} has mirrored placements (a negative scale): "
+            f"{_objects(packing, mirrored, labels)}. A finished packing has scale 1: re-run "
+            "the packing, or fix or remove these placements.")
     size = np.abs(s) * type_radius[packing.type_index]
     diagonal = float(np.linalg.norm(hi - lo))
     t = packing.translations

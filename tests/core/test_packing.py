@@ -560,6 +560,22 @@ def test_a_bad_placement_is_named_among_good_ones(saved, where, value, match):
     _bad(out, doc, match)
 
 
+@pytest.mark.parametrize("scale, match", [(-0.5, "a negative scale mirrors the object"),
+                                          (0.0, "0 shrinks the object")])
+def test_a_scale_that_is_not_positive_is_refused_by_name(saved, scale, match):
+    # a mirrored placement edited consistently (scale and matrix together) was accepted, and
+    # export certified and wrote the mirror image
+    out, doc = saved
+    pl = doc["placements"][3]
+    pl["scale"] = scale
+    pl["matrix"] = placement_matrices(np.array([pl["rotation"]]), np.array([pl["translation"]]),
+                                      np.array([scale]))[0].tolist()
+    _bad(out, doc, rf"placements\[3\]\.scale must be > 0, got {scale:g}: {match}")
+    doc["placements"][4].update(scale=-1.0, rotation=[1, 0, 0, 0], translation=[0, 0, 0],
+                                matrix=np.diag([-1.0, -1, -1, 1]).tolist())
+    _bad(out, doc, r"placements\[3\]\.scale must be > 0.*\(and 1 more placements\)")
+
+
 @pytest.mark.parametrize("where", ["container", "type"])
 def test_a_path_with_a_nul_character_is_refused_by_name(saved, where):
     # export then crashed with "ValueError: embedded null byte" from os.path.realpath

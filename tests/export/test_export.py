@@ -1181,6 +1181,17 @@ def test_singular_placements_are_refused_by_name_not_dropped(tmp_path, field, va
     assert not out.exists()
 
 
+def test_mirrored_placements_are_refused_by_name(tmp_path):
+    # a negative scale was exported as the type's mirror image (the packing file refuses it
+    # when loaded; a packing object comes here directly)
+    out = tmp_path / "u.stl"
+    with pytest.raises(InputError, match=r"mirrored placements \(a negative scale\): object 1 "
+                                         r"\(polytope3\), object 2 \(polytope1\)\..*scale 1"):
+        export_packing(_made(scales=np.array([1.0, -1.0, -0.5, 1.0])), out,
+                       ExportOptions(mode="union"))
+    assert not out.exists()
+
+
 @pytest.mark.parametrize("translation", [[1e300, 0.0, 0.0], [0.0, 1e3, 0.0]])
 def test_objects_far_outside_the_container_are_refused_by_name(tmp_path, translation):
     t = _grid(26.0)[:4]
