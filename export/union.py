@@ -28,8 +28,8 @@ from .cleanup import (
 from .intersect import _morton_order, intersecting_pairs, ray_winding_numbers, winding_numbers
 from .validate import merge_identical
 
-__all__ = ["SPECK_REL", "Cleaned", "clean_bodies", "clean_arrays", "crossing_pairs", "drop_specks",
-           "union_arrays"]
+__all__ = ["SPECK_REL", "Cleaned", "UnionVolumeError", "clean_bodies", "clean_arrays",
+           "crossing_pairs", "drop_specks", "union_arrays"]
 
 #: components of a union with less volume than this fraction of its bounding box are specks
 #: (where a strut grazes a surface), dropped
@@ -53,6 +53,16 @@ UNION_CHUNK = 500
 PINCH_STEP_REL = 1e-6
 
 
+class UnionVolumeError(MeshError):
+    """manifold3d's union came out with more volume than its parts (``volume`` > ``parts``):
+    told apart so that a caller that simplified the parts can say so (`assemble._one_body`)."""
+
+    def __init__(self, message: str, volume: float, parts: float) -> None:
+        super().__init__(message)
+        self.volume = volume
+        self.parts = parts
+
+
 def union_arrays(pieces: list[m3.Manifold], shell: m3.Manifold | None, float32: bool = False,
                  check_cancel: Callable[[], None] | None = None
                  ) -> tuple[np.ndarray, np.ndarray, int]:
@@ -62,8 +72,8 @@ def union_arrays(pieces: list[m3.Manifold], shell: m3.Manifold | None, float32: 
     folded faces where objects meet, and each simplification adds to how far the surface
     moves. ``check_cancel`` (which raises to cancel) is called between the union's chunks.
 
-    Raises MeshError when manifold3d fails or returns a wrong result (more volume than its
-    parts); nothing is written then.
+    Raises MeshError when manifold3d fails, UnionVolumeError (a MeshError) when it returns
+    a wrong result (more volume than its parts); nothing is written then.
     """
     result = _chunked_union(pieces, check_cancel or (lambda: None))
     if shell is not None:
@@ -77,11 +87,12 @@ def union_arrays(pieces: list[m3.Manifold], shell: m3.Manifold | None, float32: 
                         "this with the packing file.")
     total = sum(p.volume() for p in pieces) + (shell.volume() if shell else 0.0)
     if result.volume() > total * (1 + UNION_VOLUME_SLACK) + 1e-9:
-        raise MeshError(f"the union's volume ({result.volume():.6g}) exceeds the sum of its "
-                        f"parts ({total:.6g}): manifold3d returned a wrong result; nothing "
-                        "was written. Check the type meshes (`jampacked validate`) and the "
-                        "packing's placements (`jampacked info`); if both are sound, report "
-                        "this with the packing file.")
+        raise UnionVolumeError(
+            f"the union's volume ({result.volume():.6g}) exceeds the sum of its parts "
+            f"({total:.6g}): manifold3d returned a wrong result; nothing was written. Check "
+            "the type meshes (`jampacked validate`) and the packing's placements (`jampacked "
+            "info`); if both are sound, report this with the packing file.",
+            result.volume(), total)
     return clean_arrays(result, float32=float32, check_cancel=check_cancel)
 
 
