@@ -23,7 +23,8 @@ from jampacked.export.options import AXES, MODES, ExportOptions, Opening
 EXPORT_EPILOG = """\
 modes:
   union    objects (and the shell) unioned into one watertight mesh; objects that do not
-           touch stay separate bodies.
+           touch stay separate bodies (inside a shell they lie loose: a warning says how
+           many).
   connect  one body: touching objects are fused, every other object gets a strut (a
            cylinder of --connector diameter) to its nearest neighbour or the shell, along
            a minimum spanning tree of the proximity graph.

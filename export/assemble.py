@@ -43,7 +43,7 @@ from .parts import require_gap, separate_parts
 from .recertify import certify_edited
 from .report import ExportReport
 from .scene import PlacedScene, load_sources, packing_clearance, place, smallest_object
-from .union import UnionVolumeError, clean_bodies, crossing_pairs, union_arrays
+from .union import UnionVolumeError, clean_bodies, crossing_pairs, loose_bodies, union_arrays
 
 __all__ = ["ExportReport", "export_packing"]
 
@@ -361,6 +361,9 @@ def _one_body(packing: Packing, scene: PlacedScene, shell: m3.Manifold | None,
     out.warnings += _large_fill_warning(cleaned.voids_filled_volume, cleaned.volume,
                                         shell is not None)
     out.volume = cleaned.volume
+    if options.mode == "union" and shell is not None and out.bodies > 1:
+        out.warnings += _loose_warning(cleaned.vertices, cleaned.faces, out.bodies, shell,
+                                       options)
     if options.mode == "connect" and out.bodies != 1:
         d = out.connector_diameter
         if out.connectors_refused:  # the graph fell apart where struts would leave
@@ -377,6 +380,26 @@ def _one_body(packing: Packing, scene: PlacedScene, shell: m3.Manifold | None,
     if float32 and left > 0:
         _check_float32(cleaned.vertices, cleaned.faces, float32, count)
     return [(cleaned.vertices, cleaned.faces)], ["jampacked"]
+
+
+def _loose_warning(v: np.ndarray, f: np.ndarray, bodies: int, shell: m3.Manifold,
+                   options: ExportOptions) -> list[str]:
+    """A warning when bodies of a union with a shell touch neither it nor anything joined
+    to it: in the print they lie loose in its cavity (a print shop's question). Without a
+    shell, separate bodies are what union mode makes of objects that do not touch."""
+    loose = loose_bodies(v, f, solid_arrays(shell)[0])
+    if not loose:
+        return []
+    if options.opening is not None:
+        what = "plane cut" if options.opening.kind == "plane" else "window"
+        fate = f"rattle in its cavity and can fall out through its {what}"
+    else:
+        fate = "rattle in its cavity" + ("" if options.drain is not None else ", sealed")
+    lie = "lies" if loose == 1 else "lie"
+    return [f"{loose} of the {bodies} bodies {lie} loose inside the shell: objects (alone or "
+            "with those they touch) that touch neither the shell nor anything joined to it. "
+            f"In the print they {fate}. To tie every object to the shell, export with "
+            "--mode connect."]
 
 
 def _union(pieces: list[m3.Manifold], shell: m3.Manifold | None, options: ExportOptions,

@@ -29,7 +29,7 @@ from .intersect import _morton_order, intersecting_pairs, ray_winding_numbers, w
 from .validate import merge_identical
 
 __all__ = ["SPECK_REL", "Cleaned", "UnionVolumeError", "clean_bodies", "clean_arrays",
-           "crossing_pairs", "drop_specks", "union_arrays"]
+           "crossing_pairs", "drop_specks", "loose_bodies", "union_arrays"]
 
 #: components of a union with less volume than this fraction of its bounding box are specks
 #: (where a strut grazes a surface), dropped
@@ -274,6 +274,38 @@ def drop_specks(v: np.ndarray, f: np.ndarray, speck: float, fill_voids: bool = F
         verts, inverse = np.unique(f, return_inverse=True)
         v, f = v[verts], inverse.reshape(-1, 3)
     return v, f, volumes[keep], np.concatenate([volumes[filled], volumes[nested]])
+
+
+def loose_bodies(v: np.ndarray, f: np.ndarray, anchors: np.ndarray) -> int | None:
+    """How many bodies (components of positive volume, joined by shared vertices as in
+    :func:`drop_specks`) hold no vertex at any of the positions ``anchors`` (a shell's
+    vertices: the union keeps those it does not cut exactly, and an object never reaches
+    the shell's outer surface, so a body without one touches neither the shell nor anything
+    joined to it). None when no body holds one (the anchors are not this mesh's)."""
+    if len(f) == 0 or len(anchors) == 0:
+        return None
+    n = len(v)
+    rows = np.concatenate([f[:, 0], f[:, 1]])
+    cols = np.concatenate([f[:, 1], f[:, 2]])
+    count, label = connected_components(coo_matrix((np.ones(len(rows)), (rows, cols)),
+                                                   shape=(n, n)), directed=False)
+    face_label = label[f[:, 0]]
+    tri = v[f] - 0.5 * (v.min(axis=0) + v.max(axis=0))
+    six = np.einsum("ij,ij->i", tri[:, 0], np.cross(tri[:, 1], tri[:, 2]))
+    volumes = np.bincount(face_label, six, minlength=count)
+    anchored = np.zeros(count, bool)
+    anchored[label[np.isin(_raw_rows(v), _raw_rows(anchors))]] = True
+    bodies = volumes > 0
+    if not (anchored & bodies).any():
+        return None
+    return int(np.sum(bodies & ~anchored))
+
+
+def _raw_rows(a: np.ndarray) -> np.ndarray:
+    """(N,) each row of positions as its raw bytes (-0.0 made +0.0), to compare positions
+    bit for bit."""
+    a = np.ascontiguousarray(a, np.float64) + 0.0
+    return a.view(np.dtype((np.void, 24))).ravel()
 
 
 def _inside_filled(v: np.ndarray, f: np.ndarray, face_label: np.ndarray, bodies: np.ndarray,

@@ -735,6 +735,28 @@ def test_union_with_shell_adds_the_shell_volume(apart, tmp_path):
     assert any("the shell is closed" in w for w in rep.warnings)
 
 
+def test_objects_loose_in_a_shell_are_named_in_a_warning(apart, tmp_path):
+    """A union with a shell whose objects touch nothing came out as the shell and 216 loose
+    objects with no word: in the print they rattle in the cavity and fall out of its
+    openings. Counted as bodies that hold none of the shell's vertices."""
+    window = Opening(kind="window", axis="+y", size=20.0)
+    rep = export_packing(apart, tmp_path / "w.3mf",
+                         ExportOptions(mode="union", shell=2.0, opening=window))
+    assert rep.passed and rep.bodies == 9
+    (loose,) = [w for w in rep.warnings if "loose" in w]
+    assert loose.startswith("8 of the 9 bodies lie loose inside the shell")
+    assert "fall out through its window" in loose and "--mode connect" in loose
+    # without a shell separate bodies are union mode's own (the help says so): no warning
+    bare = export_packing(apart, tmp_path / "b.3mf", ExportOptions(mode="union"))
+    assert bare.bodies == 8 and not any("loose" in w for w in bare.warnings)
+    # polytope3 on the floor reaches into the shell and is joined to it: one loose body
+    on_floor = _packing(tmp_path, np.array([[0.0, 0.0, -32.0], [20.0, 20.0, 20.0]]), [1, 0])
+    rep = export_packing(on_floor, tmp_path / "f.3mf", ExportOptions(mode="union", shell=2.0))
+    assert rep.bodies == 2 and any(w.startswith("1 of the 2 bodies lies loose inside the "
+                                                "shell") and "cavity, sealed" in w
+                                   for w in rep.warnings)
+
+
 def test_connect_with_opened_shell_is_one_body(apart, tmp_path):
     out = tmp_path / "c.stl"
     rep = export_packing(apart, out, ExportOptions(
@@ -773,7 +795,7 @@ def test_a_drain_under_an_object_opens_beside_it(apart, tmp_path):
     rep = export_packing(apart, tmp_path / "free.stl",
                          ExportOptions(mode="union", shell=2.0, drain=4.0))
     assert rep.passed and rep.shell.drain_at == pytest.approx((0.0, 0.0, -38.0), abs=0.5)
-    assert rep.shell.notes == [] and rep.warnings == []
+    assert rep.shell.notes == [] and [w for w in rep.warnings if "loose" not in w] == []
     # polytope3 (type 1, bounding radius 9) on the floor, over the floor's middle
     on_floor = _packing(tmp_path, np.array([[0.0, 0.0, -32.0], [20.0, 20.0, 20.0]]), [1, 0])
     rep = export_packing(on_floor, tmp_path / "beside.stl",
