@@ -49,14 +49,14 @@ examples:
   jampacked export packing.json --mode parts -o parts.3mf
   jampacked export packing.json --mode union --resolution 0.1 -o fruit.stl
 
-Every output path is checked before any work (format, folder, not an input or the packing
-file). Every file is validated as written (closed, 2-manifold, outward, no
-self-intersections); only when all of them pass are they put in place, together, so a
-failure or Ctrl-C leaves every earlier file as it was. STL and PLY store 32-bit floats: far
-from the origin their rounding can spoil a mesh that a 3MF keeps whole (the message says
-so). Exit status: 0 written and valid, 1 the export refused or failed (the message says
-why), 2 bad arguments, 130 interrupted (nothing written, unless the message says the
-export was complete).
+Every output path is checked before any work (format, folder, a name the folder takes, not
+an input or the packing file), each --split part's too. Every file is validated as written
+(closed, 2-manifold, outward, no self-intersections); only when all of them pass are they
+put in place, together, so a failure or Ctrl-C leaves every earlier file as it was. STL
+and PLY store 32-bit floats: far from the origin their rounding can spoil a mesh that a
+3MF keeps whole (the message says so). Exit status: 0 written and valid, 1 the export
+refused or failed (the message says why), 2 bad arguments, 130 interrupted (nothing
+written, unless the message says the export was complete).
 """
 
 

@@ -26,7 +26,7 @@ from pathlib import Path
 import manifold3d as m3
 import numpy as np
 
-from jampacked.core.errors import Cancelled, InputError, MeshError
+from jampacked.core.errors import Cancelled, InputError, MeshError, OutputError
 from jampacked.core.meshes import MeshData
 from jampacked.core.packing import Packing, is_spec
 from jampacked.core.packing_digest import claims_certified, uncertified_since
@@ -36,7 +36,7 @@ from jampacked.core.solids import solid_arrays
 from .connect import connect_scene, default_diameter
 from .cost import check_export_cost, estimate_export
 from .io import FLOAT32_FORMATS, MeshOutput, check_output_paths, float32_breaks, write_meshes
-from .mesh_write import Instances, write_format
+from .mesh_write import Instances, name_too_long, short_name, write_format
 from .openings import drain_cover, solid_boxes
 from .options import ExportOptions, check_scale, print_size_warning, rotate_axis, up_rotation
 from .parts import require_gap, separate_parts
@@ -102,6 +102,8 @@ def export_packing(packing: Packing | str | os.PathLike,
         part_names = [f"{packing.types[k].name}_{i:03d}"
                       for i, k in enumerate(packing.type_index)]
     # every file this export writes, checked before any work
+    if part_names is not None:
+        _check_part_names(packing, paths, part_names)
     check_output_paths(_targets(paths, part_names), protect)
     if packing.n == 0 and options.shell is None:
         raise InputError("the packing has no objects and no shell was asked for: there is "
@@ -200,6 +202,29 @@ def _targets(paths: list[str], part_names: list[str] | None) -> list[str]:
     if part_names is None:
         return list(paths)
     return [_part_path(p, name) for p in paths for name in part_names]
+
+
+def _check_part_names(packing: Packing, paths: list[str], part_names: list[str]) -> None:
+    """Raise OutputError when a part's file (--split) has a name too long for its folder:
+    said as the type's name and the output's, which make it (check_output_path would say
+    only that the name is too long)."""
+    for p in paths:
+        for i, name in enumerate(part_names):
+            too_long = name_too_long(_part_path(p, name))
+            if too_long is None:
+                continue
+            part = os.path.basename(_part_path(p, name))
+            kind = packing.types[packing.type_index[i]].name
+            raise OutputError(
+                f"cannot write the parts with --split: the file name of part {i} "
+                f"('{short_name(part)}', {len(os.fsencode(part))} bytes) is too long for "
+                f"the folder '{os.path.dirname(os.path.abspath(p))}', which takes names of "
+                f"at most {too_long[1]} bytes, and each file is first written under a name "
+                f"{too_long[0] - len(os.fsencode(part))} bytes longer. Each part's file is "
+                f"named OUTPUT_<type>_<index>: shorten the type's name ('{short_name(kind)}',"
+                f" {len(kind)} characters: its \"name\" in the packing file's \"types\") or "
+                f"the output name '{short_name(os.path.basename(p))}', or export without "
+                "--split.")
 
 
 def _part_path(path: str, name: str) -> str:

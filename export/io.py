@@ -144,8 +144,8 @@ def write_meshes(
 def check_output_paths(paths: Sequence[str], protect: Iterable[str | os.PathLike] = ()
                        ) -> None:
     """Check every output path before anything is built or written: a format the writer
-    knows, not an input (``protect``), its folder there, not a folder, and no file named
-    twice. Raises OutputError or MeshError (see
+    knows, not an input (``protect``), its folder there, not a folder, a name short enough
+    for its folder, and no file named twice. Raises OutputError or MeshError (see
     :func:`jampacked.export.mesh_write.check_output_path`)."""
     protect = [os.fspath(p) for p in protect]
     seen: dict[str, str] = {}

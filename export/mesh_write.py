@@ -31,12 +31,19 @@ from jampacked.core.mesh_files import extension
 from jampacked.core.threemf import encode_3mf, encode_3mf_components
 
 __all__ = ["WRITE_FORMATS", "Instances", "as_arrays", "check_output_path", "encode_mesh",
-           "remove_temporaries", "replace_files", "stage_mesh_file", "write_mesh_file"]
+           "name_too_long", "remove_temporaries", "replace_files", "short_name",
+           "stage_mesh_file", "write_mesh_file"]
 
 #: file extensions write_mesh_file can write
 WRITE_FORMATS = ("stl", "obj", "ply", "3mf")
 
 Body = tuple[np.ndarray, np.ndarray]
+
+#: the characters tempfile.mkstemp puts between a temporary's prefix and suffix
+TEMP_RANDOM = 8
+#: a folder's longest file name, in bytes, where the file system does not say (most
+#: file systems' limit)
+NAME_MAX_FALLBACK = 255
 
 
 @dataclass(frozen=True)
@@ -140,16 +147,46 @@ def write_format(path: str) -> str:
     return ext
 
 
+def _staged_name(name: str, ext: str) -> str:
+    """The name of the temporary a file named ``name`` is first written as
+    (:func:`stage_mesh_file`), its random part as long as tempfile makes it: longer than
+    ``name``, so it is the one that reaches the file system's limit first."""
+    return f".{name}.{'x' * TEMP_RANDOM}.tmp.{ext}"
+
+
+def name_limit(folder: str) -> int:
+    """The longest file name, in bytes, that ``folder``'s file system takes."""
+    try:
+        limit = os.pathconf(folder, "PC_NAME_MAX")
+    except (OSError, ValueError, AttributeError):  # no pathconf (Windows), or not known
+        return NAME_MAX_FALLBACK
+    return limit if limit > 0 else NAME_MAX_FALLBACK
+
+
+def name_too_long(path: str) -> tuple[int, int] | None:
+    """(the length in bytes of the temporary that ``path`` is first written as, the
+    longest name its folder takes) when that is too long for the folder, else None."""
+    folder, name = os.path.split(os.path.abspath(path))
+    staged = len(os.fsencode(_staged_name(name, write_format(path))))
+    limit = name_limit(folder)
+    return (staged, limit) if staged > limit else None
+
+
+def short_name(name: str, keep: int = 40) -> str:
+    """``name`` cut to its first ``keep`` characters, for a message about a long name."""
+    return name if len(name) <= keep else f"{name[:keep]}..."
+
+
 def check_output_path(path: str | os.PathLike,
                       protect: Iterable[str | os.PathLike] = (),
                       probed: set[str] | None = None) -> str:
     """Check that a mesh file can be written at ``path`` before anything is built for it;
     returns its format (the extension, lower case).
 
-    Raises OutputError (unknown format, or ``path`` is one of ``protect``: the inputs, compared
-    as resolved paths) or MeshError (its folder does not exist or takes no new file, or it
-    is a folder). ``probed``: folders already found to take new files (this one is added),
-    so that many outputs in one folder probe it once.
+    Raises OutputError (unknown format, ``path`` is one of ``protect``: the inputs, compared
+    as resolved paths, or its name is too long for its folder) or MeshError (its folder does
+    not exist or takes no new file, or it is a folder). ``probed``: folders already found
+    to take new files (this one is added), so that many outputs in one folder probe it once.
     """
     path_str = os.fspath(path)
     ext = write_format(path_str)
@@ -163,6 +200,14 @@ def check_output_path(path: str | os.PathLike,
                         "create it first.")
     if os.path.isdir(path_str):
         raise MeshError(f"cannot write '{path_str}': it is a folder; give a file name.")
+    too_long = name_too_long(path_str)
+    if too_long:  # else ENAMETOOLONG once everything was built
+        name = os.path.basename(path_str)
+        raise OutputError(
+            f"cannot write '{short_name(name)}': its file name is too long for the folder "
+            f"'{folder}', which takes names of at most {too_long[1]} bytes: the file is first "
+            f"written under a name of {too_long[0]} bytes (its own {len(os.fsencode(name))} "
+            "and a temporary's additions). Give a shorter output name.")
     if probed is None or folder not in probed:
         refused = write_refusal(folder)
         if refused:
@@ -200,6 +245,7 @@ def stage_mesh_file(
                          "give one name per body.")
     data = encode_mesh(ext, bodies, names)
     try:
+        # named as _staged_name says, which check_output_path measured
         with staged_output(os.path.abspath(path_str), "wb", suffix=f".tmp.{ext}") as (
                 handle, tmp):
             handle.write(data)

@@ -20,7 +20,7 @@ from scipy.sparse.csgraph import connected_components
 from testdata import DATA, mesh_path
 
 from jampacked.core.distance import point_triangle_distance, surface_distance
-from jampacked.core.errors import Cancelled, InputError, MeshError
+from jampacked.core.errors import Cancelled, InputError, MeshError, OutputError
 from jampacked.core.meshes import load_mesh
 from jampacked.core.packing import Packing, TypeRecord
 from jampacked.core.packing_json import save_packing
@@ -1325,6 +1325,42 @@ def test_split_parts_of_a_type_named_with_a_slash_stay_beside_the_output(tmp_pat
     assert report.passed
     names = sorted(f.name for f in tmp_path.iterdir())
     assert names == ["p_fruit_lemon_000.stl", "p_polytope3_001.stl"], names
+
+
+def test_split_part_names_too_long_for_the_folder_are_refused_before_any_work(
+        tmp_path, monkeypatch, capsys):
+    """A type named with 250 characters: --split built and validated every part, then
+    failed writing 'p_yyyy..._000.stl' (File name too long) with advice about permissions
+    and free space. The parts' names are measured first, as the temporaries they are
+    written as first (18 bytes longer here), against the folder's limit."""
+    from jampacked.cli.main import main
+    from jampacked.export import assemble
+
+    def no_work(*a, **k):
+        raise AssertionError("the export went to work")
+
+    monkeypatch.setattr(assemble, "load_sources", no_work)
+    p = _made(2)
+    p.types[1].name = "y" * 250
+    src = tmp_path / "long.json"
+    save_packing(p, src)
+    with pytest.raises(OutputError, match=r"the file name of part 1 \('p_y{38}\.\.\.', "
+                       r"260 bytes\) is too long for the folder .* at most 255 bytes.*"
+                       r"shorten the type's name \('y{40}\.\.\.', 250 characters.*"
+                       r"or the output name 'p\.stl', or export without --split"):
+        export_packing(src, tmp_path / "p.stl", ExportOptions(mode="parts", split_files=True))
+    assert main(["export", str(src), "--mode", "parts", "--split", "-q",
+                 "-o", str(tmp_path / "p.stl")]) == 2
+    err = " ".join(capsys.readouterr().err.split())
+    assert "is too long" in err and "permissions" not in err
+    assert sorted(f.name for f in tmp_path.iterdir()) == ["long.json"]
+    # one output whose own name fits but whose temporary does not (.NAME.XXXXXXXX.tmp.stl)
+    with pytest.raises(OutputError, match=r"its file name is too long .* a name of 256 bytes"
+                                          r".*Give a shorter output name"):
+        export_packing(src, tmp_path / ("u" * 234 + ".stl"), ExportOptions(mode="union"))
+    monkeypatch.undo()
+    assert export_packing(src, tmp_path / ("u" * 233 + ".stl"),
+                          ExportOptions(mode="union")).passed  # 255 bytes: it fits
 
 
 def test_a_large_union_is_made_in_chunks_that_a_cancel_can_stop_between():
