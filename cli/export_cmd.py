@@ -60,28 +60,30 @@ written, unless the message says the export was complete).
 """
 
 
-def _axis_at(text: str, default: float | None, what: str) -> tuple[str, float]:
+def _axis_at(text: str, default: float | None) -> tuple[str, float]:
+    """``AXIS[@NUMBER]`` -> (axis, number or ``default``). The messages leave the option's
+    name out: argparse puts it before them ("argument --open-plane: ...")."""
     axis, _, value = text.partition("@")
     axis = axis.strip().lower()
     if axis in ("x", "y", "z"):
         axis = "+" + axis
     if axis not in AXES:
         raise argparse.ArgumentTypeError(
-            f"{what}: the axis must be one of {', '.join(AXES)}, got {text!r}")
+            f"the axis must be one of {', '.join(AXES)}, got {text!r}")
     if not value:
         if default is None:
-            raise argparse.ArgumentTypeError(f"{what}: give AXIS@SIZE, e.g. +y@30")
+            raise argparse.ArgumentTypeError(f"give AXIS@SIZE, e.g. +y@30, got {text!r}")
         return axis, default
     try:
         number = float(value)
     except ValueError:
-        raise argparse.ArgumentTypeError(f"{what}: {value!r} is not a number") from None
+        raise argparse.ArgumentTypeError(f"{value!r} is not a number") from None
     return axis, number
 
 
 def parse_open_plane(text: str) -> Opening:
     """``+z@0.75`` -> Opening(plane, +z, 0.75)."""
-    axis, at = _axis_at(text, 0.75, "--open-plane")
+    axis, at = _axis_at(text, 0.75)
     try:
         return Opening(kind="plane", axis=axis, at=at)
     except InputError as exc:
@@ -90,7 +92,7 @@ def parse_open_plane(text: str) -> Opening:
 
 def parse_window(text: str) -> Opening:
     """``+y@30`` -> Opening(window, +y, size 30)."""
-    axis, size = _axis_at(text, None, "--window")
+    axis, size = _axis_at(text, None)
     try:
         return Opening(kind="window", axis=axis, size=size)
     except InputError as exc:

@@ -482,6 +482,20 @@ def test_bad_numbers_are_usage_errors(tmp_path, capsys):
         assert err.splitlines()[-1].count(option) == 1, err
 
 
+def test_export_openings_name_their_option_once(tmp_path, capsys):
+    # "argument --open-plane: --open-plane: the axis must be ...": argparse names the
+    # option before the message of a type function, which named it again
+    for option, value, words in (("--open-plane", "+q@0.5", "the axis must be one of"),
+                                 ("--window", "+y", "give AXIS@SIZE"),
+                                 ("--window", "+y@abc", "'abc' is not a number")):
+        rc = main(["export", str(tmp_path / "p.json"), "--shell", "1", option, value,
+                   "-o", str(tmp_path / "x.3mf")])
+        err = capsys.readouterr().err
+        assert rc == 2 and f"argument {option}: {words}" in err, err
+        assert err.splitlines()[-1].count(option) == 1, err
+    assert not (tmp_path / "x.3mf").exists()
+
+
 def test_mix_tolerance_reaches_the_late_passes(tmp_path):
     """--mix-tolerance sets the cap the extra cavity passes keep the type mix error under;
     the packing file records it."""
