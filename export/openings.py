@@ -277,10 +277,11 @@ def drill_drain(shell: m3.Manifold, inner: m3.Manifold, diameter: float,
             if notes is not None:
                 rise = float(free[2] - low[2])
                 rise = 0.0 if abs(rise) <= 1e-9 * size else rise  # a flat floor's rounding
+                # the floor's sample can lie a little below the lowest point found
+                height = f"{abs(rise):.3g} {'lower' if rise < 0 else 'higher'}"
                 notes.append(f"objects sit on the cavity's lowest point: the drain opens "
                              f"{np.linalg.norm((free - low)[:2]):.3g} away from it and "
-                             f"{rise:.3g} higher, at the lowest point of the "
-                             "floor they leave free.")
+                             f"{height}, at the lowest point of the floor they leave free.")
             low = free
     # the cavity's floor rises across the disc: start up to radius + T/4 above, short of the
     # ceiling

@@ -323,6 +323,21 @@ def test_a_covered_drain_moves_beside_the_object_in_a_cavity_of_any_height(heigh
     assert len(hits) == 2 and min(hits) > 0  # only the top wall is met
 
 
+def test_a_drain_moved_lower_than_the_lowest_point_says_lower(monkeypatch):
+    # the free floor's sample lay below the lowest point found: the note said "the drain
+    # opens 6.18 away from it and -0.00372 higher"
+    from jampacked.export import openings
+
+    monkeypatch.setattr(openings, "_free_site",
+                        lambda inner, low, *a: low + np.array([6.0, 0.0, -0.00372]))
+    box = trimesh.creation.box((80.0, 80.0, 16.0))
+    _, report = make_shell(box.vertices, box.faces, 1.0, drain=3.0,
+                           drain_covered=lambda p: bool(np.hypot(p[0], p[1]) < 5.0),
+                           drain_reach=25.0)
+    (note,) = [n for n in report.notes if "the drain opens" in n]
+    assert "opens 6 away from it and 0.00372 lower, at the lowest point" in note, note
+
+
 def test_a_covered_drain_stays_in_its_own_cavity():
     # two chambers joined by a neck too thin to hollow: two cavities. Every free floor
     # within reach was taken, that of the other chamber too, where a drain opens that
