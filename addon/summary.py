@@ -107,6 +107,7 @@ _BLENDER_WORDS = (
     ("--clearance (e.g. --clearance 0.2 for 0.2 mm)", "a Clearance (e.g. 0.2 mm)"),
     ("export with --mode union or --mode connect", "export in Union or Connect mode"),
     ("export with --mode union or --mode parts", "export in Union or Parts mode"),
+    ("export with --mode connect", "export in Connect mode"),
     ("; then export again.", "; then pack again."),
     ("(--container-size and --type-scale) and pack again.",
      "(the scene's Unit Scale, Scene Properties > Units) and pack again."),

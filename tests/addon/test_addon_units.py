@@ -203,6 +203,11 @@ def test_engine_messages_in_blender_words():
         "1.5, or export with --mode union or --mode parts.") == (
         "Connect made 2 bodies instead of one; nothing was written: ... e.g. Connector 1.5, "
         "or export in Union or Parts mode.")
+    # a union with a shell whose objects lie loose in it
+    assert summary.in_blender_words(
+        "In the print they rattle in its cavity. To tie every object to the shell, export "
+        "with --mode connect.") == ("In the print they rattle in its cavity. To tie every "
+                                    "object to the shell, export in Connect mode.")
 
 
 def test_the_mix_warnings_in_blender_words():
