@@ -350,8 +350,9 @@ class ExportRunner(JobRunner):
         return worker.Job(self.job_title, run)
 
     def apply(self, context: bpy.types.Context, result: Any) -> set[str]:
-        lines = [v.summary() for v in result.validation]
-        text = f"Exported {', '.join(result.paths)}: {result.summary()}"
+        # the add-on writes millimetres: an STL's "units" are millimetres here
+        lines = [v.summary().replace(" units³", " mm³") for v in result.validation]
+        text = f"Exported {', '.join(result.paths)}: {result.summary('mm')}"
         if lines:
             text += " " + " ".join(lines)
         text += "".join(f" Warning: {summary.in_blender_words(w)}" for w in result.warnings)

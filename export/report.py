@@ -57,26 +57,30 @@ class ExportReport:
         """Every written file validated."""
         return bool(self.validation) and all(v.passed for v in self.validation)
 
-    def summary(self) -> str:
-        """One paragraph for people."""
+    def summary(self, unit: str = "") -> str:
+        """One paragraph for people; ``unit`` names the lengths' unit where the reader does
+        not know it (Blender's scenes in metres export in millimetres: "mm")."""
+        u = f" {unit}" if unit else ""
+        volume = f"{u}³" if unit else " in volume"
         parts = [f"{self.mode}: {self.objects} objects -> {self.bodies} "
                  f"bod{'y' if self.bodies == 1 else 'ies'}, {self.triangles:,} triangles"]
         if self.mode == "connect":
-            parts.append(f"{self.connectors} connectors, {self.connector_length:.1f} long "
+            parts.append(f"{self.connectors} connectors, {self.connector_length:.1f}{u} long "
                          f"in all, {self.fused} contacts fused")
         if self.shell is not None:
-            parts.append(f"shell {self.shell.thickness:g} thick (measured median "
-                         f"{self.shell.measured_median:.3g}, min {self.shell.measured_min:.3g})")
+            parts.append(f"shell {self.shell.thickness:g}{u} thick (measured median "
+                         f"{self.shell.measured_median:.3g}, min "
+                         f"{self.shell.measured_min:.3g}{u})")
             parts += [note.rstrip(".") for note in self.shell.notes]
         if self.min_gap is not None:
-            parts.append(f"smallest gap between parts {self.min_gap:.3g} (clearance "
-                         f"{self.clearance:g})")
+            parts.append(f"smallest gap between parts {self.min_gap:.3g}{u} (clearance "
+                         f"{self.clearance:g}{u})")
         if self.triangles_saved:
             parts.append(f"--resolution saved {self.triangles_saved:,} triangles (surfaces "
-                         f"moved at most {self.resolution_deviation:.3g})")
+                         f"moved at most {self.resolution_deviation:.3g}{u})")
         if self.voids_filled:
             parts.append(f"{self.voids_filled} sealed void{'s' if self.voids_filled > 1 else ''}"
-                         f" filled ({self.voids_filled_volume:.3g} in volume)")
+                         f" filled ({self.voids_filled_volume:.3g}{volume})")
         verdict = "PASS" if self.passed else "FAIL"
         parts.append(f"validation {verdict} for {len(self.validation)} file(s)")
         return "; ".join(parts) + "."

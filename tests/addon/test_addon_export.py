@@ -133,7 +133,14 @@ def test_a_scene_in_metres_exports_in_millimetres(bpy, addon, scene, tmp_path):
     assert bpy.ops.jampacked.pack() == {'FINISHED'}
     assert scene.settings.result["jampacked_count"] > 5
     s = scene.settings
-    s.export_mode, s.shell, s.file_format = 'UNION', 0.002, '3MF'
+    s.export_mode, s.shell, s.file_format = 'UNION', 0.002, 'STL'
+    s.filepath = str(tmp_path / "cow.stl")
+    assert bpy.ops.jampacked.export() == {'FINISHED'}
+    # its lengths said in millimetres (they were bare numbers, and an STL's volume "units³")
+    message = bpy.context.window_manager.jampacked_job.last_message
+    assert "shell 2 mm thick" in message and "units" not in message, message
+    assert "mm³" in message
+    s.file_format = '3MF'
     s.filepath = str(tmp_path / "cow.3mf")
     assert bpy.ops.jampacked.export() == {'FINISHED'}
     printed = trimesh.load(tmp_path / "cow.3mf", force="mesh")
