@@ -319,6 +319,9 @@ class ExportRunner(JobRunner):
 
     job_title = "Export"
 
+    def _fail(self, context: bpy.types.Context, message: str) -> None:
+        super()._fail(context, summary.export_in_mm(message))
+
     def make_job(self, context: bpy.types.Context) -> worker.Job:
         s = context.scene.jampacked
         options = engine.export_options(
@@ -350,12 +353,12 @@ class ExportRunner(JobRunner):
         return worker.Job(self.job_title, run)
 
     def apply(self, context: bpy.types.Context, result: Any) -> set[str]:
-        # the add-on writes millimetres: an STL's "units" are millimetres here
-        lines = [v.summary().replace(" units³", " mm³") for v in result.validation]
+        lines = [summary.export_in_mm(v.summary()) for v in result.validation]
         text = f"Exported {', '.join(result.paths)}: {result.summary('mm')}"
         if lines:
             text += " " + " ".join(lines)
-        text += "".join(f" Warning: {summary.in_blender_words(w)}" for w in result.warnings)
+        text += "".join(f" Warning: {summary.in_blender_words(summary.export_in_mm(w))}"
+                        for w in result.warnings)
         level = 'INFO' if result.passed and not result.warnings else 'WARNING'
         self._note(context, level, text)
         return {'FINISHED'}

@@ -132,6 +132,27 @@ _BLENDER_WORDS = (
 )
 
 
+#: Export writes millimetres (`units.mm_per_unit` scales the scene): the export's
+#: messages say "units", its command line's container units, where they are millimetres
+_EXPORT_UNITS = (
+    (" units (mm)", " mm"),
+    ("(container units)", "(mm)"),
+    (" units³", " mm³"),
+    (" units^3", " mm³"),
+    (" units across", " mm across"),
+    (" units from its surface", " mm from its surface"),
+    (" units of another face", " mm of another face"),
+)
+
+
+def export_in_mm(message: str) -> str:
+    """An export message with its lengths' unit said as millimetres, what the add-on's
+    exports are in."""
+    for cli, blender in _EXPORT_UNITS:
+        message = message.replace(cli, blender)
+    return message
+
+
 def in_blender_words(message: str) -> str:
     """An engine message with the command line's option names replaced by what a Blender
     user changes instead, first letter upper case."""

@@ -86,6 +86,18 @@ def test_export_refuses_a_type_mesh_being_edited(bpy, addon, packed, tmp_path):
     assert not (tmp_path / "x.stl").exists()
 
 
+def test_export_errors_say_millimetres(bpy, addon, packed, tmp_path):
+    """Export works in millimetres: its messages' lengths, which read "units" (the command
+    line's container units), say mm."""
+    packed.settings.filepath = str(tmp_path / "x.stl")
+    placed = next(o for o in packed.settings.result.objects if o.type == 'MESH')
+    placed.location.x += 1000.0
+    with pytest.raises(RuntimeError, match=r"is [\d.]+ mm across at \(") as caught:
+        bpy.ops.jampacked.export()
+    assert " units" not in str(caught.value)
+    assert not (tmp_path / "x.stl").exists()
+
+
 def test_export_needs_a_packing(bpy, addon, scene, tmp_path):
     scene.settings.filepath = str(tmp_path / "x.stl")
     with pytest.raises(RuntimeError, match="no packing to export: run Pack first"):
