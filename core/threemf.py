@@ -370,14 +370,21 @@ def transform_text(matrix: np.ndarray) -> str:
     return " ".join(repr(x) for x in m[:3, :4].T.ravel().tolist())
 
 
+#: the zip entries' time stamp: fixed, so that the same meshes give the same bytes (an entry
+#: named by a string takes the current time)
+ZIP_DATE_TIME = (1980, 1, 1, 0, 0, 0)
+
+
 def _package(parts: list[str]) -> bytes:
     buffer = io.BytesIO()
     # level 1: much faster than the default on big meshes, for a somewhat larger file
     with zipfile.ZipFile(buffer, "w", compression=zipfile.ZIP_DEFLATED,
                          compresslevel=1) as archive:
-        archive.writestr("[Content_Types].xml", CONTENT_TYPES)
-        archive.writestr("_rels/.rels", RELATIONSHIPS)
-        archive.writestr("3D/3dmodel.model", "".join(parts))
+        for name, text in (("[Content_Types].xml", CONTENT_TYPES), ("_rels/.rels", RELATIONSHIPS),
+                           ("3D/3dmodel.model", "".join(parts))):
+            entry = zipfile.ZipInfo(name, date_time=ZIP_DATE_TIME)
+            entry.external_attr = 0o600 << 16  # what a name given as a string gets
+            archive.writestr(entry, text, compress_type=zipfile.ZIP_DEFLATED, compresslevel=1)
     return buffer.getvalue()
 
 

@@ -5,6 +5,7 @@ for a damaged 3MF); the package's own 3D model relationship picks the model part
 
 from __future__ import annotations
 
+import io
 import zipfile
 from pathlib import Path
 
@@ -210,3 +211,21 @@ def test_a_project_whose_objects_are_all_in_other_parts_is_named(tmp_path):
                      "</components></object>", '<item objectid="2"/>')
     _refused(_standard(tmp_path / "project.3mf", project),
              "/3D/Objects/object_1.model", "production extension", "plain 3MF or as STL")
+
+
+def test_the_same_meshes_give_the_same_package_bytes():
+    """A 3MF's zip entries carried the time they were written, so two exports of one packing
+    differed (STL, OBJ and PLY did not): the entries' time is fixed, their compression and
+    permissions as before."""
+    box = trimesh.creation.box((10.0, 20.0, 30.0))
+    v, f = np.asarray(box.vertices), np.asarray(box.faces)
+    data = threemf.encode_3mf([(v, f)], ["box"])
+    with zipfile.ZipFile(io.BytesIO(data)) as archive:
+        infos = archive.infolist()
+    assert [i.filename for i in infos] == [CT, RELS, MODEL]
+    assert all(i.date_time == (1980, 1, 1, 0, 0, 0) for i in infos)
+    assert all(i.compress_type == zipfile.ZIP_DEFLATED for i in infos)
+    assert all(i.external_attr == 0o600 << 16 for i in infos)
+    components = threemf.encode_3mf_components([(v, f)], ["box"], [0], [np.eye(4)])
+    with zipfile.ZipFile(io.BytesIO(components)) as archive:
+        assert {i.date_time for i in archive.infolist()} == {(1980, 1, 1, 0, 0, 0)}
