@@ -14,7 +14,7 @@ from rich.markup import escape
 
 from jampacked.cli.args import UsageError, add_command, positive_float
 from jampacked.cli.exits import EXIT_ERROR, EXIT_INTERRUPTED, print_error
-from jampacked.cli.interrupt import CancelOnInterrupt
+from jampacked.cli.interrupt import CancelOnInterrupt, Terminated
 from jampacked.cli.reports import consoles, print_export, print_validation, progress_bar
 from jampacked.cli.scene import check_output, require_png
 from jampacked.core.errors import Cancelled, InputError, JampackedError, OutputError
@@ -204,6 +204,14 @@ def cmd_export(args: argparse.Namespace) -> int:
                             f"{', '.join(replaced)} {'was' if len(replaced) == 1 else 'were'} "
                             "written and validated.")
                 return EXIT_INTERRUPTED
+            except Terminated as exc:  # held back likewise
+                replaced = getattr(exc, "replaced", None)
+                if not replaced:
+                    raise
+                print_error(f"terminated once the export was complete: "
+                            f"{', '.join(replaced)} {'was' if len(replaced) == 1 else 'were'} "
+                            "written and validated.")
+                return 128 + exc.signum
         if args.json:
             print(json.dumps(report.as_dict(), indent=1, allow_nan=False))
         elif not args.quiet:

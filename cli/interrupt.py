@@ -52,7 +52,8 @@ class TerminateCleanly:
     :class:`Terminated` in the main thread, so that every ``finally`` and ``except
     BaseException`` runs: staged temporary files are removed, outputs stay as they were.
     By default these signals ended the process on the spot, leaving an export's staged
-    files behind. Does nothing outside the main thread."""
+    files behind. A signal the process ignores (SIGHUP under ``nohup``) stays ignored.
+    Does nothing outside the main thread."""
 
     SIGNALS = tuple(getattr(signal, name) for name in ("SIGTERM", "SIGHUP")
                     if hasattr(signal, name))
@@ -67,7 +68,12 @@ class TerminateCleanly:
     def __enter__(self) -> TerminateCleanly:
         if threading.current_thread() is threading.main_thread():
             for signum in self.SIGNALS:
-                self._previous[signum] = signal.getsignal(signum)
+                previous = signal.getsignal(signum)
+                # ignored (nohup ignores SIGHUP: the run must outlive its terminal), or a
+                # handler not installed from Python, which could not be put back
+                if previous is None or previous == signal.SIG_IGN:
+                    continue
+                self._previous[signum] = previous
                 signal.signal(signum, self._handler)
         return self
 

@@ -262,29 +262,44 @@ def remove_temporaries(staged: Iterable[tuple[str, str]]) -> None:
             os.unlink(tmp)
 
 
+#: signals held back during the renames: Ctrl-C, and the SIGTERM and SIGHUP the command
+#: line turns into an exception (`jampacked.cli.interrupt.TerminateCleanly`)
+DEFERRED_SIGNALS = tuple(getattr(signal, name) for name in ("SIGINT", "SIGTERM", "SIGHUP")
+                         if hasattr(signal, name))
+
+
 @contextlib.contextmanager
 def _interrupts_deferred() -> Iterator[None]:
-    """Hold Ctrl-C (SIGINT) back until the block ends, so that it cannot stop a set of
-    renames half-way: in the main thread its handler only records it meanwhile, and once
-    the block has completed it is raised again for the handler that was there (a
-    KeyboardInterrupt, if that handler raises one, comes out of this block's end). When the
-    block fails, the error already says what is on disk and the Ctrl-C is dropped."""
-    previous = None
+    """Hold Ctrl-C (SIGINT), and SIGTERM and SIGHUP where Python code handles them, back
+    until the block ends, so that they cannot stop a set of renames half-way: in the main
+    thread their handlers only record them meanwhile, and once the block has completed each
+    is raised again for the handler that was there (a KeyboardInterrupt, if that handler
+    raises one, comes out of this block's end). When the block fails, the error already
+    says what is on disk and the signals are dropped."""
+    previous: dict[int, object] = {}
     if threading.current_thread() is threading.main_thread():
-        previous = signal.getsignal(signal.SIGINT)
-    if previous is None:  # not the main thread, or a handler not installed from Python
+        for signum in DEFERRED_SIGNALS:
+            handler = signal.getsignal(signum)
+            # a handler not installed from Python (None) cannot be put back; an ignored or
+            # default SIGTERM or SIGHUP is left as the caller set it
+            if handler is not None and (signum == signal.SIGINT or callable(handler)):
+                previous[signum] = handler
+    if not previous:
         yield
         return
     held: list[int] = []
-    signal.signal(signal.SIGINT, lambda signum, frame: held.append(signum))
+    for signum in previous:
+        signal.signal(signum, lambda got, frame: held.append(got))
     try:
         yield
     except BaseException:
-        signal.signal(signal.SIGINT, previous)
+        for signum, handler in previous.items():
+            signal.signal(signum, handler)
         raise
-    signal.signal(signal.SIGINT, previous)
-    if held:
-        signal.raise_signal(signal.SIGINT)
+    for signum, handler in previous.items():
+        signal.signal(signum, handler)
+    for signum in dict.fromkeys(held):
+        signal.raise_signal(signum)
 
 
 def replace_files(staged: Sequence[tuple[str, str]]) -> None:
@@ -295,9 +310,10 @@ def replace_files(staged: Sequence[tuple[str, str]]) -> None:
     fails (no space, an immutable file), the targets already replaced are put back from
     their backups (a new one is removed), so every output is as it was. Raises MeshError
     then, naming what failed and, where a file system without hard links or a failed
-    restore left part of the export on disk, exactly which files. A Ctrl-C held back
-    meanwhile surfaces afterwards as a KeyboardInterrupt whose ``replaced`` attribute lists
-    the targets replaced (all of them), for a true message.
+    restore left part of the export on disk, exactly which files. A Ctrl-C (or a SIGTERM
+    or SIGHUP the command line handles) held back meanwhile surfaces afterwards as its
+    exception, whose ``replaced`` attribute lists the targets replaced (all of them), for
+    a true message.
     """
     done: list[str] = []
     backups: dict[str, str | None] = {}
@@ -319,8 +335,9 @@ def replace_files(staged: Sequence[tuple[str, str]]) -> None:
                 done.append(path)
             for backup in backups.values():
                 _discard(backup)
-    except KeyboardInterrupt as exc:
-        exc.replaced = list(done)  # type: ignore[attr-defined]
+    except BaseException as exc:
+        if not isinstance(exc, Exception):  # a signal held back (Ctrl-C, SIGTERM, SIGHUP)
+            exc.replaced = list(done)  # type: ignore[attr-defined]
         raise
 
 

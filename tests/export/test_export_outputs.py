@@ -390,6 +390,45 @@ def test_cli_ctrl_c_after_validation_says_the_files_were_written(tmp_path, monke
     assert validate_file(a3).passed and validate_file(astl).passed
 
 
+def test_cli_sigterm_while_files_are_put_in_place_waits_until_all_are(tmp_path, monkeypatch):
+    """SIGTERM between two renames left the first file new, the second old and a backup
+    beside it: it is held back as a Ctrl-C is, until every file is in place."""
+    from jampacked.cli.main import main
+
+    src = _cubes(tmp_path)
+    a3, astl = _old_outputs(tmp_path, "a.3mf", "a.stl")
+    real = os.replace
+    sent = []
+
+    def replace(a, b):
+        if not sent:
+            sent.append(b)
+            os.kill(os.getpid(), signal.SIGTERM)
+        real(a, b)
+
+    monkeypatch.setattr(os, "replace", replace)
+    rc = main(["export", str(src), "--mode", "union", "-o", str(a3), "-o", str(astl), "-q"])
+    assert sent and rc == 128 + signal.SIGTERM
+    assert validate_file(a3).passed and validate_file(astl).passed
+    assert _temporaries(tmp_path) == []
+
+
+def test_a_signal_the_process_ignores_stays_ignored():
+    """nohup ignores SIGHUP so that a run outlives its terminal: the command line's handler
+    for SIGTERM and SIGHUP is not installed over an ignored signal."""
+    from jampacked.cli.interrupt import TerminateCleanly
+
+    before = signal.signal(signal.SIGHUP, signal.SIG_IGN)
+    try:
+        with TerminateCleanly():
+            assert signal.getsignal(signal.SIGHUP) == signal.SIG_IGN
+            assert signal.getsignal(signal.SIGTERM) == TerminateCleanly._handler
+            signal.raise_signal(signal.SIGHUP)  # ignored: nothing happens
+        assert signal.getsignal(signal.SIGHUP) == signal.SIG_IGN
+    finally:
+        signal.signal(signal.SIGHUP, before)
+
+
 def test_outputs_differing_only_in_case_are_one_file_on_macos(tmp_path, monkeypatch):
     """On macOS (a case-insensitive volume as a rule) a.stl and a.STL are one file: two
     temporaries were renamed onto it and both reported written."""
