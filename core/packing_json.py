@@ -1,9 +1,9 @@
 """The packing JSON file: `save_packing`, `load_packing`, `verify_sources`.
 
 The file (``"format": "jampacked.packing"``, ``"version": 2``) names meshes by path, relative
-to the JSON file's real directory (POSIX separators), by absolute path ("absolute_path"; older
-files lack it and still load) and by sha256. A mesh is looked for at its
-relative path first, then at its absolute one (`_located`). Container spec strings such as
+to the JSON file's directory (POSIX separators), by absolute path ("absolute_path"; older
+files lack it and still load) and by sha256. A mesh is looked for at its relative path
+first, then at its absolute one (`_located`). Container spec strings such as
 ``"box:43.4x41.8x45.0"`` are stored verbatim. Version 2 writes what `pack()` was asked for as
 "inputs" and what the run did as "report" (`core/report.py`); version-1 files, which held
 both in one flat "params" object, are still read (unknown keys are ignored).
@@ -69,14 +69,12 @@ def _matrix_list(m: np.ndarray) -> list[list[float]]:
 
 def _relative(path: str, base_dir: str) -> str:
     """`path` relative to `base_dir` with POSIX separators; absolute if no relative path exists
-    (e.g. another drive on Windows). Both are resolved first: a relative path between a
-    symlink's spelling and a real folder (or two spellings) leads elsewhere once ".." is
-    taken from the other side."""
-    real = os.path.realpath(path)
+    (e.g. another drive on Windows). As spelled, symlinks not resolved: a project reached
+    through a link keeps its own meshes, and a mesh that is a link stays that link."""
     try:
-        rel = os.path.relpath(real, os.path.realpath(base_dir))
+        rel = os.path.relpath(os.path.abspath(path), base_dir)
     except ValueError:
-        rel = real
+        rel = os.path.abspath(path)
     return rel.replace(os.sep, "/")
 
 
@@ -95,8 +93,8 @@ def _same_file(a: str, b: str) -> bool:
 def save_packing(packing: Packing, path: str | os.PathLike) -> None:
     """Write `packing` as JSON to `path`, atomically (temp file + os.replace).
 
-    Mesh paths are stored relative to the JSON file's real (symlinks resolved) directory and
-    as real absolute paths; spec strings verbatim.
+    Mesh paths are stored relative to the JSON file's directory and as absolute paths, as
+    spelled (symlinks not resolved); spec strings verbatim.
     Raises InputError if `path` is the container or a type mesh file (inputs are never
     overwritten), if its directory does not exist, or if a value cannot be written.
     """
@@ -129,7 +127,7 @@ def save_packing(packing: Packing, path: str | os.PathLike) -> None:
     def absolute(p: str | None) -> str | None:
         if p is None or is_spec(p):
             return None
-        return os.path.realpath(p).replace(os.sep, "/")
+        return os.path.abspath(p).replace(os.sep, "/")
 
     mats = packing.matrices()
     doc = {
@@ -296,38 +294,33 @@ def _placement_arrays(raw: list, types: int) -> tuple[np.ndarray, ...] | None:
     return k.astype(np.int64), m, q, t, s
 
 
-def _located(p: str | None, absolute: str | None, base_dir: str) -> str | None:
-    """Where a mesh is: its `path` resolved against the packing file's real folder if a file
-    is there, else its `absolute_path` (older files have none) if a file is there, else the
-    former (so that a message names the path the user can edit).
+def _located(p: str | None, absolute: str | None, src: str) -> str | None:
+    """Where a mesh is, for a packing file opened as `src`: the first of these that is a
+    file, else the first (so that a message names the path the user can edit):
 
-    `path` first: a project folder moved or copied with its meshes finds the meshes beside
-    it, not the originals (which may have changed or gone); a `path` edited by hand is
-    honoured. `absolute_path` then: a packing file moved alone still finds meshes that
-    stayed where they were."""
-    resolved = _resolve(p, base_dir)
-    if resolved is None or is_spec(resolved) or os.path.isfile(resolved):
-        return resolved
-    if absolute and os.path.isabs(absolute) and os.path.isfile(absolute):
-        return os.path.normpath(absolute)
-    return resolved
-
-
-def _resolve(p: str | None, base_dir: str) -> str | None:
-    """A stored mesh path as an absolute path; `base_dir` is the packing file's real folder
-    (relative paths are written between real locations). Resolved, not normalised: ".." after
-    a symlink in a hand-written path means the link target's parent, as the file system
-    reads it."""
-    if p is None or is_spec(p) or os.path.isabs(p):
+    - its `path` against the folder `src` names (as written, so a project folder moved or
+      copied with its meshes finds the meshes beside it; a `path` edited by hand wins);
+    - its `path` against that folder's real location (the file written through a
+      symlinked folder, opened from where it really is, or the other way round);
+    - its `absolute_path` (older files have none): a packing file moved alone still finds
+      meshes that stayed where they were."""
+    if p is None or is_spec(p):
         return p
-    return os.path.realpath(os.path.join(base_dir, p))
+    candidates = [os.path.normpath(os.path.join(os.path.dirname(src), p))]
+    if not os.path.isabs(p):
+        candidates.append(os.path.normpath(os.path.join(
+            os.path.dirname(os.path.realpath(src)), p)))
+    if absolute and os.path.isabs(absolute):
+        candidates.append(os.path.normpath(absolute))
+    return next((c for c in candidates if os.path.isfile(c)), candidates[0])
 
 
 def load_packing(path: str | os.PathLike) -> Packing:
     """Read a packing JSON file written by `save_packing`.
 
-    Relative mesh paths are resolved against the JSON file's real directory into absolute
-    paths; where no file is there, the recorded absolute path is taken if a file is there.
+    Relative mesh paths are resolved against the JSON file's directory into absolute paths
+    (`_located`: where no file is there, against its real directory, then the recorded
+    absolute path).
     Raises InputError, naming the file, if it cannot be read or parsed, has another format or
     a newer version, or lacks a field / holds a bad value (matrix shape, type index, a
     placement matrix that disagrees with its rotation/translation/scale, ...).
@@ -362,15 +355,12 @@ def load_packing(path: str | os.PathLike) -> Packing:
         )
     if version < 1:
         raise r.fail(f"invalid version {version}")
-    # the real folder: the paths were written relative to it, wherever the file is opened from
-    base_dir = os.path.dirname(os.path.realpath(src))
-
     cont = r.dict_(r.get(doc, "container", ""), "container")
     cpath = r.mesh_path(r.get(cont, "path", "container"), "container.path")
     if not cpath:
         raise r.fail("container.path must be a non-empty string")
     container_path = _located(cpath, r.mesh_path(cont.get("absolute_path"),
-                                                 "container.absolute_path"), base_dir)
+                                                 "container.absolute_path"), src)
     container_sha = r.opt_str(r.get(cont, "sha256", "container"), "container.sha256")
     frame = r.matrix(r.get(cont, "frame_from_file", "container"), "container.frame_from_file")
     cvol = r.number(r.get(cont, "volume", "container"), "container.volume")
@@ -389,7 +379,7 @@ def load_packing(path: str | os.PathLike) -> Packing:
                 name=name,
                 path=_located(r.mesh_path(r.get(t, "path", w), f"{w}.path"),
                               r.mesh_path(t.get("absolute_path"), f"{w}.absolute_path"),
-                              base_dir),
+                              src),
                 sha256=r.opt_str(r.get(t, "sha256", w), f"{w}.sha256"),
                 share=r.number(r.get(t, "share", w), f"{w}.share"),
                 local_from_file=r.matrix(r.get(t, "local_from_file", w), f"{w}.local_from_file"),

@@ -209,21 +209,50 @@ def test_round_trip_preserves_everything(scene):
     assert out2.read_text() == out.read_text()
 
 
-def test_paths_are_relative_between_real_folders(scene):
-    # written through a symlinked folder, the paths were relative to the link's spelling
-    # ("../meshes/..." from tmp/link), so opened from its real folder tmp/out/sub they led
-    # to tmp/out/meshes, which does not exist
+def test_a_packing_written_through_a_symlinked_folder_opens_from_either(scene):
+    # written through a symlinked folder, the paths are relative to the link's spelling
+    # ("../meshes/..." from tmp/link): opened from its real folder tmp/out/sub they led to
+    # tmp/out/meshes, which does not exist (now found from the real folder too, and the
+    # meshes' absolute paths are recorded as spelled)
     tmp, files, p = scene
     (tmp / "out" / "sub").mkdir()
     (tmp / "link").symlink_to(tmp / "out" / "sub")
     save_packing(p, tmp / "link" / "p.json")
     doc = json.loads((tmp / "out" / "sub" / "p.json").read_text())
-    assert doc["container"]["path"] == "../../meshes/container.stl"
+    assert doc["container"]["path"] == "../meshes/container.stl"
     for where in (tmp / "out" / "sub" / "p.json", tmp / "link" / "p.json"):
         q = load_packing(where)
         assert q.container_path == files["container.stl"]
         assert [t.path for t in q.types] == [files["apple.obj"], files["lemon.obj"]]
         assert verify_sources(q) == []
+    # a project whose results folder is a link: a copy of the project (its own meshes, its
+    # results linked elsewhere) finds its own meshes, not the original project's
+    import shutil
+
+    (tmp / "scratch").mkdir()
+    (tmp / "results").symlink_to(tmp / "scratch")
+    save_packing(p, tmp / "results" / "r.json")
+    copy = tmp / "copy"
+    shutil.copytree(tmp / "meshes", copy / "meshes")
+    (tmp / "scratch2").mkdir()
+    shutil.copy(tmp / "scratch" / "r.json", tmp / "scratch2" / "r.json")
+    (copy / "results").symlink_to(tmp / "scratch2")
+    q = load_packing(copy / "results" / "r.json")
+    assert q.container_path == str(copy / "meshes" / "container.stl")
+    assert [t.path for t in q.types] == [str(copy / "meshes" / n)
+                                         for n in ("apple.obj", "lemon.obj")]
+
+
+def test_a_mesh_that_is_a_symlink_is_recorded_as_the_link(scene):
+    tmp, files, p = scene
+    link = tmp / "meshes" / "latest.stl"
+    link.symlink_to(files["container.stl"])
+    p.container_path = str(link)
+    save_packing(p, tmp / "l.json")
+    doc = json.loads((tmp / "l.json").read_text())
+    assert doc["container"]["path"] == "meshes/latest.stl"
+    assert doc["container"]["absolute_path"] == str(link)
+    assert load_packing(tmp / "l.json").container_path == str(link)
 
 
 def test_a_packing_moved_alone_finds_the_meshes_where_they_stayed(scene):
