@@ -240,7 +240,7 @@ class PackRequest:
     signatures: list[str] = field(default_factory=list)
 
 
-def _flush_edit_mode(context: bpy.types.Context) -> None:
+def flush_edit_mode(context: bpy.types.Context) -> None:
     """Write the edits of every object in Edit Mode to its data (it stays in Edit Mode), so
     that every reader sees what the viewport shows: the evaluated mesh Pack reads follows
     the edit, while the mesh data (the result's type meshes, what Export reads) held the
@@ -257,7 +257,7 @@ def gather_pack(context: bpy.types.Context) -> PackRequest:
 
     Raises InputError with a message that names the object and says what to do.
     """
-    _flush_edit_mode(context)
+    flush_edit_mode(context)
     s = context.scene.jampacked
     container = _require_mesh(s.container, "container", context.scene)
     if not len(s.types):
@@ -486,16 +486,18 @@ def make_real(coll: bpy.types.Collection, which: str, type_index: int = -1
     types = result_edits.point_types(obj, points, len(names), coll.name)[picked]
     index = points["indices"][picked].astype(np.int64)
     drawn = result_edits.instance_matrices(obj, points, picked)
-    rows = exact[index]
+    rows = exact[index].copy()
     same = (rows[:, 8].astype(np.int64) == types) & result_edits.same_placement(drawn, rows)
+    moved = np.flatnonzero(~same)
+    if len(moved):  # where it is drawn now; an uneven scale or a mirror is refused by name
+        rows[moved, :8] = result_edits.decompose(
+            drawn[moved], lambda j: f"'{names[types[moved[j]]]} {index[moved[j]] + 1}' (an "
+                                    f"instance of '{obj.name}')", then="make it real again")
     made = []
     for k, i in enumerate(index.tolist()):
         t, p = int(types[k]), rows[k]
-        placed = place_object(coll, f"{names[t]} {i + 1}", t, i, p[:4], p[4:7], p[7],
-                              *meshes[t])
-        if not same[k]:
-            placed.matrix_world = Matrix(drawn[k].tolist())
-        made.append(placed)
+        made.append(place_object(coll, f"{names[t]} {i + 1}", t, i, p[:4], p[4:7], p[7],
+                                 *meshes[t]))
     if mask.all():
         instances.remove(obj)
         coll[instances.KIND_KEY] = "objects"

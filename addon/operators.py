@@ -572,6 +572,7 @@ class JAMPACKED_OT_validate(bpy.types.Operator):
             return {'CANCELLED'}
         objects = _mesh_targets(context)
         apply_modifiers = context.scene.jampacked.validate_modifiers
+        bridge.flush_edit_mode(context)
         depsgraph = context.evaluated_depsgraph_get()
         results = context.window_manager.jampacked_validation.reports
         results.clear()
@@ -579,9 +580,6 @@ class JAMPACKED_OT_validate(bpy.types.Operator):
         failed = 0
         t0 = time.perf_counter()
         for obj in objects:
-            if obj.mode == 'EDIT':
-                obj.update_from_editmode()
-                depsgraph = context.evaluated_depsgraph_get()
             tris = bridge.object_triangles(obj, depsgraph, apply_modifiers=apply_modifiers,
                                            outward=True)
             report = engine.validate_triangles(tris)

@@ -75,10 +75,11 @@ def same_placement(m: np.ndarray, exact: np.ndarray) -> np.ndarray:
             & (np.abs(m[:, :3, 3] - want[:, :3, 3]).max(axis=1) <= SAME_REL * size))
 
 
-def _decompose(m: np.ndarray, label: Callable[[int], str]) -> np.ndarray:
+def decompose(m: np.ndarray, label: Callable[[int], str], then: str = "export again"
+              ) -> np.ndarray:
     """(K, 8) rotation w x y z, translation and uniform scale of world matrices (K, 4, 4);
-    refuses (naming ``label(k)``) a scale that differs between axes, a shear or a mirror,
-    which a packing cannot place."""
+    refuses (naming ``label(k)``, and ending with what to do ``then``) a scale that differs
+    between axes, a shear or a mirror, which a packing cannot place."""
     from jampacked.core.rotations import matrix_to_quat
 
     a = m[:, :3, :3]
@@ -91,7 +92,7 @@ def _decompose(m: np.ndarray, label: Callable[[int], str]) -> np.ndarray:
         raise _error(
             f"{label(int(bad[0]))} is scaled unevenly, sheared or mirrored: a packing places "
             "each object at one scale along every axis. Undo that change (or set its scale "
-            "the same on X, Y and Z), then export again.")
+            f"the same on X, Y and Z), then {then}.")
     return np.concatenate([matrix_to_quat(r), m[:, :3, 3], s[:, None]], axis=1)
 
 
@@ -203,7 +204,7 @@ def current_placements(coll: bpy.types.Collection, packing: Any,
     out[same] = rows[same]
     moved = np.flatnonzero(~same)
     if len(moved):
-        out[moved, :8] = _decompose(m[moved], lambda j: label(int(moved[j])))
+        out[moved, :8] = decompose(m[moved], lambda j: label(int(moved[j])))
         out[moved, 8] = types[moved]
     order = np.lexsort((np.where(same, index, 0), ~same))  # the packing's order, then edits
     return Placements(type_index=out[order, 8].astype(np.int64), rotations=out[order, :4],

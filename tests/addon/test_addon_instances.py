@@ -308,6 +308,13 @@ def test_the_panel_says_what_a_result_holds_after_deletions(bpy, addon, scene):
         assert "Holds now" in labels, kind
         assert (f"{packing.n - delete} objects, {volume / packing.container_volume:.1%}"
                 in labels), (kind, labels)
+    # points whose attributes a script removed: the panel still draws the packing's figures
+    coll = _pack(bpy, 'INSTANCES')
+    points = addon.instances.points_object(coll).data
+    points.attributes.remove(points.attributes["jampacked_scale"])
+    points.vertices.add(1)  # and a point added: the panel reads the points again
+    labels = _labels(_draw_all(bpy, addon))
+    assert "Density" in labels and "Holds now" not in labels
 
 
 def test_make_real_refuses_damaged_placements(bpy, addon, scene):
@@ -355,6 +362,19 @@ def test_make_real_places_objects_where_the_instances_are_drawn(bpy, addon, scen
         d = [np.abs(m - mat).max() for _, mat in drawn]
         k = int(np.argmin(d))
         assert d[k] < 1e-5 and drawn[k][0] == obj.data.name
+    # a points object scaled unevenly draws sheared instances, which no object placement
+    # can be (they were made elsewhere, 0.78 off): refused by name, nothing made
+    coll = _pack(bpy, 'INSTANCES')
+    points = addon.instances.points_object(coll)
+    points.scale = (1.0, 1.0, 2.0)
+    points.rotation_euler = (0.0, 0.0, 0.3)
+    bpy.context.view_layer.update()
+    before = scene_state(bpy)
+    with pytest.raises(RuntimeError, match=r"\(an instance of 'Jampacked Box instances'\) is "
+                                           "scaled unevenly, sheared or mirrored.*make it "
+                                           "real again"):
+        bpy.ops.jampacked.make_real(which='ALL')
+    assert scene_state(bpy) == before
     # where the points object sits still, the placement is the packing's, exactly
     coll = _pack(bpy, 'INSTANCES')
     assert bpy.ops.jampacked.make_real(which='ALL') == {'FINISHED'}

@@ -140,3 +140,27 @@ def test_make_manifold_merges_and_turns_faces_outward(bpy, addon):
     bpy.ops.jampacked.validate()
     report = bpy.context.window_manager.jampacked_validation.reports[0]
     assert report.passed, report.summary
+
+
+@pytest.mark.parametrize("modifiers", [True, False])
+def test_validate_reads_edits_made_in_edit_mode(bpy, addon, modifiers):
+    """An object being edited is validated as the viewport shows it: a face deleted in Edit
+    Mode, not yet left, opens the cube (without Apply Modifiers, Validate reads the mesh
+    data, which the edit reaches once written to it)."""
+    import bmesh
+
+    bpy.context.scene.jampacked.validate_modifiers = modifiers
+    cube = cube_object(bpy, "Cube")
+    _select_only(bpy, [cube])
+    bpy.ops.object.mode_set(mode='EDIT')
+    try:
+        bm = bmesh.from_edit_mesh(cube.data)
+        bm.faces.ensure_lookup_table()
+        bmesh.ops.delete(bm, geom=[bm.faces[0]], context='FACES_ONLY')
+        bmesh.update_edit_mesh(cube.data)
+        bpy.ops.jampacked.validate()
+    finally:
+        if cube.mode == 'EDIT':
+            bpy.ops.object.mode_set(mode='OBJECT')
+    (report,) = bpy.context.window_manager.jampacked_validation.reports
+    assert not report.passed and _counts(report)["open_edges"] == 4
