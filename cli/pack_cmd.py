@@ -8,7 +8,6 @@ from __future__ import annotations
 
 import argparse
 import contextlib
-from collections.abc import Callable
 
 from rich.markup import escape
 
@@ -22,7 +21,7 @@ from jampacked.core.api import pack
 from jampacked.core.errors import OutputError
 from jampacked.core.numba_cache import compile_hint
 from jampacked.core.options import CavityPassOptions, PackOptions
-from jampacked.core.packing import save_packing
+from jampacked.core.packing import Packing, save_packing
 from jampacked.core.repair import MIX_SLACK
 
 PACK_EPILOG = """\
@@ -60,19 +59,18 @@ arguments.
 """
 
 
-def _written(what: str, path: str, write: Callable[[], object], saved: str | None = None
-             ) -> None:
-    """Run ``write``; a file system's refusal (a full disk, a name too long, a folder made
-    read-only during the run) is an error that names the file and the cause, and says
-    what was saved, instead of a traceback."""
+def _write_preview(packing: Packing, path: str, axis: str, saved: str) -> None:
+    """The preview; a file system's refusal (a full disk, a folder made read-only during the
+    run) is an error that names the file and the cause and says the packing was saved (it
+    was a traceback)."""
+    from jampacked.cli.preview import write_preview
+
     try:
-        write()
+        write_preview(packing, path, axis=axis)
     except OSError as exc:
-        kept = (f"the packing was saved to '{saved}'" if saved
-                else "nothing was saved, and the file there before is as it was")
-        raise OutputError(f"cannot write {what} '{path}' ({exc.strerror or exc}); {kept}. "
-                          "Free some space, or give an output in a folder with room and "
-                          "write permission, and pack again.") from exc
+        raise OutputError(f"cannot write the preview '{path}' ({exc.strerror or exc}); the "
+                          f"packing was saved to '{saved}'. Free some space, or give the "
+                          "preview a folder with room and write permission.") from exc
 
 
 def add_pack_parser(sub: argparse._SubParsersAction) -> None:
@@ -187,7 +185,7 @@ def cmd_pack(args: argparse.Namespace) -> int:
                   + (f" and {escape(args.preview)}" if args.preview else "")
                   + " left as they were)", highlight=False)
         return EXIT_INTERRUPTED
-    _written("the packing", args.output, lambda: save_packing(packing, args.output))
+    save_packing(packing, args.output)
     for w in packing.report.warnings:
         warn(err, w)
     hint = compile_hint(packing.timings.get("compile", 0.0))
@@ -196,11 +194,7 @@ def cmd_pack(args: argparse.Namespace) -> int:
     if not args.quiet:
         print_summary(packing, out)
     if args.preview:
-        from jampacked.cli.preview import write_preview
-
-        _written("the preview", args.preview,
-                 lambda: write_preview(packing, args.preview, axis=args.preview_axis),
-                 saved=args.output)
+        _write_preview(packing, args.preview, args.preview_axis, args.output)
     if not args.quiet:
         out.print(f"wrote {args.output}" + (f" and {args.preview}" if args.preview else ""),
                   highlight=False)

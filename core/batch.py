@@ -30,7 +30,7 @@ from .atomic import atomic_output, refusal_advice, write_refusal
 from .batch_exports import drop_outdated, export_scene, exports_record
 from .batch_file import SceneSpec
 from .batch_verify import check_done
-from .errors import InputError, JampackedError
+from .errors import InputError, JampackedError, OutputError
 from .options import CavityPassOptions, PackOptions
 from .packing_digest import DIGEST
 from .packing_json import save_packing
@@ -191,10 +191,9 @@ def run_batch(scenes: list[SceneSpec], out_dir: str | os.PathLike, client=None,
             path = scene_file(out, spec)
             try:
                 save_packing(packing, path)
-            except OSError as exc:
-                raise InputError(f"cannot write {path}: {exc.strerror or exc}; finished "
-                                 "scenes stay written. Free the folder and run the batch "
-                                 "again.") from None
+            except OutputError as exc:
+                raise InputError(f"{exc} Finished scenes stay written: run the batch again "
+                                 "once it can be written.") from None
             seconds = number(packing.timings.get("total"))
             if packing.report.stopped == "cancelled":  # kept, not exported, packed again
                 results[spec.id] = SceneResult(

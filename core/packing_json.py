@@ -25,7 +25,7 @@ from typing import Any
 import numpy as np
 
 from .atomic import atomic_output
-from .errors import InputError
+from .errors import InputError, OutputError
 from .mesh_files import MESH_EXTENSIONS, extension
 from .meshes import file_sha256
 from .options import FLAT_KEYS
@@ -96,7 +96,8 @@ def save_packing(packing: Packing, path: str | os.PathLike) -> None:
     Mesh paths are stored relative to the JSON file's directory and as absolute paths, as
     spelled (symlinks not resolved); spec strings verbatim.
     Raises InputError if `path` is the container or a type mesh file (inputs are never
-    overwritten), if its directory does not exist, or if a value cannot be written.
+    overwritten), if its directory does not exist, or if a value cannot be written;
+    OutputError if the file system refuses the file (what was there stays).
     """
     out = os.path.abspath(os.fspath(path))
     out_dir = os.path.dirname(out)
@@ -172,7 +173,13 @@ def save_packing(packing: Packing, path: str | os.PathLike) -> None:
     slot = '\n "placements": 0,\n'  # top-level keys alone sit at an indent of one space
     text = text.replace(slot, f'\n "placements": [\n  {rows}\n ],\n' if rows
                         else '\n "placements": [],\n', 1)
-    _atomic_write_text(out, text)
+    try:
+        _atomic_write_text(out, text)
+    except OSError as exc:  # a full disk, a folder made read-only during the run, ...
+        raise OutputError(f"cannot write the packing '{out}' ({exc.strerror or exc}): "
+                          "nothing was written there, and a file there before is as it "
+                          "was. Free some space, or save it in a folder with room and "
+                          "write permission.") from exc
 
 
 #: An innermost indented JSON list holding only numbers. The raw newline after "[" can only

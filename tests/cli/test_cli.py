@@ -354,12 +354,15 @@ def test_a_full_disk_is_an_error_that_names_the_file(failing, tmp_path, monkeypa
     """The file system refusing the packing or its preview (a full disk) ended in a
     traceback; it is an error naming the file and the cause, and what was saved."""
     import jampacked.cli.preview as preview_module
+    import jampacked.core.packing_json as packing_json
 
     def full(*_args, **_kwargs):
         raise OSError(28, "No space left on device")
 
-    module = pack_cmd if failing == "save_packing" else preview_module
-    monkeypatch.setattr(module, failing, full)
+    if failing == "save_packing":  # the file system under the packing's atomic write
+        monkeypatch.setattr(packing_json, "_atomic_write_text", full)
+    else:
+        monkeypatch.setattr(preview_module, failing, full)
     out, png = tmp_path / "p.json", tmp_path / "p.png"
     rc = main(["pack", "box:30x30x30", "--type", str(P1), *SMALL, "-q", "-o", str(out),
                "--preview", str(png)])
@@ -368,7 +371,7 @@ def test_a_full_disk_is_an_error_that_names_the_file(failing, tmp_path, monkeypa
     what, path = (("the packing", out) if failing == "save_packing" else ("the preview", png))
     assert f"cannot write {what} '{path}' (No space left on device)" in err, err
     if failing == "save_packing":
-        assert "nothing was saved" in err and not out.exists()
+        assert "nothing was written there" in err and not out.exists()
     else:
         assert f"the packing was saved to '{out}'" in err and load_packing(out).n > 0
 

@@ -381,3 +381,22 @@ def test_a_summary_a_spreadsheet_saved_with_semicolons_keeps_its_rows(packed, tm
         again = list(csv.DictReader(f))
     assert [(r["id"], r["batch"]) for r in again] == [("x-s2", "a.toml"), ("big", "b.toml")]
     assert again[0]["density"] == rows[0]["density"] and again[0]["message"] == "vérifié"
+
+
+def test_a_scene_the_file_system_refuses_says_what_stays(tmp_path, monkeypatch):
+    """A full disk under a scene's packing: the scene fails with the file, the cause, and
+    that finished scenes stay written (the batch caught an OSError, which save_packing now
+    turns into an OutputError: its own words were lost)."""
+    import re
+
+    import jampacked.core.packing_json as packing_json
+
+    def full(*_args, **_kwargs):
+        raise OSError(28, "No space left on device")
+
+    monkeypatch.setattr(packing_json, "_atomic_write_text", full)
+    [r] = run_batch([SPEC], tmp_path)
+    assert r.status == "failed"
+    assert re.search(r"cannot write the packing '.*x-s2\.json' \(No space left on device\)"
+                     r".*Finished scenes stay written", r.message), r.message
+    assert not scene_file(tmp_path, SPEC).exists()

@@ -11,7 +11,7 @@ import numpy as np
 import pytest
 
 from jampacked.core import packing_json as pk
-from jampacked.core.errors import InputError
+from jampacked.core.errors import InputError, OutputError
 from jampacked.core.meshes import file_sha256
 from jampacked.core.packing import Packing, TypeRecord
 from jampacked.core.packing_json import load_packing, save_packing, to_jsonable, verify_sources
@@ -341,7 +341,7 @@ def test_atomic_write_leaves_no_temp_files(scene, monkeypatch):
 
     p.seed = 43
     monkeypatch.setattr(pk.os, "replace", broken_replace)
-    with pytest.raises(OSError):
+    with pytest.raises(OutputError, match=r"p\.json' \(disk full\): nothing was written"):
         save_packing(p, out)
     assert sorted(os.listdir(out_dir)) == ["p.json"]
     assert out.read_bytes() == before
