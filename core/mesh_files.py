@@ -21,6 +21,7 @@ import logging
 import math
 import os
 import re
+import warnings
 from pathlib import Path
 
 import numpy as np
@@ -244,13 +245,21 @@ def length_unit(path: str | None) -> str:
     return "mm" if path and extension(path) == "3mf" else "units"
 
 
+def _is_ascii_stl(data: bytes) -> bool:
+    """An ASCII STL (a binary header may start with "solid" too; its numbers hold 0s)."""
+    head = data[:4096].removeprefix(b"\xef\xbb\xbf").lstrip()
+    return head[:5].lower() == b"solid" and b"\0" not in head
+
+
+#: an ASCII STL keyword after any whitespace: where a line should start
+_STL_KEYWORD = re.compile(rb"\s+(?=(?:facet|outer|vertex|endloop|endfacet|endsolid)\b)", re.I)
+
+
 def _stl_damage(data: bytes) -> str | None:
     """What is wrong with an STL cut short (a download or copy): a binary one whose size
     does not match the triangle count in its header, an ASCII one without its closing
     ``endsolid``; None where neither is seen."""
-    head = data[:4096].removeprefix(b"\xef\xbb\xbf").lstrip()
-    if head[:5].lower() == b"solid" and b"\0" not in head:
-        # ASCII (a binary header may start with "solid" too; its numbers hold 0s)
+    if _is_ascii_stl(data):
         lines = data.rstrip().rsplit(b"\n", 1)
         if lines[-1].strip()[:8].lower() == b"endsolid":
             return None
@@ -272,13 +281,40 @@ def _stl_damage(data: bytes) -> str | None:
 
 def _stl_arrays(data: bytes) -> Arrays | None:
     """trimesh's STL reader without the Scene/Trimesh wrapping (several times faster), or
-    None where it fails (the general readers then try)."""
-    with contextlib.suppress(Exception):
+    None where it fails (the general readers then try). trimesh reads an ASCII STL line by
+    line: one whose lines end in a carriage return alone (classic Mac) or that is all on
+    one line read as a single triangle, so there each keyword is put on a line of its own
+    and, where the facets still differ from the triangles read, None."""
+    arrays = _trimesh_stl(data)
+    if not _is_ascii_stl(data):
+        return arrays
+    facets = len(re.findall(rb"(?i)\bendfacet\b", data))
+    if arrays is not None and len(arrays[1]) == facets:
+        return arrays
+    arrays = _trimesh_stl(_STL_KEYWORD.sub(b"\n", data))
+    return arrays if arrays is not None and len(arrays[1]) == facets else None
+
+
+def _trimesh_stl(data: bytes) -> Arrays | None:
+    """trimesh's STL arrays, an ASCII file's solids (one per body, as some CAD tools write)
+    in file order, or None."""
+    with contextlib.suppress(Exception), warnings.catch_warnings():
+        # numpy's "could not be read to its end" on lines trimesh splits wrongly: the
+        # caller counts the facets read
+        warnings.simplefilter("ignore", DeprecationWarning)
         loaded = trimesh.exchange.stl.load_stl(io.BytesIO(data))
-        v = np.asarray(loaded["vertices"], dtype=np.float64).reshape(-1, 3)
-        f = np.asarray(loaded["faces"], dtype=np.int64).reshape(-1, 3)
-        if len(f) and 0 <= f.min() and f.max() < len(v):
-            return v, f
+        solids = list(loaded["geometry"].values()) if "geometry" in loaded else [loaded]
+        vs, fs, offset = [], [], 0
+        for solid in solids:
+            v = np.asarray(solid["vertices"], dtype=np.float64).reshape(-1, 3)
+            f = np.asarray(solid["faces"], dtype=np.int64).reshape(-1, 3)
+            if not len(f) or f.min() < 0 or f.max() >= len(v):
+                return None
+            vs.append(v)
+            fs.append(f + offset)
+            offset += len(v)
+        if fs:
+            return np.concatenate(vs), np.concatenate(fs)
     return None
 
 

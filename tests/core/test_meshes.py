@@ -607,3 +607,23 @@ def test_an_ascii_stl_cut_short_is_named_as_such(tmp_path):
     inside.write_text(text[:end + 40])
     with pytest.raises(MeshError, match="ends after 5 whole facets"):
         read_mesh_arrays(inside)
+
+
+def test_ascii_stl_line_ends_and_solids_are_read_whole(tmp_path):
+    # lines ending in a carriage return alone (classic Mac), or a file on one line, read
+    # as 1 triangle of a 12-triangle box (then failed as open); two solids (one per body,
+    # as CAD tools write) were not read; a second solid cut short read as the first
+    box = trimesh.creation.box((10, 20, 30))
+    text = trimesh.exchange.stl.export_stl_ascii(box)
+    moved = trimesh.exchange.stl.export_stl_ascii(box.copy().apply_translation([50, 0, 0]))
+    for name, data in (("cr.stl", text.replace("\n", "\r")), ("line.stl", text.replace("\n", " ")),
+                       ("upper.stl", text.upper())):
+        (tmp_path / name).write_text(data, newline="")
+        v, f = read_mesh_arrays(tmp_path / name)
+        assert len(f) == 12 and load_mesh(tmp_path / name).volume == pytest.approx(6000.0), name
+    (tmp_path / "two.stl").write_text(text + "\n" + moved)
+    v, f = read_mesh_arrays(tmp_path / "two.stl")
+    assert len(f) == 24 and v[f[12:]].mean(axis=(0, 1)) == pytest.approx([50.0, 0.0, 0.0])
+    (tmp_path / "two-cut.stl").write_text((text + "\n" + moved)[:-300])
+    with pytest.raises(MeshError, match="ends after 21 whole facets"):
+        read_mesh_arrays(tmp_path / "two-cut.stl")
