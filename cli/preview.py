@@ -13,7 +13,7 @@ from collections.abc import Sequence
 
 import numpy as np
 
-from jampacked.core.atomic import atomic_output
+from jampacked.core.atomic import atomic_output, missing_folder
 from jampacked.core.errors import InputError
 from jampacked.core.meshes import load_mesh
 from jampacked.core.packing import Packing, container_mesh
@@ -92,9 +92,9 @@ def write_preview(packing: Packing, path: str | os.PathLike, *,
                          f"{heights}")
     out = os.path.abspath(os.fspath(path))
     folder = os.path.dirname(out)
-    if not os.path.isdir(folder):
-        raise InputError(f"cannot write preview {out}: folder {folder} does not exist; "
-                         "create it first")
+    missing = missing_folder(folder)
+    if missing:
+        raise InputError(f"cannot write preview {out}: {missing}")
 
     # container in the container frame
     cmesh = container_mesh(packing, "draw")

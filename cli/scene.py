@@ -17,7 +17,7 @@ from importlib import resources
 from pathlib import Path
 
 from jampacked.cli.args import UsageError
-from jampacked.core.atomic import refusal_advice, write_refusal
+from jampacked.core.atomic import missing_folder, refusal_advice, write_refusal
 from jampacked.core.errors import InputError
 from jampacked.core.mesh_files import MESH_EXTENSIONS
 from jampacked.core.meshes import parse_box_spec
@@ -150,10 +150,13 @@ def check_output(path: str, option: str, inputs: Sequence[str],
     """Raise UsageError unless ``path`` can be written by ``option``: its folder exists and
     takes new files, it is no folder and none of ``inputs`` (named ``what`` in the
     message)."""
+    if not path.strip():
+        raise UsageError(f"{option} is empty: give a file name")
     out = os.path.abspath(path)
     folder = os.path.dirname(out)
-    if not os.path.isdir(folder):
-        raise UsageError(f"{option} {path}: folder {folder} does not exist; create it first")
+    missing = missing_folder(folder)
+    if missing:
+        raise UsageError(f"{option} {path}: {missing}")
     if os.path.isdir(out):
         raise UsageError(f"{option} {path} is a folder; give a file name")
     refused = write_refusal(folder)

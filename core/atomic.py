@@ -24,6 +24,23 @@ def _umask() -> int:
 NEW_FILE_MODE = 0o666 & ~_umask()
 
 
+def missing_folder(folder: str | os.PathLike) -> str | None:
+    """Why ``folder`` cannot hold an output because it is not there: a file stands on its
+    path (or on a folder above it), or it does not exist; None when it is a folder."""
+    folder = os.path.abspath(os.fspath(folder))
+    if os.path.isdir(folder):
+        return None
+    here = folder
+    while here and not os.path.exists(here):
+        parent = os.path.dirname(here)
+        if parent == here:
+            break
+        here = parent
+    if os.path.exists(here) and not os.path.isdir(here):
+        return f"'{here}' is a file, not a folder: give an output in a folder"
+    return f"the folder '{folder}' does not exist; create it first"
+
+
 def write_refusal(folder: str | os.PathLike) -> str | None:
     """Why no new file can be made in ``folder`` (permissions, an immutable attribute, a
     read-only disk), or None when one can: a hidden probe file is created and removed, since

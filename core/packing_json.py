@@ -24,7 +24,7 @@ from typing import Any
 
 import numpy as np
 
-from .atomic import atomic_output
+from .atomic import atomic_output, missing_folder
 from .errors import InputError, OutputError
 from .mesh_files import MESH_EXTENSIONS, extension
 from .meshes import file_sha256
@@ -101,10 +101,9 @@ def save_packing(packing: Packing, path: str | os.PathLike) -> None:
     """
     out = os.path.abspath(os.fspath(path))
     out_dir = os.path.dirname(out)
-    if not os.path.isdir(out_dir):
-        raise InputError(
-            f"cannot write packing {out}: folder {out_dir} does not exist; create it first"
-        )
+    missing = missing_folder(out_dir)
+    if missing:
+        raise InputError(f"cannot write packing {out}: {missing}")
     inputs = [] if is_spec(packing.container_path) else [packing.container_path]
     inputs += [t.path for t in packing.types if t.path is not None]
     for src in inputs:

@@ -25,7 +25,7 @@ from dataclasses import dataclass
 import numpy as np
 import trimesh
 
-from jampacked.core.atomic import refusal_advice, staged_output, write_refusal
+from jampacked.core.atomic import missing_folder, refusal_advice, staged_output, write_refusal
 from jampacked.core.errors import InputError, MeshError, OutputError
 from jampacked.core.mesh_files import extension
 from jampacked.core.threemf import encode_3mf, encode_3mf_components
@@ -195,9 +195,9 @@ def check_output_path(path: str | os.PathLike,
             raise OutputError(f"refusing to write '{path_str}': it is an input file "
                               f"('{os.fspath(p)}'); choose another output name.")
     folder = os.path.dirname(os.path.abspath(path_str))
-    if not os.path.isdir(folder):
-        raise MeshError(f"cannot write '{path_str}': the folder '{folder}' does not exist; "
-                        "create it first.")
+    missing = missing_folder(folder)
+    if missing:
+        raise MeshError(f"cannot write '{path_str}': {missing}.")
     if os.path.isdir(path_str):
         raise MeshError(f"cannot write '{path_str}': it is a folder; give a file name.")
     too_long = name_too_long(path_str)

@@ -458,6 +458,18 @@ def test_missing_output_folder(tmp_path, capsys):
     out = tmp_path / "nope" / "p.json"
     assert main(["pack", "box:30x30x30", "--type", str(P1), "-o", str(out)]) == 2
     assert "does not exist" in capsys.readouterr().err
+    # a file where the folder should be was "folder ... does not exist; create it first"
+    (tmp_path / "afile").write_text("x")
+    for argv in (["pack", "box:30x30x30", "--type", str(P1), "-o",
+                  str(tmp_path / "afile" / "sub" / "p.json")],
+                 ["pack", "box:30x30x30", "--type", str(P1), "-o", str(tmp_path / "p.json"),
+                  "--preview", str(tmp_path / "afile" / "p.png")]):
+        assert main(argv) == 2
+        err = " ".join(capsys.readouterr().err.split())
+        assert f"'{tmp_path / 'afile'}' is a file, not a folder" in err, err
+    # an empty name was "-o  is a folder"
+    assert main(["pack", "box:30x30x30", "--type", str(P1), "-o", ""]) == 2
+    assert "-o is empty: give a file name" in capsys.readouterr().err
 
 
 def test_bad_numbers_are_usage_errors(tmp_path, capsys):

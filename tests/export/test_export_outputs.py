@@ -195,6 +195,8 @@ def test_outputs_are_all_checked_before_any_work(tmp_path, monkeypatch):
         export_packing(src, [ok, tmp_path / "container.stl"], UNION)
     with pytest.raises(MeshError, match="does not exist"):
         export_packing(src, [ok, tmp_path / "missing" / "x.stl"], UNION)
+    with pytest.raises(MeshError, match=r"cube\.obj' is a file, not a folder"):
+        export_packing(src, [ok, tmp_path / "cube.obj" / "x.stl"], UNION)
     (tmp_path / "dir.stl").mkdir()
     with pytest.raises(MeshError, match="is a folder"):
         export_packing(src, [ok, tmp_path / "dir.stl"], UNION)
