@@ -145,7 +145,9 @@ class JobRunner:
             return {'RUNNING_MODAL'}
         self.end(context)
         if snap.state == worker.CANCELLED:
-            self._note(context, 'WARNING', f"{job.title} cancelled: nothing was changed.")
+            what = ("finished before anything was done, so there was nothing to keep"
+                    if job.finish_requested else "cancelled")
+            self._note(context, 'WARNING', f"{job.title} {what}: nothing was changed.")
             return {'CANCELLED'}
         if snap.state == worker.FAILED:
             self._fail(context, job.error or f"{job.title} failed.")

@@ -196,6 +196,12 @@ class Job:
         self._stop.set()
 
     @property
+    def finish_requested(self) -> bool:
+        """True once :meth:`finish_early` was called (and not :meth:`cancel`)."""
+        with self._lock:
+            return self._stop.is_set() and self._keep
+
+    @property
     def cancel_requested(self) -> bool:
         """True once :meth:`cancel` was called (not :meth:`finish_early`)."""
         with self._lock:

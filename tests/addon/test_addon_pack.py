@@ -204,6 +204,28 @@ def test_cancel_button_and_finish_now(bpy, addon, scene):
     assert len(coll.objects) == packing.n
 
 
+
+def test_finish_now_before_anything_is_kept_says_so(bpy, addon, scene, monkeypatch):
+    """Finish Now while the engine still has nothing to keep (it was still starting) read
+    "Packing cancelled", which the artist had not asked for."""
+    from jampacked.core.errors import Cancelled
+
+    def starting(progress, should_cancel):
+        while not should_cancel():
+            time.sleep(0.01)
+        raise Cancelled("stopped before anything was placed")
+
+    run = runner(addon)
+    monkeypatch.setattr(run, "make_job", lambda context: addon.worker.Job("Packing", starting))
+    before = scene_state(bpy)
+    assert run.begin(bpy.context)
+    assert bpy.ops.jampacked.cancel(action='FINISH') == {'FINISHED'}
+    assert drive(run, bpy.context) == {'CANCELLED'}
+    assert scene_state(bpy) == before
+    assert run.reports[-1] == ('WARNING', "Packing finished before anything was done, so "
+                                          "there was nothing to keep: nothing was changed.")
+
+
 def test_cancel_in_blocking_mode(bpy, addon, scene):
     """bpy.ops in background mode runs the same steps in a loop; the cancel flag stops it."""
     scene.box.scale = BIG_BOX
