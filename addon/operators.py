@@ -280,6 +280,13 @@ class PackRunner(JobRunner):
         live_view.VIEW.stop()
 
     def apply(self, context: bpy.types.Context, result: engine.PackOutcome) -> set[str]:
+        if result.packing.n == 0 and result.packing.report.stopped == "cancelled":
+            # an empty result is none: it would replace the previous one (as the command
+            # line keeps its output files)
+            self._note(context, 'WARNING', "Packing finished before any object was placed, "
+                                           "so there was nothing to keep: nothing was "
+                                           "changed.")
+            return {'CANCELLED'}
         bridge.check_unchanged(context, self._request)
         last = context.scene.jampacked.result
         coll = bridge.build_result(context, self._request, result)

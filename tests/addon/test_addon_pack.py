@@ -3,6 +3,7 @@
 from __future__ import annotations
 
 import json
+import re
 import threading
 import time
 from types import SimpleNamespace
@@ -191,10 +192,17 @@ def test_cancel_button_and_finish_now(bpy, addon, scene):
     assert drive(run, bpy.context) == {'CANCELLED'}
     assert scene_state(bpy) == before
 
-    # Finish Now keeps the best certified packing so far
+    # Finish Now keeps the best certified packing so far (once an object is placed: before
+    # that there is nothing to keep, and the previous result stays)
     run = runner(addon)
     assert run.begin(bpy.context)
-    run.modal(bpy.context, Event('TIMER'))
+    deadline = time.monotonic() + 120.0
+    while time.monotonic() < deadline:
+        run.modal(bpy.context, Event('TIMER'))
+        grown = re.search(r"(\d+) placed", addon.worker.active_job().snapshot().message)
+        if grown and int(grown.group(1)) > 0:  # full size (the live view shows seeds too)
+            break
+        time.sleep(0.05)
     assert bpy.ops.jampacked.cancel(action='FINISH') == {'FINISHED'}
     assert drive(run, bpy.context) == {'FINISHED'}
     coll = scene.settings.result
@@ -203,6 +211,27 @@ def test_cancel_button_and_finish_now(bpy, addon, scene):
     assert packing.report.stopped == "cancelled"
     assert len(coll.objects) == packing.n
 
+
+
+def test_finish_now_before_any_object_is_placed_keeps_the_previous_result(bpy, addon, scene,
+                                                                          monkeypatch):
+    """An engine stopped before its first object returns an empty packing: it replaced the
+    previous result with an empty collection."""
+    assert bpy.ops.jampacked.pack() == {'FINISHED'}
+    previous = scene.settings.result
+    real = addon.engine.pack_triangles
+
+    def stopped_at_once(*args, should_cancel, **kwargs):
+        return real(*args, should_cancel=lambda: True, **kwargs)
+
+    monkeypatch.setattr(addon.engine, "pack_triangles", stopped_at_once)
+    before = scene_state(bpy)
+    run = runner(addon)
+    assert run.begin(bpy.context)
+    assert drive(run, bpy.context) == {'CANCELLED'}
+    assert scene_state(bpy) == before and scene.settings.result == previous
+    assert run.reports[-1] == ('WARNING', "Packing finished before any object was placed, so "
+                                          "there was nothing to keep: nothing was changed.")
 
 
 def test_finish_now_before_anything_is_kept_says_so(bpy, addon, scene, monkeypatch):
