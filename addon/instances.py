@@ -77,9 +77,24 @@ def write_points(mesh: bpy.types.Mesh, translations: np.ndarray, rotations: np.n
     mesh.update()
 
 
+def missing_attributes(mesh: bpy.types.Mesh) -> list[str]:
+    """The placement attributes the points' mesh lacks (a script or the Attributes panel
+    removed them, or the geometry was cleared)."""
+    return [name for name in (TYPE_ATTR, INDEX_ATTR, ROTATION_ATTR, SCALE_ATTR)
+            if name not in mesh.attributes]
+
+
 def read_points(mesh: bpy.types.Mesh) -> dict[str, np.ndarray]:
     """The points' arrays: ``translations``, ``rotations``, ``scales``, ``types``,
-    ``indices`` and ``selected`` (the Edit Mode selection, as last left in Object Mode)."""
+    ``indices`` and ``selected`` (the Edit Mode selection, as last left in Object Mode).
+    Raises InputError, naming the mesh, where a placement attribute is gone."""
+    missing = missing_attributes(mesh)
+    if missing:
+        from jampacked.core.errors import InputError
+
+        raise InputError(f"the instances' points ('{mesh.name}') lack their attribute"
+                         f"{'s' if len(missing) > 1 else ''} {', '.join(missing)}, which "
+                         "hold where each object goes: undo their removal, or pack again.")
     n = len(mesh.vertices)
     out: dict[str, np.ndarray] = {}
     co = np.empty(n * 3, np.float32)

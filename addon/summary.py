@@ -167,6 +167,11 @@ def warnings(props: Mapping[str, Any]) -> list[str]:
     return [str(w) for w in _get(props, "warnings", [])]
 
 
+#: densities closer than this are the same (the stored one is the packing's, the one
+#: now is summed again from the scene's single-precision scales)
+DENSITY_SAME = 1e-5
+
+
 def density_now(props: Mapping[str, Any], scale_cubes: Mapping[int, float]) -> float | None:
     """The density of what a result holds now: ``scale_cubes`` maps each type index to the
     sum of its placed objects' scale cubed; None for a result that does not record its
@@ -183,7 +188,7 @@ def panel_lines(props: Mapping[str, Any], mm_per_unit: float | None = None,
     """(label, value) rows for the panel, read from a result collection's properties;
     with `mm_per_unit` (`units.mm_per_unit`) the gaps in millimetres, as exported. The
     figures are the packing's; ``now`` (objects, density or None) is what the result holds
-    now, shown where an artist deleted or added placed objects."""
+    now, shown where it differs (an artist deleted, added or rescaled placed objects)."""
     def pct(x: Any) -> str:
         v = _number(x)
         return "-" if v is None else f"{v:.1%}"
@@ -206,7 +211,9 @@ def panel_lines(props: Mapping[str, Any], mm_per_unit: float | None = None,
         rows.append((name, f"{c}  ({pct(share)} / {pct(target)})  NNI {num(r, '.2f')}"))
     rows.append(("Objects", str(total)))
     rows.append(("Density", pct(_get(props, "density"))))
-    if now is not None and now[0] != total:
+    density = _number(_get(props, "density"))
+    if now is not None and (now[0] != total or (now[1] is not None and density is not None
+                                                and abs(now[1] - density) > DENSITY_SAME)):
         rows.append(("Holds now", f"{now[0]} objects" + ("" if now[1] is None
                                                           else f", {pct(now[1])}")))
     rows.append(("TVD", num(_get(props, "tvd"), ".3f")))

@@ -110,23 +110,27 @@ def _wrap(text: str, width: int) -> list[str]:
     return lines[:12]
 
 
-#: the last count per result, keyed by what changes when objects or points are deleted or
-#: added: a panel redraws often, and reading 100,000 points each time took 0.1 s
-_HELD: dict[int, tuple[tuple[int, int], tuple[int, float | None] | None]] = {}
+#: the last count per result, keyed by what changes when objects or points are deleted,
+#: added or made real, or the instances object is scaled: a panel redraws often, and
+#: reading 100,000 points each time took 0.1 s
+_HELD: dict[int, tuple[tuple, tuple[int, float | None] | None]] = {}
 
 
 def _held_now(coll: bpy.types.Collection) -> tuple[int, float | None] | None:
     """(objects, density or None) the result holds now; None where it cannot be read (a
     points object whose attributes a script removed: the panel still draws)."""
     points = instances.points_object(coll)
-    key = (len(coll.all_objects), len(points.data.vertices) if points is not None else -1)
+    key = (len(coll.all_objects), -1 if points is None else len(points.data.vertices),
+           None if points is None else tuple(points.matrix_world.to_3x3().col[0])
+           + tuple(points.matrix_world.to_3x3().col[1])
+           + tuple(points.matrix_world.to_3x3().col[2]))
     cached = _HELD.get(coll.as_pointer())
     if cached is not None and cached[0] == key:
         return cached[1]
     try:
         count, cubes = result_edits.held_now(coll)
         now: tuple[int, float | None] | None = (count, summary.density_now(coll, cubes))
-    except (KeyError, ValueError, TypeError):
+    except Exception:  # noqa: BLE001 - a panel draws whatever a script did to the result
         now = None
     _HELD.clear()  # one result is shown at a time
     _HELD[coll.as_pointer()] = (key, now)

@@ -308,13 +308,30 @@ def test_the_panel_says_what_a_result_holds_after_deletions(bpy, addon, scene):
         assert "Holds now" in labels, kind
         assert (f"{packing.n - delete} objects, {volume / packing.container_volume:.1%}"
                 in labels), (kind, labels)
-    # points whose attributes a script removed: the panel still draws the packing's figures
+    # the same count at another density: the instances object scaled by half (and then
+    # made real) holds an eighth of the volume
+    coll = _pack(bpy, 'INSTANCES')
+    packing = _packing(addon, coll)
+    addon.instances.points_object(coll).scale = (0.5, 0.5, 0.5)
+    bpy.context.view_layer.update()
+    eighth = f"{packing.n} objects, {coll['jampacked_density'] / 8:.1%}"
+    assert eighth in _labels(_draw_all(bpy, addon))
+    assert bpy.ops.jampacked.make_real(which='ALL') == {'FINISHED'}
+    assert eighth in _labels(_draw_all(bpy, addon))
+    # points whose attributes a script removed: the panel still draws the packing's
+    # figures, and Make Real and Export say what is missing (they raised a KeyError)
     coll = _pack(bpy, 'INSTANCES')
     points = addon.instances.points_object(coll).data
     points.attributes.remove(points.attributes["jampacked_scale"])
     points.vertices.add(1)  # and a point added: the panel reads the points again
     labels = _labels(_draw_all(bpy, addon))
     assert "Density" in labels and "Holds now" not in labels
+    with pytest.raises(RuntimeError, match="lack their attribute jampacked_scale, which "
+                                           "hold where each object goes"):
+        bpy.ops.jampacked.make_real(which='ALL')
+    bpy.context.scene.jampacked.filepath = "//never.stl"
+    with pytest.raises(RuntimeError, match="lack their attribute jampacked_scale"):
+        bpy.ops.jampacked.export()
 
 
 def test_make_real_refuses_damaged_placements(bpy, addon, scene):

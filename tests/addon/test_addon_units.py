@@ -148,7 +148,8 @@ def test_collection_properties_and_panel_lines():
     # what the result holds now, where it differs from the packing (volumes 1, box 1000)
     stored = {summary.PREFIX + k: v for k, v in props.items()}
     assert summary.density_now(stored, {0: 2.0, 1: 1.0}) == pytest.approx(0.003)
-    assert "Holds now" not in dict(summary.panel_lines(stored, now=(3, 0.003)))
+    assert "Holds now" not in dict(summary.panel_lines(stored, now=(3, 0.41)))
+    assert dict(summary.panel_lines(stored, now=(3, 0.2)))["Holds now"] == "3 objects, 20.0%"
     assert dict(summary.panel_lines(stored, now=(2, 0.002)))["Holds now"] == \
         "2 objects, 0.2%"
     old = {k: v for k, v in stored.items() if not k.endswith("volume") and
