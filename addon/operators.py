@@ -329,7 +329,7 @@ class ExportRunner(JobRunner):
     job_title = "Export"
 
     def _fail(self, context: bpy.types.Context, message: str) -> None:
-        super()._fail(context, summary.export_in_mm(message))
+        self._note(context, 'ERROR', summary.export_in_mm(summary.in_blender_words(message)))
 
     def make_job(self, context: bpy.types.Context) -> worker.Job:
         s = context.scene.jampacked
@@ -363,10 +363,11 @@ class ExportRunner(JobRunner):
 
     def apply(self, context: bpy.types.Context, result: Any) -> set[str]:
         lines = [summary.export_in_mm(v.summary()) for v in result.validation]
-        text = f"Exported {', '.join(result.paths)}: {result.summary('mm')}"
+        text = summary.in_blender_words(
+            f"Exported {', '.join(result.paths)}: {result.summary('mm')}")
         if lines:
             text += " " + " ".join(lines)
-        text += "".join(f" Warning: {summary.in_blender_words(summary.export_in_mm(w))}"
+        text += "".join(f" Warning: {summary.export_in_mm(summary.in_blender_words(w))}"
                         for w in result.warnings)
         level = 'INFO' if result.passed and not result.warnings else 'WARNING'
         self._note(context, level, text)

@@ -11,6 +11,7 @@ Definitions: DESIGN.md.
 from __future__ import annotations
 
 import colorsys
+import re
 from collections.abc import Mapping
 from typing import TYPE_CHECKING, Any
 
@@ -128,6 +129,8 @@ _BLENDER_WORDS = (
     ("--mode parts", "Parts mode"),
     ("Ctrl-C stops them", "Finish Now stops them"),
     ("--resolution", "Resolution"),
+    ("--shell", "Shell"),
+    ("--drain", "Drain"),
     ("--connector", "Connector"),
 )
 
@@ -145,12 +148,26 @@ _EXPORT_UNITS = (
 )
 
 
+_NUMBER = r"-?\d+(?:\.\d+)?(?:e[-+]?\d+)?"
+#: a length before the word that says what it measures ("0.839 apart")
+_LENGTH_BEFORE = re.compile(rf"(?<![\w.])({_NUMBER}) (across|apart|away|higher|lower|long|"
+                            r"thick|wide|under)\b")
+#: a length after the field or setting it is ("Connector 4.6", "the clearance 1")
+_LENGTH_AFTER = re.compile(rf"\b(Connector|Clearance|clearance|Resolution|Shell|Drain) "
+                           rf"({_NUMBER})\b(?! ?mm)")
+#: a point ("at (-39.86, -21.21, 174.3)")
+_POINT = re.compile(rf"(\((?:{_NUMBER}, ){{2}}{_NUMBER}\))(?! ?mm)")
+
+
 def export_in_mm(message: str) -> str:
-    """An export message with its lengths' unit said as millimetres, what the add-on's
-    exports are in."""
+    """An export message (in Blender's words: `in_blender_words` first) with its lengths'
+    unit said as millimetres, what the add-on's exports are in: the numbers it suggests
+    for a field can be typed in as they read ("4.6 mm"), whatever the scene's unit."""
     for cli, blender in _EXPORT_UNITS:
         message = message.replace(cli, blender)
-    return message
+    message = _LENGTH_BEFORE.sub(r"\1 mm \2", message)
+    message = _LENGTH_AFTER.sub(r"\1 \2 mm", message)
+    return _POINT.sub(r"\1 mm", message)
 
 
 def in_blender_words(message: str) -> str:

@@ -442,3 +442,27 @@ def test_a_blender_packing_stays_as_certified_through_its_name_and_units():
     assert mm.certificate["clearance"] == pytest.approx(0.5)
     assert mm.report.container_grid_spacing == pytest.approx(
         1000.0 * again.report.container_grid_spacing)
+
+
+@pytest.mark.parametrize(("engine", "blender"), [
+    # the export works in millimetres: its numbers read as bare lengths, and a field's
+    # suggestion typed as it read gave metres in a scene in metres
+    ("Try thicker struts than these (2.29 across), e.g. --connector 4.6, or export with "
+     "--mode union or --mode parts.",
+     "Try thicker struts than these (2.29 mm across), e.g. Connector 4.6 mm, or export in "
+     "Union or Parts mode."),
+    ("'Cube 25, an instance' and 'P1 3' are 0.839 apart (0.161 under the clearance 1)",
+     "'Cube 25, an instance' and 'P1 3' are 0.839 mm apart (0.161 mm under the clearance "
+     "1 mm)"),
+    ("the drain opens 4 away from it and 0.5 lower, at",
+     "The drain opens 4 mm away from it and 0.5 mm lower, at"),
+    ("'X' is 15.32 units across at (-39.86, -21.21, 174.3); the container spans (-50, -50, "
+     "-50) to (50, 50, 50).",
+     "'X' is 15.32 mm across at (-39.86, -21.21, 174.3) mm; the container spans (-50, -50, "
+     "-50) mm to (50, 50, 50) mm."),
+    ("--resolution saved 138 triangles (surfaces moved at most 0.124 mm); 2 bodies",
+     "Resolution saved 138 triangles (surfaces moved at most 0.124 mm); 2 bodies"),
+    ("--shell 1e-05 is too thin", "Shell 1e-05 mm is too thin"),
+])
+def test_export_messages_in_millimetres(engine, blender):
+    assert summary.export_in_mm(summary.in_blender_words(engine)) == blender
