@@ -116,6 +116,10 @@ def _place_of(scene: bpy.types.Scene, coll: bpy.types.Collection) -> _Place:
     for c in (scene.collection, *scene.collection.children_recursive):
         if c.children.get(coll.name) == coll and c not in parents:
             parents.append(c)
+    # and where the artist linked it elsewhere: another scene, a collection in no scene
+    for c in (*(s.collection for s in bpy.data.scenes if s != scene), *bpy.data.collections):
+        if c.children.get(coll.name) == coll and c not in parents:
+            parents.append(c)
     return _Place(coll.name, parents, {k: getattr(coll, k) for k in COLLECTION_FLAGS},
                   layers)
 

@@ -448,6 +448,28 @@ def test_a_second_pack_takes_the_first_ones_place(bpy, addon, scene):
     assert layer.holdout and layer.indirect_only and not layer.exclude
 
 
+def test_a_result_linked_into_another_scene_stays_there(bpy, addon, scene):
+    """The artist linked the result into a second scene (and a collection of it): the next
+    Pack's result was linked in this scene only, and the other scene lost it."""
+    assert bpy.ops.jampacked.pack() == {'FINISHED'}
+    coll = scene.settings.result
+    other = bpy.data.scenes.new("Scene2")
+    shelf = bpy.data.collections.new("Shelf")
+    other.collection.children.link(shelf)
+    other.collection.children.link(coll)
+    shelf.children.link(coll)
+    try:
+        scene.settings.seed = 2
+        assert bpy.ops.jampacked.pack() == {'FINISHED'}
+        (new,) = set(_results(bpy))
+        assert _packing(addon, new).seed == 2
+        assert list(other.collection.children) == [shelf, new]
+        assert list(shelf.children) == [new]
+        assert new.name in bpy.context.scene.collection.children
+    finally:
+        bpy.data.scenes.remove(other)
+
+
 def test_a_result_linked_in_two_places_is_replaced_in_both(bpy, addon, scene):
     """A result linked at the root and under "Renders", and "Renders" itself linked at the
     root and under "Q": the collection listed twice was removed twice (ReferenceError), and
