@@ -45,6 +45,10 @@ logger = logging.getLogger(__name__)
 
 _BOX_SPEC = re.compile(r"^\s*box\s*:", re.IGNORECASE)
 _OBJ_FACE_COMMENT = re.compile(rb"^[ \t]*f[ \t][^\n#]*#", re.MULTILINE)
+#: what trimesh's OBJ reader misreads: a byte order mark (Windows editors), tabs between
+#: fields and indented lines, which it skipped (a file of them read as empty, a few as
+#: faces lost)
+_OBJ_ODD_SPACE = re.compile(rb"\A\xef\xbb\xbf|^[ \t]+|\t", re.MULTILINE)
 _OBJ_RELATIVE_INDEX = re.compile(rb"^[ \t]*[fl][ \t][^\n#]*(?<![\w.])-[0-9]", re.MULTILINE)
 
 Arrays = tuple[np.ndarray, np.ndarray]
@@ -138,6 +142,15 @@ def parse_box_spec(spec: str) -> tuple[float, float, float] | None:
 
 # --------------------------------------------------------------------------------------------
 # OBJ text
+
+
+def _obj_plain_spacing(data: bytes) -> bytes:
+    """``data`` with single spaces between an OBJ line's fields and none before them (the
+    same object where there is nothing to change)."""
+    if not _OBJ_ODD_SPACE.search(data):
+        return data
+    data = data.removeprefix(b"\xef\xbb\xbf").replace(b"\t", b" ")
+    return re.sub(rb"^ +", b"", data, flags=re.MULTILINE)
 
 
 def _strip_obj_comments(data: bytes) -> bytes:
@@ -375,10 +388,10 @@ def read_arrays(path: str, data: bytes, label: str, notes: list[str] | None = No
         )
     errors: list[str] = []
     if ext == "obj":
-        absolute = obj_absolute_indices(data)
+        absolute = obj_absolute_indices(_obj_plain_spacing(data))
         if absolute is not data or _OBJ_FACE_COMMENT.search(data):
-            # trimesh's OBJ reader fails on comments at the end of face lines, and counts
-            # relative indices from the end of the file
+            # trimesh's OBJ reader fails on comments at the end of face lines, counts
+            # relative indices from the end of the file and skips indented lines
             logger.debug("%s: read with comments and relative indices resolved", label)
             arrays = _obj_arrays(_strip_obj_comments(absolute), errors, "trimesh")
             if arrays is not None:

@@ -627,3 +627,24 @@ def test_ascii_stl_line_ends_and_solids_are_read_whole(tmp_path):
     (tmp_path / "two-cut.stl").write_text((text + "\n" + moved)[:-300])
     with pytest.raises(MeshError, match="ends after 21 whole facets"):
         read_mesh_arrays(tmp_path / "two-cut.stl")
+
+
+def test_obj_spacing_that_trimesh_misreads_reads_whole(tmp_path):
+    # tabs between fields or indented lines read as no triangles, some indented face lines
+    # as faces lost (a hole the user was told to fill), a byte order mark as a damaged file
+    box = trimesh.creation.box((10, 20, 30))
+    text = trimesh.exchange.obj.export_obj(box)
+    lines = text.splitlines()
+    faces = [i for i, line in enumerate(lines) if line.startswith("f ")]
+    partial = list(lines)
+    for i in faces[:3]:
+        partial[i] = "\t" + partial[i]
+    variants = {"tabs.obj": text.replace(" ", "\t"),
+                "indented.obj": "\n".join("  " + line for line in lines),
+                "partial.obj": "\n".join(partial),
+                "bom.obj": "\ufeff" + text}
+    for name, data in variants.items():
+        (tmp_path / name).write_text(data, encoding="utf-8")
+        v, f = read_mesh_arrays(tmp_path / name)
+        assert len(f) == 12, name
+        assert load_mesh(tmp_path / name).volume == pytest.approx(6000.0), name
