@@ -86,6 +86,26 @@ def main(argv: Sequence[str] | None = None) -> int:
         # stop quietly, and let no flush at exit write to the closed pipe again
         os.dup2(os.open(os.devnull, os.O_WRONLY), sys.stdout.fileno())
         return EXIT_ERROR
+    except Exception as exc:
+        # a signal that arrived while a compiled kernel called back into Python comes out
+        # wrapped (numba: "SystemError: ... returned a result with an exception set")
+        signum = _terminated_by(exc)
+        if signum is None or args.debug:
+            raise
+        print("terminated", file=sys.stderr)
+        return 128 + signum
+
+
+def _terminated_by(exc: BaseException) -> int | None:
+    """The signal of a :class:`Terminated` that ``exc`` was raised while handling."""
+    seen: set[int] = set()
+    cause: BaseException | None = exc
+    while cause is not None and id(cause) not in seen:
+        if isinstance(cause, Terminated):
+            return cause.signum
+        seen.add(id(cause))
+        cause = cause.__cause__ or cause.__context__
+    return None
 
 
 if __name__ == "__main__":

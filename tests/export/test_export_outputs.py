@@ -415,6 +415,33 @@ def test_cli_sigterm_while_files_are_put_in_place_waits_until_all_are(tmp_path, 
     assert _temporaries(tmp_path) == []
 
 
+def test_cli_terminated_inside_a_compiled_kernel_is_still_terminated(tmp_path, monkeypatch,
+                                                                     capsys):
+    """A SIGTERM while a numba kernel calls back into Python comes out as a SystemError
+    ("returned a result with an exception set") around the Terminated: it was a traceback
+    and exit status 1."""
+    from jampacked.cli.interrupt import Terminated
+    from jampacked.cli.main import main
+    from jampacked.export import io
+
+    src = _cubes(tmp_path)
+    a3, astl = _old_outputs(tmp_path, "a.3mf", "a.stl")
+
+    def kernel_interrupted(path, **kw):
+        try:
+            raise Terminated(signal.SIGTERM)
+        except Terminated:
+            raise SystemError("CPUDispatcher(<function band_distances>) returned a result "
+                              "with an exception set") from None
+
+    monkeypatch.setattr(io, "validate_file", kernel_interrupted)
+    rc = main(["export", str(src), "--mode", "union", "-o", str(a3), "-o", str(astl), "-q"])
+    err = capsys.readouterr().err
+    assert rc == 128 + signal.SIGTERM and "terminated" in err and "Traceback" not in err
+    assert a3.read_bytes() == OLD and astl.read_bytes() == OLD
+    assert _temporaries(tmp_path) == []
+
+
 def test_a_signal_the_process_ignores_stays_ignored():
     """nohup ignores SIGHUP so that a run outlives its terminal: the command line's handler
     for SIGTERM and SIGHUP is not installed over an ignored signal."""
