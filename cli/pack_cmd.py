@@ -14,7 +14,7 @@ from rich.markup import escape
 from jampacked.cli.args import add_command, fraction, non_negative_float, positive_float, seed
 from jampacked.cli.cluster_args import add_cluster_arguments, cluster_client, positive_int
 from jampacked.cli.exits import EXIT_INTERRUPTED
-from jampacked.cli.interrupt import CancelOnInterrupt
+from jampacked.cli.interrupt import CancelOnInterrupt, Terminated
 from jampacked.cli.reports import consoles, notes_only, print_summary, progress_bar, warn
 from jampacked.cli.scene import DEFAULT_CONTAINER_SIZE, DEFAULT_TYPE_SCALE, resolve_scene
 from jampacked.core.api import pack
@@ -186,15 +186,22 @@ def cmd_pack(args: argparse.Namespace) -> int:
                   + " left as they were)", highlight=False)
         return EXIT_INTERRUPTED
     save_packing(packing, args.output)
-    for w in packing.report.warnings:
-        warn(err, w)
-    hint = compile_hint(packing.timings.get("compile", 0.0))
-    if hint and not args.quiet:
-        err.print(f"[dim]note:[/] {escape(hint)}", highlight=False, soft_wrap=True)
-    if not args.quiet:
-        print_summary(packing, out)
-    if args.preview:
-        _write_preview(packing, args.preview, args.preview_axis, args.output)
+    try:
+        for w in packing.report.warnings:
+            warn(err, w)
+        hint = compile_hint(packing.timings.get("compile", 0.0))
+        if hint and not args.quiet:
+            err.print(f"[dim]note:[/] {escape(hint)}", highlight=False, soft_wrap=True)
+        if not args.quiet:
+            print_summary(packing, out)
+        if args.preview:
+            _write_preview(packing, args.preview, args.preview_axis, args.output)
+    except Terminated:  # the packing is saved: say so ("terminated" alone hid it)
+        err.print(f"[yellow]terminated[/] after the packing was saved to "
+                  f"{escape(args.output)}"
+                  + (f"; the preview {escape(args.preview)} was not written"
+                     if args.preview else ""), highlight=False)
+        raise
     if not args.quiet:
         out.print(f"wrote {args.output}" + (f" and {args.preview}" if args.preview else ""),
                   highlight=False)

@@ -376,6 +376,25 @@ def test_a_full_disk_is_an_error_that_names_the_file(failing, tmp_path, monkeypa
         assert f"the packing was saved to '{out}'" in err and load_packing(out).n > 0
 
 
+def test_terminated_after_the_packing_is_saved_says_so(tmp_path, monkeypatch, capsys):
+    """SIGTERM while the preview was drawn: the packing was already saved, but the run
+    said only "terminated"."""
+    import jampacked.cli.preview as preview_module
+
+    def terminated(*_args, **_kwargs):
+        signal.raise_signal(signal.SIGTERM)
+
+    monkeypatch.setattr(preview_module, "write_preview", terminated)
+    out, png = tmp_path / "p.json", tmp_path / "p.png"
+    rc = main(["pack", "box:30x30x30", "--type", str(P1), *SMALL, "-q", "-o", str(out),
+               "--preview", str(png)])
+    err = " ".join(capsys.readouterr().err.split())
+    assert rc == 128 + signal.SIGTERM
+    assert f"terminated after the packing was saved to {out}; the preview {png} was not " \
+        "written" in err, err
+    assert load_packing(out).n > 0 and not png.exists()
+
+
 def test_ctrl_c_while_the_engine_is_imported_stops_cleanly(tmp_path):
     """A Ctrl-C in the first second (the imports) stops the command with status 130 and no
     traceback; it was swallowed by an import (the run went on) or printed one."""
