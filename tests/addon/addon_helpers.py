@@ -168,3 +168,15 @@ class Layout:
             return Layout(self.calls)
 
         return method
+
+
+def scale_in_edit_mode(bpy, obj, factor: float) -> None:
+    """Enter Edit Mode on ``obj`` and scale its vertices by ``factor`` there, staying in it:
+    the edit is in the edit mesh, not yet in the mesh data."""
+    import bmesh
+
+    bpy.context.view_layer.objects.active = obj
+    bpy.ops.object.mode_set(mode='EDIT')
+    bm = bmesh.from_edit_mesh(obj.data)
+    bmesh.ops.scale(bm, vec=(factor, factor, factor), verts=bm.verts)
+    bmesh.update_edit_mesh(obj.data)

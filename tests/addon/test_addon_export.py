@@ -6,7 +6,7 @@ import pytest
 
 pytest.importorskip("bpy")
 
-from addon_helpers import drive, runner, scene_state  # noqa: E402
+from addon_helpers import drive, runner, scale_in_edit_mode, scene_state  # noqa: E402
 
 
 @pytest.fixture
@@ -68,16 +68,10 @@ def test_export_refuses_a_moved_container(bpy, addon, packed, tmp_path):
 def test_export_refuses_a_type_mesh_being_edited(bpy, addon, packed, tmp_path):
     """An edit of a placed object's shared mesh, still in Edit Mode, is an edit: Export
     leaves Edit Mode first, so that it reads the mesh as the viewport shows it."""
-    import bmesh
-
     packed.settings.filepath = str(tmp_path / "x.stl")
     placed = next(o for o in packed.settings.result.objects if o.type == 'MESH')
-    bpy.context.view_layer.objects.active = placed
-    bpy.ops.object.mode_set(mode='EDIT')
     try:
-        bm = bmesh.from_edit_mesh(placed.data)
-        bmesh.ops.scale(bm, vec=(1.5, 1.5, 1.5), verts=bm.verts)
-        bmesh.update_edit_mesh(placed.data)
+        scale_in_edit_mode(bpy, placed, 1.5)
         with pytest.raises(RuntimeError, match=f"The mesh '{placed.data.name}' of type .* "
                                                "was edited after packing"):
             bpy.ops.jampacked.export()

@@ -20,7 +20,7 @@ import pytest
 
 pytest.importorskip("bpy")
 
-from addon_helpers import CUBE_FACES, cube_object, scene_state  # noqa: E402
+from addon_helpers import CUBE_FACES, cube_object, scale_in_edit_mode, scene_state  # noqa: E402
 
 #: what no message to a user may contain
 NOT_CLEAR = re.compile(r"internal error|Traceback|this is a bug|please report", re.I)
@@ -632,17 +632,11 @@ def test_edits_in_edit_mode_are_read(bpy, addon):
     the edit), not as its mesh data was on entering edit mode; the result's objects are
     what was packed (they were made from the mesh data as it was: a flattened type gave
     overlapping full-size objects under a "certified" result)."""
-    import bmesh
-
     box = cube_object(bpy, "Box", scale=(3.0, 3.0, 3.0))
     ico = _ico(bpy, "Ico")
     s = _settings(bpy, box, [ico])
-    bpy.context.view_layer.objects.active = ico
-    bpy.ops.object.mode_set(mode='EDIT')
     try:
-        bm = bmesh.from_edit_mesh(ico.data)
-        bmesh.ops.scale(bm, vec=(0.5, 0.5, 0.5), verts=bm.verts)
-        bmesh.update_edit_mesh(ico.data)
+        scale_in_edit_mode(bpy, ico, 0.5)
         request = addon.bridge.gather_pack(bpy.context)
         assert bpy.ops.jampacked.pack() == {'FINISHED'}
         assert ico.mode == 'EDIT'  # the artist's edit goes on

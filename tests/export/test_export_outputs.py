@@ -87,23 +87,32 @@ def test_cancel_after_the_first_file_leaves_every_previous_file(tmp_path):
     assert _temporaries(tmp_path) == []
 
 
+def _on_second_validation(monkeypatch, action) -> None:
+    """Run ``action()`` as the export validates its second file."""
+    from jampacked.export import io
+
+    calls = []
+
+    def validate(path, **kw):
+        calls.append(path)
+        if len(calls) == 2:
+            action()
+        return validate_file(path, **kw)
+
+    monkeypatch.setattr(io, "validate_file", validate)
+
+
 def test_a_second_interrupt_while_validating_leaves_no_file_and_no_temporary(tmp_path,
                                                                             monkeypatch):
     """A second Ctrl-C (KeyboardInterrupt) while the second file is validated: the first
     file is not in place either."""
     src = _cubes(tmp_path)
     a3, astl = _old_outputs(tmp_path, "a.3mf", "a.stl")
-    from jampacked.export import io
 
-    calls = []
+    def interrupt() -> None:
+        raise KeyboardInterrupt
 
-    def interrupted(path, **kw):
-        calls.append(path)
-        if len(calls) == 2:
-            raise KeyboardInterrupt
-        return validate_file(path, **kw)
-
-    monkeypatch.setattr(io, "validate_file", interrupted)
+    _on_second_validation(monkeypatch, interrupt)
     with pytest.raises(KeyboardInterrupt):
         export_packing(src, [a3, astl], UNION)
     assert a3.read_bytes() == OLD and astl.read_bytes() == OLD
@@ -120,21 +129,12 @@ def test_cli_terminated_while_writing_leaves_no_temporary(signame, tmp_path, mon
     import signal
 
     from jampacked.cli.main import main
-    from jampacked.export import io
 
     signum = getattr(signal, signame)
     before = signal.getsignal(signum)
     src = _cubes(tmp_path)
     a3, astl = _old_outputs(tmp_path, "a.3mf", "a.stl")
-    calls = []
-
-    def terminated(path, **kw):
-        calls.append(path)
-        if len(calls) == 2:
-            signal.raise_signal(signum)
-        return validate_file(path, **kw)
-
-    monkeypatch.setattr(io, "validate_file", terminated)
+    _on_second_validation(monkeypatch, lambda: signal.raise_signal(signum))
     rc = main(["export", str(src), "--mode", "union", "-o", str(a3), "-o", str(astl), "-q"])
     assert rc == 128 + signum and "terminated" in capsys.readouterr().err
     assert a3.read_bytes() == OLD and astl.read_bytes() == OLD
@@ -348,18 +348,20 @@ def python_ctrl_c():
     signal.signal(signal.SIGINT, before)
 
 
-def _ctrl_c_on_first_rename(monkeypatch) -> None:
-    """A Ctrl-C (SIGINT to this process) just as the first file is renamed into place."""
+def _ctrl_c_on_first_rename(monkeypatch, signum: int = signal.SIGINT) -> list[str]:
+    """A Ctrl-C (SIGINT to this process; or ``signum``) just as the first file is renamed
+    into place. Returns the list that records the rename it was sent at."""
     real = os.replace
-    sent = []
+    sent: list[str] = []
 
     def replace(a, b):
         if not sent:
             sent.append(b)
-            os.kill(os.getpid(), signal.SIGINT)
+            os.kill(os.getpid(), signum)
         real(a, b)
 
     monkeypatch.setattr(os, "replace", replace)
+    return sent
 
 
 def test_ctrl_c_while_files_are_put_in_place_waits_until_all_are(tmp_path, monkeypatch,
@@ -399,16 +401,7 @@ def test_cli_sigterm_while_files_are_put_in_place_waits_until_all_are(tmp_path, 
 
     src = _cubes(tmp_path)
     a3, astl = _old_outputs(tmp_path, "a.3mf", "a.stl")
-    real = os.replace
-    sent = []
-
-    def replace(a, b):
-        if not sent:
-            sent.append(b)
-            os.kill(os.getpid(), signal.SIGTERM)
-        real(a, b)
-
-    monkeypatch.setattr(os, "replace", replace)
+    sent = _ctrl_c_on_first_rename(monkeypatch, signal.SIGTERM)
     rc = main(["export", str(src), "--mode", "union", "-o", str(a3), "-o", str(astl), "-q"])
     assert sent and rc == 128 + signal.SIGTERM
     assert validate_file(a3).passed and validate_file(astl).passed
