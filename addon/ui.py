@@ -121,9 +121,7 @@ def _held_now(coll: bpy.types.Collection) -> tuple[int, float | None] | None:
     points object whose attributes a script removed: the panel still draws)."""
     points = instances.points_object(coll)
     key = (len(coll.all_objects), -1 if points is None else len(points.data.vertices),
-           None if points is None else tuple(points.matrix_world.to_3x3().col[0])
-           + tuple(points.matrix_world.to_3x3().col[1])
-           + tuple(points.matrix_world.to_3x3().col[2]))
+           None if points is None else tuple(tuple(row) for row in points.matrix_world))
     cached = _HELD.get(coll.as_pointer())
     if cached is not None and cached[0] == key:
         return cached[1]
