@@ -278,7 +278,8 @@ def _stl_damage(data: bytes) -> str | None:
             return None
         facets = data.lower().count(b"endfacet")
         return (f"it ends after {facets:,} whole facets without the 'endsolid' line that "
-                "closes an ASCII STL, so it was cut short")
+                "closes an ASCII STL, so it was cut short (if it is whole, its writer left "
+                "that line out: add 'endsolid' as its last line)")
     if len(data) < 84:
         return f"it has {len(data)} bytes, fewer than a binary STL's 84-byte header"
     count = int.from_bytes(data[80:84], "little")

@@ -600,8 +600,12 @@ def test_an_ascii_stl_cut_short_is_named_as_such(tmp_path):
     cut = tmp_path / "cut.stl"
     cut.write_text(text[:end] + "\n")
     with pytest.raises(MeshError, match=r"cut\.stl' is not a whole STL file: it ends after 5 "
-                                        r"whole facets without the 'endsolid' line"):
+                                        r"whole facets without the 'endsolid' line.*add "
+                                        r"'endsolid' as its last line"):
         load_mesh(cut)
+    # the hint holds: a whole file whose writer left the line out reads once it is added
+    (tmp_path / "closed.stl").write_text(text[:text.rindex("endsolid")] + "endsolid\n")
+    assert len(read_mesh_arrays(tmp_path / "closed.stl")[1]) == 12
     # a file cut inside a facet says so too, with the facets before it
     inside = tmp_path / "inside.stl"
     inside.write_text(text[:end + 40])
