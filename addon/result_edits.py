@@ -185,14 +185,22 @@ def current_placements(coll: bpy.types.Collection, packing: Any,
         types = np.concatenate([types, pt])
         index = np.concatenate([index, pts["indices"].astype(np.int64)])
 
+    # a point duplicated in Edit Mode shares its placement's index: its number tells them
+    # apart ("'Cube 7, an instance' and 'Cube 7, an instance' overlap")
+    values, counts = np.unique(index[n_objects:], return_counts=True)
+    twice = set(values[counts > 1].tolist())
+
+    def point(k: int) -> str:
+        return f", point {k - n_objects}" if int(index[k]) in twice else ""
+
     def plain(k: int) -> str:
         if k < n_objects:
             return objects[k].name
-        return f"{names[types[k]]} {index[k] + 1}, an instance"
+        return f"{names[types[k]]} {index[k] + 1}, an instance{point(k)}"
 
     def label(k: int) -> str:
         return f"'{plain(k)}'" if k < n_objects else \
-            f"'{names[types[k]]} {index[k] + 1}' (an instance of '{points.name}')"
+            f"'{names[types[k]]} {index[k] + 1}' (an instance of '{points.name}'{point(k)})"
 
     known = (index >= 0) & (index < packing.n)
     rows = exact[np.where(known, index, 0)]

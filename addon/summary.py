@@ -132,6 +132,10 @@ _BLENDER_WORDS = (
     ("--shell", "Shell"),
     ("--drain", "Drain"),
     ("--connector", "Connector"),
+    # in Blender the placements change by moving, adding or deleting objects and points
+    ("the packing was changed after it was certified (its certificate's digest no longer "
+     "matches its placements)", "the result's objects were moved, added or deleted since "
+     "Pack certified them"),
 )
 
 

@@ -334,6 +334,30 @@ def test_the_panel_says_what_a_result_holds_after_deletions(bpy, addon, scene):
         bpy.ops.jampacked.export()
 
 
+def test_a_duplicated_point_is_told_apart_from_its_original(bpy, addon, scene, tmp_path):
+    """A point duplicated in place (Shift+D in Edit Mode) overlaps its original: Export
+    named the pair as the same instance twice (and the change by its certificate's
+    digest, which means nothing to an artist)."""
+    import bmesh
+
+    coll = _pack(bpy, 'INSTANCES')
+    packing = _packing(addon, coll)
+    points = addon.instances.points_object(coll)
+    bm = bmesh.new()
+    bm.from_mesh(points.data)
+    bm.verts.ensure_lookup_table()
+    bmesh.ops.duplicate(bm, geom=[bm.verts[0]])
+    bm.to_mesh(points.data)
+    bm.free()
+    name = f"{packing.types[packing.type_index[0]].name} 1"
+    bpy.context.scene.jampacked.filepath = str(tmp_path / "twice.stl")
+    with pytest.raises(RuntimeError, match=rf"the result's objects were moved, added or "
+                                           rf"deleted since Pack certified them.*'{name}, an "
+                                           rf"instance, point 0' and '{name}, an instance, "
+                                           rf"point {packing.n}' overlap"):
+        bpy.ops.jampacked.export()
+
+
 def test_make_real_refuses_damaged_placements(bpy, addon, scene):
     """The points object's placements cut short (edited by a script): a clear error, no
     object made, the instances kept."""
