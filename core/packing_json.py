@@ -11,7 +11,6 @@ both in one flat "params" object, are still read (unknown keys are ignored).
 
 from __future__ import annotations
 
-import contextlib
 import dataclasses
 import itertools
 import json
@@ -301,12 +300,9 @@ def _placement_arrays(raw: list, types: int) -> tuple[np.ndarray, ...] | None:
     return k.astype(np.int64), m, q, t, s
 
 
-def _located(p: str | None, absolute: str | None, src: str, sha256: str | None = None
-             ) -> str | None:
+def _located(p: str | None, absolute: str | None, src: str) -> str | None:
     """Where a mesh is, for a packing file opened as `src`: the first of these that is a
-    file (where several different files are there, the first whose sha256 is the recorded
-    one: a copied project whose mesh was replaced, the original still in place), else the
-    first (so that a message names the path the user can edit):
+    file, else the first (so that a message names the path the user can edit):
 
     - its `path` against the folder `src` names (as written, so a project folder moved or
       copied with its meshes finds the meshes beside it; a `path` edited by hand wins);
@@ -322,16 +318,7 @@ def _located(p: str | None, absolute: str | None, src: str, sha256: str | None =
             os.path.dirname(os.path.realpath(src)), p)))
     if absolute and os.path.isabs(absolute):
         candidates.append(os.path.normpath(absolute))
-    found = [c for c in candidates if os.path.isfile(c)]
-    if not found:
-        return candidates[0]
-    if sha256 and len({os.path.realpath(c) for c in found}) > 1:
-        # hashed only here: a project moved with its meshes finds one file, as does a JSON
-        # file moved alone; an unreadable file is left for `verify_sources` to name
-        with contextlib.suppress(OSError):
-            if file_sha256(found[0]) != sha256:
-                return next((c for c in found[1:] if file_sha256(c) == sha256), found[0])
-    return found[0]
+    return next((c for c in candidates if os.path.isfile(c)), candidates[0])
 
 
 def load_packing(path: str | os.PathLike) -> Packing:
@@ -378,10 +365,9 @@ def load_packing(path: str | os.PathLike) -> Packing:
     cpath = r.mesh_path(r.get(cont, "path", "container"), "container.path")
     if not cpath:
         raise r.fail("container.path must be a non-empty string")
-    container_sha = r.opt_str(r.get(cont, "sha256", "container"), "container.sha256")
     container_path = _located(cpath, r.mesh_path(cont.get("absolute_path"),
-                                                 "container.absolute_path"), src,
-                              container_sha)
+                                                 "container.absolute_path"), src)
+    container_sha = r.opt_str(r.get(cont, "sha256", "container"), "container.sha256")
     frame = r.matrix(r.get(cont, "frame_from_file", "container"), "container.frame_from_file")
     cvol = r.number(r.get(cont, "volume", "container"), "container.volume")
 
@@ -394,14 +380,13 @@ def load_packing(path: str | os.PathLike) -> Packing:
         name = r.get(t, "name", w)
         if not isinstance(name, str):
             raise r.fail(f"{w}.name must be a string")
-        sha = r.opt_str(r.get(t, "sha256", w), f"{w}.sha256")
         types.append(
             TypeRecord(
                 name=name,
                 path=_located(r.mesh_path(r.get(t, "path", w), f"{w}.path"),
                               r.mesh_path(t.get("absolute_path"), f"{w}.absolute_path"),
-                              src, sha),
-                sha256=sha,
+                              src),
+                sha256=r.opt_str(r.get(t, "sha256", w), f"{w}.sha256"),
                 share=r.number(r.get(t, "share", w), f"{w}.share"),
                 local_from_file=r.matrix(r.get(t, "local_from_file", w), f"{w}.local_from_file"),
                 volume=r.number(r.get(t, "volume", w), f"{w}.volume"),

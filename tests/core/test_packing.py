@@ -243,25 +243,6 @@ def test_a_packing_written_through_a_symlinked_folder_opens_from_either(scene):
                                          for n in ("apple.obj", "lemon.obj")]
 
 
-def test_a_copied_project_whose_mesh_was_replaced_finds_the_original(scene):
-    """A project copied elsewhere, one of its meshes then overwritten by another: the
-    packing's recorded absolute path still holds the mesh it was made from, which is taken
-    (the changed copy was reported and export refused); where the copy holds the right
-    mesh it is the copy's."""
-    import shutil
-
-    tmp, files, p = scene
-    save_packing(p, tmp / "p.json")
-    copy = tmp / "elsewhere"
-    shutil.copytree(tmp / "meshes", copy / "meshes")
-    shutil.copy(tmp / "p.json", copy / "p.json")
-    (copy / "meshes" / "lemon.obj").write_bytes(b"another mesh\n")
-    q = load_packing(copy / "p.json")
-    assert q.types[1].path == files["lemon.obj"]
-    assert q.types[0].path == str(copy / "meshes" / "apple.obj")
-    assert verify_sources(q) == []
-
-
 def test_a_mesh_that_is_a_symlink_is_recorded_as_the_link(scene):
     tmp, files, p = scene
     link = tmp / "meshes" / "latest.stl"
