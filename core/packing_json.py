@@ -25,7 +25,7 @@ from typing import Any
 import numpy as np
 
 from .atomic import atomic_output, missing_folder
-from .errors import InputError, OutputError
+from .errors import InputError, MeshError, OutputError
 from .mesh_files import MESH_EXTENSIONS, extension
 from .meshes import file_sha256
 from .options import FLAT_KEYS
@@ -611,8 +611,9 @@ def verify_sources(packing: Packing) -> list[str]:
             continue
         try:
             actual = file_sha256(p)
-        except OSError as exc:
-            problems.append(f"{label}: cannot read mesh file {p} ({exc.strerror or exc})")
+        except (OSError, MeshError) as exc:  # file_sha256 names a refused read as a MeshError
+            why = exc.strerror if isinstance(exc, OSError) and exc.strerror else exc
+            problems.append(f"{label}: cannot read mesh file {p} ({why})")
             continue
         if actual.lower() != sha.lower():
             problems.append(

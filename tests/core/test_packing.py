@@ -617,3 +617,20 @@ def test_a_path_with_a_nul_character_is_refused_by_name(saved, where):
         doc["types"][0]["path"] = "a\x00b.stl"
         match = r"types\[0\]\.path holds a NUL character"
     _bad(path, doc, match)
+
+
+def test_verify_sources_names_an_unreadable_mesh(scene, monkeypatch):
+    # file_sha256 names a refused read as a MeshError, which escaped verify_sources (which
+    # never raises: `info` lists the problem)
+    from jampacked.core import packing_json
+    from jampacked.core.errors import MeshError
+
+    tmp, files, p = scene
+
+    def refused(path):
+        raise MeshError(f"Mesh file '{path}' cannot be read (Permission denied)")
+
+    monkeypatch.setattr(packing_json, "file_sha256", refused)
+    problems = verify_sources(p)
+    assert len(problems) == 3 and all("cannot read mesh file" in q for q in problems)
+    assert "Permission denied" in problems[0]
