@@ -110,28 +110,33 @@ def _wrap(text: str, width: int) -> list[str]:
     return lines[:12]
 
 
-#: the last count per result, keyed by what changes when objects or points are deleted,
-#: added or made real, or the instances object is scaled: a panel redraws often, and
-#: reading 100,000 points each time took 0.1 s
+#: the last count of an instanced result, keyed by what changes when points are deleted,
+#: added or made real or the instances object is moved: a panel redraws often, and reading
+#: 100,000 points each time took 0.1 s (an object result, under the instancing threshold,
+#: is summed at each redraw, so that a placed object rescaled shows at once)
 _HELD: dict[int, tuple[tuple, tuple[int, float | None] | None]] = {}
 
 
 def _held_now(coll: bpy.types.Collection) -> tuple[int, float | None] | None:
     """(objects, density or None) the result holds now; None where it cannot be read (a
     points object whose attributes a script removed: the panel still draws)."""
+    from jampacked.core.errors import JampackedError
+
     points = instances.points_object(coll)
-    key = (len(coll.all_objects), -1 if points is None else len(points.data.vertices),
-           None if points is None else tuple(tuple(row) for row in points.matrix_world))
+    key = None if points is None else (
+        len(coll.all_objects), len(points.data.vertices),
+        tuple(tuple(row) for row in points.matrix_world))
     cached = _HELD.get(coll.as_pointer())
-    if cached is not None and cached[0] == key:
+    if key is not None and cached is not None and cached[0] == key:
         return cached[1]
     try:
         count, cubes = result_edits.held_now(coll)
         now: tuple[int, float | None] | None = (count, summary.density_now(coll, cubes))
-    except Exception:  # noqa: BLE001 - a panel draws whatever a script did to the result
+    except (JampackedError, KeyError, ReferenceError):  # what a script left of the result
         now = None
     _HELD.clear()  # one result is shown at a time
-    _HELD[coll.as_pointer()] = (key, now)
+    if key is not None:
+        _HELD[coll.as_pointer()] = (key, now)
     return now
 
 

@@ -308,6 +308,14 @@ def test_the_panel_says_what_a_result_holds_after_deletions(bpy, addon, scene):
         assert "Holds now" in labels, kind
         assert (f"{packing.n - delete} objects, {volume / packing.container_volume:.1%}"
                 in labels), (kind, labels)
+        if kind == 'OBJECTS':  # a placed object rescaled shows at the next redraw
+            placed = next(o for o in coll.objects if o.type == 'MESH')
+            placed.scale = [0.5 * x for x in placed.scale]
+            bpy.context.view_layer.update()
+            t = int(placed["jampacked_type"])
+            less = volume - 0.875 * packing.types[t].volume
+            assert (f"{packing.n - delete} objects, {less / packing.container_volume:.1%}"
+                    in _labels(_draw_all(bpy, addon)))
     # the same count at another density: the instances object scaled by half (and then
     # made real) holds an eighth of the volume
     coll = _pack(bpy, 'INSTANCES')
