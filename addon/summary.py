@@ -156,11 +156,15 @@ _NUMBER = r"-?\d+(?:\.\d+)?(?:e[-+]?\d+)?"
 #: a length before the word that says what it measures ("0.839 apart")
 _LENGTH_BEFORE = re.compile(rf"(?<![\w.])({_NUMBER}) (across|apart|away|higher|lower|long|"
                             r"thick|wide|under)\b")
-#: a length after the field or setting it is ("Connector 4.6", "the clearance 1")
+#: a length after the field or setting it is ("Connector 4.6", "the clearance 1"), whole
+#: (not "0" of "0.25") and not already in mm
 _LENGTH_AFTER = re.compile(rf"\b(Connector|Clearance|clearance|Resolution|Shell|Drain) "
-                           rf"({_NUMBER})\b(?! ?mm)")
+                           rf"({_NUMBER})(?![\w.])(?! ?mm)")
 #: a point ("at (-39.86, -21.21, 174.3)")
 _POINT = re.compile(rf"(\((?:{_NUMBER}, ){{2}}{_NUMBER}\))(?! ?mm)")
+#: a name in quotes (an object's, a file's): left as it is (an apostrophe inside a word,
+#: "the cavity's", opens none)
+_QUOTED = re.compile(r"((?<!\w)'[^']*'(?!\w))")
 
 
 def export_in_mm(message: str) -> str:
@@ -169,9 +173,12 @@ def export_in_mm(message: str) -> str:
     for a field can be typed in as they read ("4.6 mm"), whatever the scene's unit."""
     for cli, blender in _EXPORT_UNITS:
         message = message.replace(cli, blender)
-    message = _LENGTH_BEFORE.sub(r"\1 mm \2", message)
-    message = _LENGTH_AFTER.sub(r"\1 \2 mm", message)
-    return _POINT.sub(r"\1 mm", message)
+    parts = _QUOTED.split(message)
+    for k in range(0, len(parts), 2):  # the text between quoted names
+        part = _LENGTH_BEFORE.sub(r"\1 mm \2", parts[k])
+        part = _LENGTH_AFTER.sub(r"\1 \2 mm", part)
+        parts[k] = _POINT.sub(r"\1 mm", part)
+    return "".join(parts)
 
 
 def in_blender_words(message: str) -> str:

@@ -456,6 +456,8 @@ def test_a_blender_packing_stays_as_certified_through_its_name_and_units():
      "1 mm)"),
     ("the drain opens 4 away from it and 0.5 lower, at",
      "The drain opens 4 mm away from it and 0.5 mm lower, at"),
+    ("the cavity's drain opens 4 away from the shell's 2 thick wall",
+     "The cavity's drain opens 4 mm away from the shell's 2 mm thick wall"),
     ("'X' is 15.32 units across at (-39.86, -21.21, 174.3); the container spans (-50, -50, "
      "-50) to (50, 50, 50).",
      "'X' is 15.32 mm across at (-39.86, -21.21, 174.3) mm; the container spans (-50, -50, "
@@ -463,6 +465,10 @@ def test_a_blender_packing_stays_as_certified_through_its_name_and_units():
     ("--resolution saved 138 triangles (surfaces moved at most 0.124 mm); 2 bodies",
      "Resolution saved 138 triangles (surfaces moved at most 0.124 mm); 2 bodies"),
     ("--shell 1e-05 is too thin", "Shell 1e-05 mm is too thin"),
+    # a decimal already in mm stays whole; names in quotes are names
+    ("Clearance 0.25 mm, shell 2.5 mm thick", "Clearance 0.25 mm, shell 2.5 mm thick"),
+    ("'Strut 2 long' and 'Box (1, 2, 3)' are 0.5 apart",
+     "'Strut 2 long' and 'Box (1, 2, 3)' are 0.5 mm apart"),
 ])
 def test_export_messages_in_millimetres(engine, blender):
     assert summary.export_in_mm(summary.in_blender_words(engine)) == blender
