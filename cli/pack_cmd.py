@@ -196,12 +196,12 @@ def cmd_pack(args: argparse.Namespace) -> int:
             print_summary(packing, out)
         if args.preview:
             _write_preview(packing, args.preview, args.preview_axis, args.output)
-    except Terminated:  # the packing is saved: say so ("terminated" alone hid it)
+    except Terminated as exc:  # the packing is saved: say so ("terminated" alone hid it)
         err.print(f"[yellow]terminated[/] after the packing was saved to "
                   f"{escape(args.output)}"
                   + (f"; the preview {escape(args.preview)} was not written"
                      if args.preview else ""), highlight=False)
-        raise
+        return 128 + exc.signum
     if not args.quiet:
         out.print(f"wrote {args.output}" + (f" and {args.preview}" if args.preview else ""),
                   highlight=False)
