@@ -264,6 +264,9 @@ def _is_ascii_stl(data: bytes) -> bool:
     return head[:5].lower() == b"solid" and b"\0" not in head
 
 
+#: an ASCII STL solid's first line, with its name (the name up to the first facet)
+_STL_SOLID_NAME = re.compile(rb"^[ \t]*solid\b[^\n]*?(?=\s+facet\b|\n|$)",
+                             re.IGNORECASE | re.MULTILINE)
 #: an ASCII STL keyword after any whitespace: where a line should start
 _STL_KEYWORD = re.compile(rb"\s+(?=(?:facet|outer|vertex|endloop|endfacet|endsolid)\b)", re.I)
 
@@ -273,7 +276,7 @@ def _stl_damage(data: bytes) -> str | None:
     does not match the triangle count in its header, an ASCII one without its closing
     ``endsolid``; None where neither is seen."""
     if _is_ascii_stl(data):
-        lines = data.rstrip().rsplit(b"\n", 1)
+        lines = data.rstrip().splitlines() or [b""]  # a lone CR ends a line too
         if lines[-1].strip()[:8].lower() == b"endsolid":
             return None
         facets = data.lower().count(b"endfacet")
@@ -303,6 +306,12 @@ def _stl_arrays(data: bytes) -> Arrays | None:
     if not _is_ascii_stl(data):
         return arrays
     facets = len(re.findall(rb"(?i)\bendfacet\b", data))
+    if arrays is not None and len(arrays[1]) == facets:
+        return arrays
+    # line ends of a lone CR as LF, and the solids' names, which trimesh reads keywords in
+    # ("solid outer vertex"), left out; then each keyword on a line of its own
+    data = _STL_SOLID_NAME.sub(b"solid", data.replace(b"\r\n", b"\n").replace(b"\r", b"\n"))
+    arrays = _trimesh_stl(data)
     if arrays is not None and len(arrays[1]) == facets:
         return arrays
     arrays = _trimesh_stl(_STL_KEYWORD.sub(b"\n", data))

@@ -620,8 +620,10 @@ def test_ascii_stl_line_ends_and_solids_are_read_whole(tmp_path):
     box = trimesh.creation.box((10, 20, 30))
     text = trimesh.exchange.stl.export_stl_ascii(box)
     moved = trimesh.exchange.stl.export_stl_ascii(box.copy().apply_translation([50, 0, 0]))
+    named = text.replace("solid", "solid outer vertex shell", 1)  # keywords in its name
     for name, data in (("cr.stl", text.replace("\n", "\r")), ("line.stl", text.replace("\n", " ")),
-                       ("upper.stl", text.upper())):
+                       ("upper.stl", text.upper()), ("named.stl", named.replace("\n", "\r")),
+                       ("named-lf.stl", named), ("named-line.stl", named.replace("\n", " "))):
         (tmp_path / name).write_text(data, newline="")
         v, f = read_mesh_arrays(tmp_path / name)
         assert len(f) == 12 and load_mesh(tmp_path / name).volume == pytest.approx(6000.0), name
