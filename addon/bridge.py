@@ -541,10 +541,11 @@ def output_path(filepath: str, file_format: str) -> str:
     if ext.lower() in FORMAT_EXTENSIONS.values():
         path = stem
     path += FORMAT_EXTENSIONS[file_format]
-    folder = os.path.dirname(path) or "."
-    if not os.path.isdir(folder):
-        raise _input_error(f"the output folder '{folder}' does not exist: create it or pick "
-                           "another file.")
+    from jampacked.core.atomic import missing_folder
+
+    missing = missing_folder(os.path.dirname(path) or ".")
+    if missing:
+        raise _input_error(f"cannot write '{path}': {missing}, or pick another file.")
     return path
 
 

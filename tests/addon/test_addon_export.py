@@ -119,6 +119,17 @@ def test_export_path_takes_blend_relative_paths(bpy, addon, tmp_path):
         str(tmp_path / "prints" / "out.3mf")
 
 
+def test_export_path_names_a_file_in_the_folders_way(bpy, addon, tmp_path):
+    """A file where the output's folder should be read as a folder that does not exist."""
+    from jampacked.core.errors import InputError
+
+    (tmp_path / "afile").write_text("x")
+    with pytest.raises(InputError, match="afile' is a file, not a folder"):
+        addon.bridge.output_path(str(tmp_path / "afile" / "out.stl"), 'STL')
+    with pytest.raises(InputError, match="does not exist; create it first, or pick another"):
+        addon.bridge.output_path(str(tmp_path / "nope" / "out.stl"), 'STL')
+
+
 def test_a_scene_in_metres_exports_in_millimetres(bpy, addon, scene, tmp_path):
     """Blender's default units (1 BU = 1 m): a 12 cm box modelled as 0.12 BU, filled and
     exported with a 2 mm shell (typed as 0.002 m), prints 120 mm wide; the panel says so."""
