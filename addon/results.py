@@ -87,8 +87,8 @@ LAYER_FLAGS = ("exclude", "hide_viewport", "holdout", "indirect_only")
 @dataclass
 class _Place:
     """Where a result sits and how it is set: its name, the collections it is linked in,
-    its own flags and, by (view layer, the names of the collections above it), each of its
-    layer collections' flags (a collection linked in two places has two)."""
+    its own flags and, by (scene, view layer, the names of the collections above it), each
+    of its layer collections' flags (a collection linked in two places has two)."""
 
     name: str
     parents: list
@@ -109,9 +109,10 @@ def _layer_children(view_layer: bpy.types.ViewLayer):
 
 
 def _place_of(scene: bpy.types.Scene, coll: bpy.types.Collection) -> _Place:
-    layers = {(vl.name, path): {k: getattr(child, k) for k in LAYER_FLAGS}
-              for vl in scene.view_layers for path, child in _layer_children(vl)
-              if child.collection == coll}
+    # every scene's: the artist may have linked the result into another scene too
+    layers = {(sc.name, vl.name, path): {k: getattr(child, k) for k in LAYER_FLAGS}
+              for sc in bpy.data.scenes for vl in sc.view_layers
+              for path, child in _layer_children(vl) if child.collection == coll}
     parents = []
     for c in (scene.collection, *scene.collection.children_recursive):
         if c.children.get(coll.name) == coll and c not in parents:
@@ -139,12 +140,13 @@ def _put_in_place(scene: bpy.types.Scene, new: bpy.types.Collection, place: _Pla
         new.name = place.name
     for key, value in place.flags.items():
         setattr(new, key, value)
-    for vl in scene.view_layers:
-        for path, child in _layer_children(vl):
-            flags = place.layers.get((vl.name, path))
-            if child.collection == new and flags is not None:
-                for key, value in flags.items():
-                    setattr(child, key, value)
+    for sc in bpy.data.scenes:
+        for vl in sc.view_layers:
+            for path, child in _layer_children(vl):
+                flags = place.layers.get((sc.name, vl.name, path))
+                if child.collection == new and flags is not None:
+                    for key, value in flags.items():
+                        setattr(child, key, value)
 
 
 def replace_previous(scene: bpy.types.Scene, new: bpy.types.Collection,

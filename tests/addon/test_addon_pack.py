@@ -449,8 +449,9 @@ def test_a_second_pack_takes_the_first_ones_place(bpy, addon, scene):
 
 
 def test_a_result_linked_into_another_scene_stays_there(bpy, addon, scene):
-    """The artist linked the result into a second scene (and a collection of it): the next
-    Pack's result was linked in this scene only, and the other scene lost it."""
+    """The artist linked the result into a second scene (and a collection of it) and set it
+    up there: the next Pack's result was linked in this scene only, and the other scene
+    lost it (then got it back without its view layer's settings)."""
     assert bpy.ops.jampacked.pack() == {'FINISHED'}
     coll = scene.settings.result
     other = bpy.data.scenes.new("Scene2")
@@ -458,6 +459,9 @@ def test_a_result_linked_into_another_scene_stays_there(bpy, addon, scene):
     other.collection.children.link(shelf)
     other.collection.children.link(coll)
     shelf.children.link(coll)
+    layers = other.view_layers[0].layer_collection
+    layers.children[coll.name].exclude = True  # and set up there: excluded at its root
+    layers.children["Shelf"].children[coll.name].holdout = True
     try:
         scene.settings.seed = 2
         assert bpy.ops.jampacked.pack() == {'FINISHED'}
@@ -466,6 +470,10 @@ def test_a_result_linked_into_another_scene_stays_there(bpy, addon, scene):
         assert list(other.collection.children) == [shelf, new]
         assert list(shelf.children) == [new]
         assert new.name in bpy.context.scene.collection.children
+        layers = other.view_layers[0].layer_collection
+        assert layers.children[new.name].exclude
+        assert layers.children["Shelf"].children[new.name].holdout
+        assert not bpy.context.view_layer.layer_collection.children[new.name].exclude
     finally:
         bpy.data.scenes.remove(other)
 
