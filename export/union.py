@@ -239,6 +239,21 @@ def crossing_pairs(v: np.ndarray, f: np.ndarray, float32: bool,
     return np.concatenate(faces), count
 
 
+def _components(v: np.ndarray, f: np.ndarray) -> tuple[int, np.ndarray, np.ndarray]:
+    """The mesh's connected components by shared vertices (as manifold3d writes them):
+    (count, each vertex's component, each component's signed volume)."""
+    n = len(v)
+    rows = np.concatenate([f[:, 0], f[:, 1]])
+    cols = np.concatenate([f[:, 1], f[:, 2]])
+    count, label = connected_components(coo_matrix((np.ones(len(rows)), (rows, cols)),
+                                                   shape=(n, n)), directed=False)
+    # about the box's centre: far from the origin the products about it cancel (1e-4 of
+    # the volume lost at 1e5 mm)
+    tri = v[f] - 0.5 * (v.min(axis=0) + v.max(axis=0))
+    six = np.einsum("ij,ij->i", tri[:, 0], np.cross(tri[:, 1], tri[:, 2]))
+    return count, label, np.bincount(label[f[:, 0]], six, minlength=count) / 6.0
+
+
 def drop_specks(v: np.ndarray, f: np.ndarray, speck: float, fill_voids: bool = False
                 ) -> tuple[np.ndarray, np.ndarray, np.ndarray, np.ndarray]:
     """Split a mesh into its connected components (by shared vertices, as manifold3d
@@ -250,16 +265,8 @@ def drop_specks(v: np.ndarray, f: np.ndarray, speck: float, fill_voids: bool = F
     n = len(v)
     if len(f) == 0:
         return v, f, np.zeros(0), np.zeros(0)
-    rows = np.concatenate([f[:, 0], f[:, 1]])
-    cols = np.concatenate([f[:, 1], f[:, 2]])
-    graph = coo_matrix((np.ones(len(rows)), (rows, cols)), shape=(n, n))
-    count, label = connected_components(graph, directed=False)
+    count, label, volumes = _components(v, f)
     face_label = label[f[:, 0]]
-    # about the box's centre: far from the origin the products about it cancel (1e-4 of
-    # the volume lost at 1e5 mm)
-    tri = v[f] - 0.5 * (v.min(axis=0) + v.max(axis=0))
-    six = np.einsum("ij,ij->i", tri[:, 0], np.cross(tri[:, 1], tri[:, 2]))
-    volumes = np.bincount(face_label, six, minlength=count) / 6.0
     used = np.zeros(count, bool)
     used[face_label] = True
     keep = used & (np.abs(volumes) > speck)
@@ -284,15 +291,7 @@ def loose_bodies(v: np.ndarray, f: np.ndarray, anchors: np.ndarray) -> int | Non
     joined to it). None when no body holds one (the anchors are not this mesh's)."""
     if len(f) == 0 or len(anchors) == 0:
         return None
-    n = len(v)
-    rows = np.concatenate([f[:, 0], f[:, 1]])
-    cols = np.concatenate([f[:, 1], f[:, 2]])
-    count, label = connected_components(coo_matrix((np.ones(len(rows)), (rows, cols)),
-                                                   shape=(n, n)), directed=False)
-    face_label = label[f[:, 0]]
-    tri = v[f] - 0.5 * (v.min(axis=0) + v.max(axis=0))
-    six = np.einsum("ij,ij->i", tri[:, 0], np.cross(tri[:, 1], tri[:, 2]))
-    volumes = np.bincount(face_label, six, minlength=count)
+    count, label, volumes = _components(v, f)
     anchored = np.zeros(count, bool)
     anchored[label[np.isin(_raw_rows(v), _raw_rows(anchors))]] = True
     bodies = volumes > 0
