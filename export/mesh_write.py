@@ -15,6 +15,7 @@ checked before any of them replaces what was there.
 from __future__ import annotations
 
 import contextlib
+import functools
 import os
 import signal
 import tempfile
@@ -154,8 +155,10 @@ def _staged_name(name: str, ext: str) -> str:
     return f".{name}.{'x' * TEMP_RANDOM}.tmp.{ext}"
 
 
+@functools.lru_cache(maxsize=64)
 def name_limit(folder: str) -> int:
-    """The longest file name, in bytes, that ``folder``'s file system takes."""
+    """The longest file name, in bytes, that ``folder``'s file system takes (asked once per
+    folder: a --split export checks each part's name twice)."""
     try:
         limit = os.pathconf(folder, "PC_NAME_MAX")
     except (OSError, ValueError, AttributeError):  # no pathconf (Windows), or not known
