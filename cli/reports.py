@@ -195,6 +195,8 @@ def print_summary(packing: Packing, console: Console, title: str | None = None) 
         for i, a in enumerate(s.attempts):
             summary.add_row(f"attempt {i + 1}", f"{a.count} objects, {_pct(a.density)}"
                             f", {_seconds(a.seconds)}"
+                            + ("" if a.certified is None
+                               else f", certified {_pct(a.certified)}")
                             + (" (kept)" if i == s.kept_attempt else ""))
     console.print(summary)
 

@@ -37,7 +37,7 @@ from .options import FidelityOverrides, PackOptions
 from .packing_digest import record_digest
 from .packing_types import Packing, TypeRecord, distinct_names
 from .phases import Stop
-from .placement import Attempt, Snapshots, place
+from .placement import Attempt, Snapshots, place, snapshot_metrics
 from .repair import certify_and_repair
 from .report import NOTE_PREFIX, AttemptSummary, PackInputs, RepairStats, RunReport
 from .room import (
@@ -168,8 +168,7 @@ def pack(container: MeshSource, types: Sequence[MeshSource],
     t_place = time.perf_counter()
 
     report(0.9, "certifying on the real meshes")
-    cert, repair = _certify(run.best.solver, approx, run.shares, inputs.clearance,
-                            inputs.options, stop, lambda f, m: report(0.9 + 0.09 * f, m))
+    run, cert, repair = _certify_ranked(run, approx, inputs, stop, report, scene.volume)
     t_cert = time.perf_counter()
 
     timings = {"load": t_load - t_start, "approximate": t_approx - t_load,
@@ -399,18 +398,23 @@ LONG_WITHOUT_BUDGET = 2500
 
 @dataclass
 class _Placed:
-    """The placement stage's outcome: the densest attempt and what it took."""
+    """The placement stage's outcome: the densest attempts and what they took."""
 
+    #: the kept attempt: the densest, until certification keeps a denser certified one
     best: Attempt
+    ranked: list[Attempt]  # densest first (`placement.ranked_with`)
     attempts: list[AttemptSummary]
     margins: Margins
     tuner: ThreadTuner | None
     phase1_spacing: float
     t_compile: float  # when the kernels were ready (perf_counter)
-    #: the shares the placement packed for: the asked ones, less the types left out and
-    #: those the kept attempt gave up (`Attempt.given_up`)
-    shares: np.ndarray
+    #: (T,) the shares the attempts packed for: the asked ones, less the types left out
+    packed: np.ndarray
     left_out: list[OutOfReach]
+
+    def shares_of(self, att: Attempt) -> np.ndarray:
+        """The shares `att` packed for: `packed` less the types it gave up."""
+        return shares_without(self.packed, att.given_up)
 
 
 def _place(scene: _Scene, approx: _Approximation, q: np.ndarray, seed: int,
@@ -449,14 +453,48 @@ def _place(scene: _Scene, approx: _Approximation, q: np.ndarray, seed: int,
     if client is not None:  # the attempts side by side on the cluster's workers
         job = AttemptJob(cont, objtypes, solver_params, q, s1, approx.f_min, seed,
                          margins.objects, opts, scene.volume)
-        best, attempts = place_on_cluster(client, job, opts.attempts.count, new_solver,
-                                          stop, report)
+        ranked, attempts = place_on_cluster(client, job, opts.attempts.count, new_solver,
+                                            stop, report)
     else:
-        best, attempts = place(new_solver, q, s1, approx.f_min, seed, stop, margins.objects,
-                               opts, scene.volume, report,
-                               None if snapshot is None else Snapshots(snapshot, table.radius))
-    return _Placed(best, attempts, margins, tuner, s1, t_compile, shares_without(q, best.given_up),
-                   left_out)
+        ranked, attempts = place(new_solver, q, s1, approx.f_min, seed, stop,
+                                 margins.objects, opts, scene.volume, report,
+                                 None if snapshot is None else Snapshots(snapshot,
+                                                                         table.radius))
+    return _Placed(ranked[0], ranked, attempts, margins, tuner, s1, t_compile, q, left_out)
+
+
+def _certify_ranked(run: _Placed, approx: _Approximation, inputs: PackInputs, stop: Stop,
+                    report: Progress, c_volume: float) -> tuple[_Placed, dict, RepairStats]:
+    """Certify the densest attempt and, while a runner-up was denser before certification
+    than the densest certified so far (its repair removed objects), that one too; returns
+    the run keeping the densest certified attempt (ties: the one ranked first), with its
+    certificate and repair. Each certified attempt's summary records its density after
+    certification, the kept one's says so. A cancel certifies only the first."""
+    kept: tuple[Attempt, dict, RepairStats, float] | None = None
+    for k, att in enumerate(run.ranked):
+        if kept is not None and (att.density <= kept[3] or (
+                stop.should_cancel is not None and stop.should_cancel())):
+            break
+        if k == 0:
+            def progress(f: float, m: str) -> None:
+                report(0.9 + 0.09 * f, m)
+        else:
+            said = (f"attempt {att.index + 1}, denser than attempt {kept[0].index + 1} "
+                    "after its repair: ")
+
+            def progress(f: float, m: str, said: str = said) -> None:
+                report(0.99, said + m)
+        cert, repair = _certify(att.solver, approx, run.shares_of(att), inputs.clearance,
+                                inputs.options, stop, progress)
+        density = snapshot_metrics(att.solver.s, att.solver.t.volume, run.shares_of(att),
+                                   c_volume)["density"]
+        run.attempts[att.index].certified = density
+        if kept is None or density > kept[3]:
+            kept = (att, cert, repair, density)
+    assert kept is not None
+    att, cert, repair, _ = kept
+    run.attempts[att.index].kept = True
+    return replace(run, best=att), cert, repair
 
 
 def _certify(solver: Solver, approx: _Approximation, q: np.ndarray, clearance: float,

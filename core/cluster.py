@@ -2,10 +2,10 @@
 
 Each attempt's random stream comes from the seed and its index (`placement.attempt_rng`), so
 the attempts are independent: a worker runs `run_attempt` on a fresh solver state and sends
-back plain arrays and statistics (`AttemptResult`, never the numba solver); the client keeps
-the densest, ties to the lowest index, exactly as `placement.place` does one after another
-with the same fixed count, and certifies it as usual. Frames and units: container frame,
-container units; times in seconds.
+back plain arrays and statistics (`AttemptResult`, never the numba solver); the client ranks
+them by density, ties to the lowest index, exactly as `placement.place` does one after
+another with the same fixed count, and certifies them as usual. Frames and units: container
+frame, container units; times in seconds.
 
 `client_for` turns what the user gave (a `distributed.Client`, a scheduler address, or a
 number of local worker processes) into a client. Workers load numba's machine code from the
@@ -32,7 +32,7 @@ from .errors import InputError
 from .objects import ObjectType
 from .options import PackOptions
 from .phases import Stop
-from .placement import Attempt, attempt_rng, is_denser, place_once
+from .placement import Attempt, attempt_rng, place_once, ranked_with
 from .report import AttemptSummary, ExtraPassStats, PhaseStats
 from .solver import PackState, Solver, SolverParams, TypeTable
 from .threads import ThreadTuner
@@ -88,7 +88,7 @@ class AttemptResult:
         return Attempt(solver=solver, density=self.density, after=self.after,
                        phase1=self.phase1, phase2=self.phase2,
                        extra_passes=self.extra_passes, timings=self.timings,
-                       given_up=self.given_up)
+                       given_up=self.given_up, index=self.index)
 
 
 class _SharedCancel:
@@ -144,9 +144,10 @@ def run_attempt(job: AttemptJob, index: int) -> AttemptResult:
 
 def place_on_cluster(client, job: AttemptJob, count: int, new_solver: Callable[[], Solver],
                      stop: Stop, report: Callable[[float, str], None]
-                     ) -> tuple[Attempt, list[AttemptSummary]]:
-    """Attempts 0..count-1 of `job` on the client's workers; returns the densest (ties: the
-    lowest index), rebuilt on `new_solver()`, and every attempt's summary in index order.
+                     ) -> tuple[list[Attempt], list[AttemptSummary]]:
+    """Attempts 0..count-1 of `job` on the client's workers; returns the densest ones as
+    `placement.ranked_with` ranks them (ties: the lower index first), each rebuilt on a
+    `new_solver()`, and every attempt's summary in index order.
     `stop.should_cancel()` is polled here and passed on to the workers, which stop their
     attempts and return what they have, as a local attempt does."""
     from distributed import Event
@@ -181,19 +182,17 @@ def place_on_cluster(client, job: AttemptJob, count: int, new_solver: Callable[[
         if event is not None:
             with contextlib.suppress(Exception):
                 event.clear()
-    best: AttemptResult | None = None
+    ranked: list[AttemptResult] = []
     summaries: list[AttemptSummary] = []
     for r in sorted(results, key=lambda r: r.index):
-        if is_denser(r, best):  # same rule as one after another: ties keep the earlier
-            best = r
+        ranked = ranked_with(ranked, r)  # the same rule as one after another
         summaries.append(AttemptSummary(
             density=r.density, count=r.after["after_extra"]["count"],
             seconds=sum(r.timings.values()), stopped=r.stopped,
             **{k: r.timings[k] for k in ("phase1", "phase2", "extra")}))
     if not stop.reason:
         stop.reason = next((s.stopped for s in summaries if s.stopped == "deadline"), "")
-    assert best is not None
-    return best.to_attempt(new_solver()), summaries
+    return [r.to_attempt(new_solver()) for r in ranked], summaries
 
 
 def cluster_threads(client) -> int:

@@ -1,18 +1,20 @@
 """Placement: phase 1, phase 2 and the extra cavity rounds, as independent attempts.
 
-One attempt runs the phases on a fresh state (container frame, container units). With a
-time budget, an attempt often ends before it: its rounds of cavity passes stop adding
-objects. The time left then goes to new attempts from scratch (each its own random
-stream), as long as it is at least the shortest attempt so far, and the densest attempt is
-kept: attempts end at densities that differ by points between random streams
-(docs/notes-core.md). A budget is a ceiling, not a duration: once an attempt that ran to its
-end repeats the best attempt's object count and density, the scene is taken as full at that
-count (small scenes, where every stream reaches the same count) and no further attempt
-starts; nor does one after a stacked start that filled STACK_KEPT of the container (the
-attempts after it start at random rotations, which jam below it). Asked for a fixed
-number of attempts (`AttemptOptions.count`), exactly that many run (fewer only on cancel
-or the deadline), with no early stop, so that running them one after another here or
-side by side on a cluster (`core/cluster.py`) keeps the same densest one.
+One attempt runs the phases on a fresh state (container frame, container units). With a time
+budget, an attempt often ends before it: its rounds of cavity passes stop adding objects.
+The time left then goes to new attempts from scratch (each its own random stream), as long
+as it is at least the shortest attempt so far, and the densest attempt is kept: attempts end
+at densities that differ by points between random streams (docs/notes-core.md). The next
+densest are kept too (RUNNERS_UP), for the case where the repair after certification removes
+objects from the densest (`api._certify_ranked`). A budget is a ceiling, not a duration:
+once an attempt that ran to its end repeats the best attempt's object count and density, the
+scene is taken as full at that count (small scenes, where every stream reaches the same
+count) and no further attempt starts; nor does one after a stacked start that filled
+STACK_KEPT of the container (the attempts after it start at random rotations, which jam
+below it). Asked for a fixed number of attempts (`AttemptOptions.count`), exactly that many
+run (fewer only on cancel or the deadline), with no early stop, so that running them one
+after another here or side by side on a cluster (`core/cluster.py`) keeps the same densest
+one.
 """
 
 from __future__ import annotations
@@ -51,6 +53,10 @@ STACK_MIN_START = 0.5
 #: rows stand a gap apart, so a push runs through all of them, in one kernel call that
 #: neither the budget nor Ctrl-C can end (docs/notes-core.md)
 STACK_PUSH_TESTS = 100_000
+#: attempts kept besides the densest, for certification: where the repair removes objects
+#: from the densest, a runner-up denser before certification than what is left is certified
+#: in turn, and the densest certified packing is kept (`api._certify_ranked`)
+RUNNERS_UP = 2
 
 
 @dataclass
@@ -68,6 +74,7 @@ class Attempt:
     #: phase 1 gave up, and those no pass placed ("restarted": their phase 1 tries), after
     #: which the attempt started again without them
     given_up: list[dict] = field(default_factory=list)
+    index: int = 0  # the attempt's place among the run's attempts (its random stream)
 
     @property
     def mix_held(self) -> int:
@@ -179,7 +186,7 @@ def place_once(solver: Solver, q: np.ndarray, s1: float, f_min: float,
         after={"after_phase1": after1, "after_phase2": after2, "after_extra": after3},
         phase1=st1, phase2=st2, extra_passes=extra,
         timings={"phase1": t1 - t0, "phase2": t2 - t1, "extra": t3 - t2},
-        given_up=list(given_up))
+        given_up=list(given_up), index=index)
     tried = dict(map(tuple, st1.extra.get("never_grew", [])))
     # a phase 1 that tried nothing (a thin tray's lattice may hold no point) says nothing of
     # any type: then each type no pass placed counts
@@ -244,22 +251,30 @@ def is_denser(att: Attempt, best: Attempt | None) -> bool:
     return best is None or att.density > best.density
 
 
+def ranked_with(ranked: list, att) -> list:
+    """`ranked` (densest first, ties: the earlier first) with `att` in its place, cut to
+    the densest 1 + RUNNERS_UP."""
+    i = next((k for k, other in enumerate(ranked) if is_denser(att, other)), len(ranked))
+    return [*ranked[:i], att, *ranked[i:]][: 1 + RUNNERS_UP]
+
+
 def place(new_solver: Callable[[], Solver], q: np.ndarray, s1: float, f_min: float,
           seed: int, stop: Stop, margin: np.ndarray, options: PackOptions, c_volume: float,
           report: Callable[[float, str], None],
           watch: Callable[[PackState], None] | None = None
-          ) -> tuple[Attempt, list[AttemptSummary]]:
+          ) -> tuple[list[Attempt], list[AttemptSummary]]:
     """Attempts of `place_once`, each on a fresh solver from `new_solver()`; returns the
-    densest and a summary of every attempt. Without a deadline there is one attempt, or
-    two where the first started stacked and filled less than STACK_KEPT. The
-    first uses the random stream of `seed` itself, attempt a > 0 that of (seed, a). The
-    attempts end early, the last one's summary saying REPEATED, once REPEATS_TO_STOP
-    attempts in a row ran to their end with the best attempt's count and density, or
-    saying STACK_FULL after a stacked start that filled STACK_KEPT of the container. With
-    `options.attempts.count` set, exactly that many run (fewer on cancel or deadline).
-    watch(state), when given, sees the running attempt's state at every progress report.
+    densest ones, densest first (`ranked_with`), and a summary of every attempt. Without a
+    deadline there is one attempt, or two where the first started stacked and filled less
+    than STACK_KEPT. The first uses the random stream of `seed` itself, attempt a > 0 that
+    of (seed, a). The attempts end early, the last one's summary saying REPEATED, once
+    REPEATS_TO_STOP attempts in a row ran to their end with the best attempt's count and
+    density, or saying STACK_FULL after a stacked start that filled STACK_KEPT of the
+    container. With `options.attempts.count` set, exactly that many run (fewer on cancel or
+    deadline). watch(state), when given, sees the running attempt's state at every progress
+    report.
     """
-    best: Attempt | None = None
+    ranked: list[Attempt] = []
     done: list[AttemptSummary] = []
     shortest = np.inf
     repeats = 0
@@ -288,31 +303,30 @@ def place(new_solver: Callable[[], Solver], q: np.ndarray, s1: float, f_min: flo
         shortest = min(shortest, time.perf_counter() - t0)
         summary = att.summary(stop.reason or None)
         done.append(summary)
-        if best is not None and not stop.reason and _repeats(att, best):
+        if ranked and not stop.reason and _repeats(att, ranked[0]):
             repeats += 1
         else:
             repeats = 0
-        if is_denser(att, best):
-            best = att
+        ranked = ranked_with(ranked, att)
         if options.attempts.count is not None:  # a fixed count: no early stop
             if stop() or len(done) >= options.attempts.count:
-                return best, done
+                return ranked, done
             continue
         if repeats >= REPEATS_TO_STOP and stop.deadline is not None:
             summary.stopped = REPEATED
-            return best, done
+            return ranked, done
         stacked = att.phase1.extra.get("stack_filled")
         if stacked is not None and stacked >= STACK_KEPT and not stop.reason:
             summary.stopped = STACK_FULL
-            return best, done
+            return ranked, done
         if stop.deadline is None:
             # a stack that leaves room is a candidate: one attempt from phase 1 follows
             if stacked is None or stop():
-                return best, done
+                return ranked, done
             continue
         if (stop() or len(done) >= options.attempts.max_attempts
                 or stop.deadline - time.perf_counter() < shortest):
-            return best, done
+            return ranked, done
 
 
 def _repeats(att: Attempt, best: Attempt) -> bool:

@@ -52,7 +52,9 @@ class ExtraPassStats(PhaseStats):
 
 @dataclass
 class AttemptSummary:
-    """One attempt of the placement: density and count before certification, wall times."""
+    """One attempt of the placement: density and count before certification, wall times;
+    for an attempt certified (the densest, and a runner-up where the repair left less), the
+    density after certification, and whether it was kept."""
 
     density: float = 0.0
     count: int = 0
@@ -61,6 +63,8 @@ class AttemptSummary:
     phase2: float = 0.0
     extra: float = 0.0
     stopped: str | None = None
+    certified: float | None = None
+    kept: bool = False
 
 
 @dataclass

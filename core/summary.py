@@ -91,7 +91,7 @@ class PackingSummary:
     walls_checked: int | None
     repair: RepairStats | None  # None when the packing records no repair
     attempts: list[AttemptSummary] = field(default_factory=list)
-    kept_attempt: int | None = None  # index of the densest attempt
+    kept_attempt: int | None = None  # index of the kept attempt
     phases: list[PhaseLine] = field(default_factory=list)
     total_seconds: float | None = None
     # "as certified", "changed" (edited after certification: the certificate no longer
@@ -117,8 +117,10 @@ def summarize(packing: Packing) -> PackingSummary:
     certified = cert.get("certified")
     clearance = number(cert.get("clearance"))
     attempts = list(run.attempts)
-    kept = (max(range(len(attempts)), key=lambda i: attempts[i].density)
-            if attempts else None)
+    # files written before runner-ups were certified record no kept one: the densest was
+    kept = next((i for i, a in enumerate(attempts) if a.kept), None)
+    if kept is None and attempts:
+        kept = max(range(len(attempts)), key=lambda i: attempts[i].density)
     repaired = run.repair != RepairStats() or run.repair.first is not None
     return PackingSummary(
         types=types, count=total, density=number(m.get("density")), tvd=number(m.get("tvd")),

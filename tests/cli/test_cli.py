@@ -197,6 +197,28 @@ def test_info_lists_the_attempts_and_the_time_of_those_not_kept(packed, capsys):
     assert "attempts not kept" in so
 
 
+def test_info_shows_the_certified_densities_and_the_attempt_kept_after_them(packed, capsys):
+    d, out, *_ = packed
+    doc = json.loads(out.read_text())
+    doc["report"]["attempts"] = [
+        {"density": 0.412, "count": 30, "seconds": 2.5, "phase1": 1.0, "phase2": 0.5,
+         "extra": 1.0, "stopped": None, "certified": 0.371, "kept": False},
+        {"density": 0.398, "count": 29, "seconds": 1.5, "phase1": 0.5, "phase2": 0.5,
+         "extra": 0.5, "stopped": None, "certified": 0.398, "kept": True},
+        {"density": 0.301, "count": 22, "seconds": 1.5, "phase1": 0.5, "phase2": 0.5,
+         "extra": 0.5, "stopped": None}]
+    edited = d / "attempts.json"
+    edited.write_text(json.dumps(doc))
+    assert main(["info", str(edited)]) == 0
+    so = capsys.readouterr().out
+    lines = {n: next(line for line in so.splitlines() if f"{n} objects" in line)
+             for n in (30, 29, 22)}
+    assert "30 objects, 41.2%, 2.5 s, certified 37.1%" in lines[30]
+    assert "(kept)" not in lines[30]
+    assert "29 objects, 39.8%, 1.5 s, certified 39.8% (kept)" in lines[29]
+    assert "certified" not in lines[22] and "(kept)" not in lines[22]
+
+
 def test_info_says_why_the_attempts_ended_before_the_budget(packed, capsys):
     # an independent check: a crate of bricks ended 1 s into a 30 s budget, and nothing
     # said why

@@ -300,3 +300,37 @@ def test_certification_reports_its_progress(monkeypatch):
     assert [d for d, _ in first] == sorted(d for d, _ in first)
     assert all(0.9 <= f <= 0.99 for f, _ in counts)
     assert max(t for _, t in done) >= p.certificate["pairs_checked"]
+
+
+def test_a_runner_up_denser_after_the_repair_is_kept():
+    """With the push cap spent, the repair removes every failing object unpushed: the
+    densest attempt (seed 1: attempts 1 and 3 tie at 52.2% before certification) certifies
+    at 22.4% where attempt 2 (50.9%) certifies at 26.1%. The runner-ups denser before
+    certification than what the repair left are certified in turn, and the densest
+    certified packing is kept (the first certified was kept before)."""
+    base = PackOptions()
+    spent = replace(base, repair=replace(base.repair, seconds=-1.0))
+    p = _pack(options=spent, time_budget=60.0, attempts=3)
+    att = p.report.attempts
+    certified = [i for i, a in enumerate(att) if a.certified is not None]
+    kept = [i for i, a in enumerate(att) if a.kept]
+    assert len(certified) >= 2 and len(kept) == 1 and kept[0] in certified
+    first = max(range(3), key=lambda i: att[i].density)  # the densest, ties the earliest
+    assert first == 0 and kept[0] != first
+    assert att[kept[0]].certified > att[first].certified
+    assert p.metrics["density"] == pytest.approx(att[kept[0]].certified)
+    assert p.metrics["density"] == max(a.certified for a in att if a.certified is not None)
+    # a runner-up no denser before certification than the best certified is left alone
+    best = att[kept[0]].certified
+    assert all(a.certified is not None for a in att if a.density > best)
+
+
+def test_a_clean_certification_certifies_one_attempt():
+    p = pack("box:20x20x20", FRUIT, seed=1, type_scale=100.0, fidelity="low", attempts=3,
+             time_budget=60.0)
+    att = p.report.attempts
+    assert p.report.repair.removed == 0
+    assert [a.kept for a in att].count(True) == 1
+    assert sum(a.certified is not None for a in att) == 1
+    kept = next(a for a in att if a.kept)
+    assert kept.density == max(a.density for a in att)

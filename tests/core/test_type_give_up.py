@@ -13,7 +13,7 @@ from testdata import lemon_and_balls, rod_and_balls
 from jampacked.core.api import pack
 from jampacked.core.metrics import tvd_of_counts
 from jampacked.core.packing_json import load_packing, save_packing
-from jampacked.core.placement import is_denser, never_placed
+from jampacked.core.placement import RUNNERS_UP, is_denser, never_placed, ranked_with
 from jampacked.core.solver import PackState
 from jampacked.core.type_give_up import GIVE_UP_TRIES, RATIO, TypeFailures, shares_without
 
@@ -189,6 +189,16 @@ def test_the_densest_attempt_is_kept_whatever_it_gave_up():
     assert is_denser(att(0.5, [0]), att(0.1, []))
     assert not is_denser(att(0.1, []), att(0.5, [0]))
     assert not is_denser(att(0.4, []), att(0.4, [1]))  # ties keep the earlier
+
+
+def test_the_runner_ups_are_ranked_densest_first_ties_the_earlier_first():
+    def att(density, index):
+        return SimpleNamespace(density=density, index=index)
+
+    ranked = []
+    for i, density in enumerate([0.40, 0.45, 0.40, 0.30, 0.45, 0.50]):
+        ranked = ranked_with(ranked, att(density, i))
+    assert [a.index for a in ranked] == [5, 1, 4, 0, 2, 3][: 1 + RUNNERS_UP]
 
 
 def test_a_type_that_fits_only_along_the_diagonal_no_longer_starves_the_others(tmp_path):
