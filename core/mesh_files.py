@@ -2,7 +2,8 @@
 
 Nothing here merges, removes or repairs anything: the arrays are the file's as stored (see
 :mod:`jampacked.core.mesh_repair` for the checks). Readers, in order: 3MF with lxml
-(:mod:`jampacked.core.threemf`), STL with trimesh's STL reader, then trimesh
+(:mod:`jampacked.core.threemf`), STL with trimesh's STL reader, OFF with the reader here
+(:func:`_off_arrays`: polygons of mixed sizes, a file cut short named), then trimesh
 (``process=False``), a tolerant OBJ reader (comments on face lines), and meshio as the
 fallback. OBJ faces with negative (relative) indices are resolved against the vertices
 defined before them, as the OBJ format says.
@@ -213,6 +214,126 @@ def obj_malformed_polygons(data: bytes, limit: int = 3) -> list[str]:
 
 
 # --------------------------------------------------------------------------------------------
+# OFF text
+
+#: Geomview's optional OFF keyword, [ST][C][N][4][n]OFF: 4 adds a homogeneous coordinate to
+#: each vertex, n a line with the dimension (not read)
+_OFF_KEYWORD = re.compile(rb"(?:ST)?C?N?(4)?(n)?OFF")
+
+
+def _off_arrays(data: bytes, label: str) -> Arrays:
+    """Vertices and triangles of an ASCII OFF file, each polygon fan-triangulated (as trimesh
+    does PLY and OBJ polygons) in file order.
+
+    Read here, not by trimesh or meshio: trimesh's OFF reader fails on polygons of mixed
+    sizes where one has over four corners and reads a file cut short as the faces it holds;
+    meshio reads triangles only. Comments (#) and blank lines are skipped; one vertex or
+    face a line, as writers write them; numbers after a vertex's x y z (normals, colours)
+    and after a face's corners (its colour) are ignored.
+
+    Raises:
+        MeshError: binary OFF, or a line that breaks the format, an index out of range, or
+            fewer or more lines than the counts promise (the line and what is wrong).
+    """
+    rows = [(number, words) for number, line in
+            enumerate(data.removeprefix(b"\xef\xbb\xbf").splitlines(), start=1)
+            if (words := line.split(b"#", 1)[0].split())]
+
+    def shown(words: list[bytes]) -> str:
+        return b" ".join(words).decode("latin-1")[:80]
+
+    def bad(number: int, what: str, fix: str = "Export it again (as OFF, PLY or STL)"
+            ) -> MeshError:
+        return MeshError(f"{label} is not a valid OFF file: line {number} {what}. "
+                         f"{fix}.")
+
+    if not rows:
+        return np.zeros((0, 3)), np.zeros((0, 3), np.int64)
+    number, words = rows[0]
+    keyword, at = _OFF_KEYWORD.fullmatch(words[0]), 1
+    if keyword:
+        if words[1:2] == [b"BINARY"]:
+            raise bad(number, "says it is a binary OFF, which is not read",
+                      "Export it as ASCII OFF, or as PLY or STL")
+        if keyword[2]:
+            raise bad(number, f"starts with '{shown(words[:1])}' (vertices of any "
+                      "dimension), which is not read", "Export it as plain (3D) OFF")
+        words = words[1:]
+        if not words and len(rows) > 1:  # the counts on the next line, as most write them
+            (number, words), at = rows[1], 2
+    if len(words) < 2 or not (words[0].isdigit() and words[1].isdigit()):
+        raise bad(number, f"should hold the counts of vertices, faces and edges ('8 6 12'), "
+                  f"not '{shown(words)}'")
+    counts, n_vertices, n_faces = number, int(words[0]), int(words[1])
+    held = len(rows) - at
+    if held != n_vertices + n_faces:
+        how = (f"holds {held:,} lines of them: it was cut short" if held < n_vertices + n_faces
+               else f"holds {held - n_vertices - n_faces:,} more line"
+               f"{'s' if held - n_vertices - n_faces > 1 else ''} after them: the counts are "
+               "wrong or the file is damaged")
+        raise MeshError(f"{label} is not a whole OFF file: its counts on line {counts} promise "
+                        f"{n_vertices:,} vertices and {n_faces:,} faces, one a line, but it "
+                        f"{how}. Copy or export it again.")
+
+    width = 4 if keyword and keyword[1] else 3
+    vertex_rows = rows[at:at + n_vertices]
+    try:
+        vertices = np.array([w[:width] for _, w in vertex_rows], np.float64).reshape(-1, width)
+    except ValueError:  # find the line, for the message
+        for i, (number, words) in enumerate(vertex_rows, start=1):
+            try:
+                np.array(words[:width], np.float64).reshape(width)
+            except ValueError:
+                raise bad(number, f"(vertex {i} of {n_vertices:,}) should start with {width} "
+                          f"numbers ({'x y z w' if width == 4 else 'x y z'}), not "
+                          f"'{shown(words)}'") from None
+        raise
+    if width == 4:
+        vertices = vertices[:, :3] / vertices[:, 3:]
+
+    face_rows = rows[at + n_vertices:]
+    sizes = np.zeros(n_faces, np.int64)
+    corners: list[bytes] = []
+    for i, (number, words) in enumerate(face_rows):
+        size = int(words[0]) if words[0].isdigit() else 0
+        where = f"(face {i + 1} of {n_faces:,})"
+        if size < 3 or len(words) < size + 1:
+            raise bad(number, f"{where} should be a corner count (3 or more) and as many "
+                      f"vertex indices, not '{shown(words)}'")
+        if len(words) > size + 5:
+            raise bad(number, f"{where} has {len(words) - size - 1} numbers after its {size} "
+                      "corners, more than a colour's 4: faces joined on one line, or a wrong "
+                      "corner count")
+        sizes[i] = size
+        corners += words[1:size + 1]
+    try:
+        flat = np.array(corners, np.int64)
+    except (ValueError, OverflowError):  # find the line, for the message
+        for i, (number, words) in enumerate(face_rows):
+            try:
+                np.array(words[1:sizes[i] + 1], np.int64)
+            except (ValueError, OverflowError):
+                raise bad(number, f"(face {i + 1} of {n_faces:,}) has a corner that is not a "
+                          f"vertex index (a whole number): '{shown(words)}'") from None
+        raise
+    wrong = np.flatnonzero((flat < 0) | (flat >= n_vertices))
+    if len(wrong):
+        face = int(np.searchsorted(np.cumsum(sizes), wrong[0], side="right"))
+        number = face_rows[face][0]
+        raise bad(number, f"(face {face + 1} of {n_faces:,}) refers to vertex "
+                  f"{flat[wrong[0]]}, but its {n_vertices:,} vertices are numbered 0 to "
+                  f"{n_vertices - 1:,}")
+
+    # fan each polygon from its first corner: corners 0, k, k+1 for k = 1 .. size-2
+    fans = sizes - 2
+    polygon = np.repeat(np.arange(n_faces), fans)
+    first = (np.cumsum(sizes) - sizes)[polygon]
+    k = np.arange(len(polygon)) - np.repeat(np.cumsum(fans) - fans, fans) + 1
+    faces = flat[np.column_stack([first, first + k, first + k + 1])].reshape(-1, 3)
+    return vertices, faces
+
+
+# --------------------------------------------------------------------------------------------
 # readers
 
 
@@ -386,6 +507,8 @@ def read_arrays(path: str, data: bytes, label: str, notes: list[str] | None = No
         if damage:
             raise MeshError(f"{label} is not a whole STL file: {damage}. Copy or export it "
                             "again.")
+    if ext == "off":
+        return _off_arrays(data, label)
     trimesh_formats = set(trimesh.available_formats())
     import meshio
 

@@ -654,3 +654,114 @@ def test_obj_spacing_that_trimesh_misreads_reads_whole(tmp_path):
         v, f = read_mesh_arrays(tmp_path / name)
         assert len(f) == 12, name
         assert load_mesh(tmp_path / name).volume == pytest.approx(6000.0), name
+
+
+def prism(sides: int) -> tuple[np.ndarray, list[list[int]]]:
+    """A prism on a regular polygon of ``sides`` corners (radius 10, height 5), outward: its
+    caps as single polygons, its sides as quads."""
+    angle = 2 * np.pi * np.arange(sides) / sides
+    ring = np.column_stack([10 * np.cos(angle), 10 * np.sin(angle), np.zeros(sides)])
+    polygons = [list(range(sides))[::-1], list(range(sides, 2 * sides))]
+    polygons += [[i, (i + 1) % sides, sides + (i + 1) % sides, sides + i] for i in range(sides)]
+    return np.vstack([ring, ring + [0.0, 0.0, 5.0]]), polygons
+
+
+def prism_volume(sides: int) -> float:
+    return 0.5 * sides * 100 * np.sin(2 * np.pi / sides) * 5
+
+
+def off_lines(vertices: np.ndarray, polygons: list[list[int]]) -> list[str]:
+    lines = ["OFF", f"{len(vertices)} {len(polygons)} 0"]
+    lines += [f"{x!r} {y!r} {z!r}" for x, y, z in vertices]
+    return lines + [f"{len(p)} " + " ".join(map(str, p)) for p in polygons]
+
+
+def ply_text(vertices: np.ndarray, polygons: list[list[int]]) -> str:
+    lines = ["ply", "format ascii 1.0", f"element vertex {len(vertices)}",
+             "property float x", "property float y", "property float z",
+             f"element face {len(polygons)}", "property list uchar int vertex_indices",
+             "end_header"]
+    lines += [f"{x!r} {y!r} {z!r}" for x, y, z in vertices]
+    return "\n".join(lines + [f"{len(p)} " + " ".join(map(str, p)) for p in polygons]) + "\n"
+
+
+def test_off_with_polygons_of_mixed_sizes_reads_as_its_ply_does(tmp_path):
+    # a pentagonal prism (two pentagons, five quads) was refused: trimesh's OFF reader fails
+    # on a mix of sizes with polygons over four corners, meshio reads triangles only
+    for sides in (3, 5, 6):
+        vertices, polygons = prism(sides)
+        (tmp_path / f"p{sides}.off").write_text("\n".join(off_lines(vertices, polygons)))
+        (tmp_path / f"p{sides}.ply").write_text(ply_text(vertices, polygons))
+        v, f = read_mesh_arrays(tmp_path / f"p{sides}.off")
+        assert len(f) == 2 * (sides - 2) + 2 * sides and np.allclose(v, vertices)
+        mesh = load_mesh(tmp_path / f"p{sides}.off")
+        assert_closed_oriented(mesh)
+        assert mesh.volume == pytest.approx(prism_volume(sides))
+        assert mesh.volume == pytest.approx(load_mesh(tmp_path / f"p{sides}.ply").volume)
+    # what writers put around the numbers: comments, colours (per vertex with COFF, after
+    # a face's corners), the counts on the keyword's line, no keyword, CRLF, 4OFF's
+    # homogeneous coordinate
+    lines = off_lines(*prism(5))
+    whole = read_mesh_arrays(tmp_path / "p5.off")
+    variants = {
+        "comments": ["# made by hand", lines[0], lines[1] + "  # vertices faces edges",
+                     *lines[2:4], "", "# the rest", *lines[4:9] + [lines[9] + " # cap"],
+                     *lines[10:]],
+        "colours": [*lines[:9], lines[9] + " 255 0 0", lines[10] + " 0.5 0.5 0.5 1",
+                    lines[11] + " 3", *lines[12:]],
+        "coff": ["COFF", lines[1], *(v + " 0.1 0.2 0.3 1" for v in lines[2:12]), *lines[12:]],
+        "same-line": ["OFF " + lines[1], *lines[2:]],
+        "no-keyword": lines[1:],
+        "crlf": lines,
+        "4off": ["4OFF", lines[1], *(" ".join(f"{2 * float(x)!r}" for x in v.split()) + " 2"
+                                     for v in lines[2:12]), *lines[12:]],
+    }
+    for name, text in variants.items():
+        path = tmp_path / f"{name}.off"
+        path.write_bytes(("\r\n" if name == "crlf" else "\n").join(text).encode())
+        v, f = read_mesh_arrays(path)
+        assert np.allclose(v, whole[0]) and np.array_equal(f, whole[1]), name
+
+
+def test_a_broken_off_names_the_line_and_what_is_wrong(tmp_path):
+    # a file cut short read as the faces it held (a triangular prism cut after its 4th
+    # face: two faces lost, then "a hole to fill"); the other damage was refused without
+    # the line or the fix
+    lines = off_lines(*prism(3))  # 6 vertices (lines 3-8), 5 faces (lines 9-13)
+
+    def refused(name: str, text: list[str]) -> str:
+        path = tmp_path / name
+        path.write_text("\n".join(text) + "\n")
+        with pytest.raises(MeshError) as info:
+            read_mesh_arrays(path)
+        message = str(info.value)
+        assert f"'{path}'" in message and "xport it" in message, message  # what, and a fix
+        return message
+
+    message = refused("cut.off", lines[:12])
+    assert "not a whole OFF file" in message
+    assert "line 2 promise 6 vertices and 5 faces" in message
+    assert "holds 10 lines of them" in message
+    assert "cut short" in refused("few.off", lines[:6])
+    assert "line 6 (vertex 4 of 6)" in refused("short-vertex.off", lines[:5] + ["1.0 2.0"]
+                                                 + lines[6:])
+    assert "'1.0 2.0'" in refused("short-vertex2.off", lines[:5] + ["1.0 2.0"] + lines[6:])
+    message = refused("index.off", lines[:11] + ["4 1 2 6 4"] + lines[12:])
+    assert "line 12 (face 4 of 5)" in message and "vertex 6" in message
+    assert "0 to 5" in message
+    assert "vertex -1" in refused("negative.off", lines[:11] + ["4 1 2 -1 4"] + lines[12:])
+    assert "not a vertex index" in refused("float.off", lines[:11] + ["4 1 2 5.0 4"]
+                                           + lines[12:])
+    assert "line 10 (face 2 of 5)" in refused("corners.off", lines[:9] + ["4 3 4 5"]
+                                               + lines[10:])
+    assert "'2 0 1'" in refused("two.off", lines[:8] + ["2 0 1"] + lines[9:])
+    message = refused("joined.off", lines[:12] + [lines[12] + " " + lines[12]])
+    assert "line 13 (face 5 of 5)" in message and "5 numbers after its 4 corners" in message
+    message = refused("extra.off", lines + ["3 0 1 2"])
+    assert "1 more line after" in message
+    assert "binary" in refused("binary.off", ["OFF BINARY", "6 5 0"])
+    assert "line 1" in refused("counts.off", ["OFF six five"] + lines[2:])
+    # a file whose last lines are blank or comments still reads
+    (tmp_path / "tail.off").write_text("\n".join(lines) + "\n\n# end\n\n")
+    assert len(read_mesh_arrays(tmp_path / "tail.off")[1]) == 8
+
