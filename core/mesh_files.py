@@ -417,6 +417,69 @@ def _stl_damage(data: bytes) -> str | None:
             f"{len(data):,} bytes ({held:,.1f} triangles): {how}")
 
 
+#: how messages name a PLY element's lines ("12 faces"); others as "3 'material' lines"
+_PLY_ROWS = {b"vertex": "vertices", b"face": "faces", b"edge": "edges"}
+
+
+def _ply_ascii_damage(data: bytes) -> str | None:
+    """What is wrong with an ASCII PLY whose data lines are fewer or more than its header's
+    element counts promise (trimesh reads the lines there are: a file cut short gave a mesh
+    without its last faces, silently); None where they match, for a binary PLY (trimesh
+    checks its length) and for a header this cannot follow (the readers then report it).
+
+    One line an element, as the format has it; blank lines are not counted; a last line
+    with fewer numbers than its properties need (cut inside) is "part of one more"."""
+    head, found, body = data.partition(b"end_header")
+    if not found or b"format ascii" not in head:
+        return None
+    elements: list[tuple[bytes, int, list[bool]]] = []  # name, count, which are lists
+    for words in map(bytes.split, head.splitlines()):
+        if words[:1] == [b"element"] and len(words) == 3 and words[2].isdigit():
+            elements.append((words[1], int(words[2]), []))
+        elif words[:1] == [b"property"] and elements:
+            elements[-1][2].append(words[1:2] == [b"list"])
+    if not elements:
+        return None
+    rows = [line for line in body.splitlines()[1:] if line.strip()]
+    promised = [count for _, count, _ in elements]
+    held, left = [], len(rows)
+    for count in promised:
+        held.append(min(count, left))
+        left -= held[-1]
+    last = max((k for k, h in enumerate(held) if h), default=0)  # the last line's element
+    part = bool(rows) and not _ply_row_whole(rows[-1].split(), elements[last][2])
+    if held == promised and not left and not part:
+        return None
+
+    def say(counts: list[int]) -> str:
+        said = [f"{c:,} {noun}" if c else f"no {noun}" for c, noun in zip(counts, (
+            _PLY_ROWS.get(name) or f"'{name.decode('latin-1')}' lines" for name, _, _ in
+            elements), strict=True)]
+        return ", ".join(said[:-1]) + " and " + said[-1] if len(said) > 1 else said[0]
+
+    if left:
+        return (f"its header promises {say(promised)}, but it holds {left:,} more line"
+                f"{'s' if left > 1 else ''} after them: its counts are wrong or the file is "
+                "damaged")
+    held[last] -= int(part)
+    return (f"its header promises {say(promised)}, but it holds {say(held)}"
+            f"{' (and part of one more)' if part else ''}: it was cut short")
+
+
+def _ply_row_whole(words: list[bytes], lists: list[bool]) -> bool:
+    """Whether an ASCII PLY line holds all the numbers its element's properties need (``lists``:
+    which are lists, each a count and that many numbers)."""
+    need = 0
+    for is_list in lists:
+        if is_list:
+            if need >= len(words):
+                return False
+            with contextlib.suppress(ValueError, OverflowError):  # not a count: readers say so
+                need += int(float(words[need]))
+        need += 1
+    return len(words) >= need
+
+
 def _stl_arrays(data: bytes) -> Arrays | None:
     """trimesh's STL reader without the Scene/Trimesh wrapping (several times faster), or
     None where it fails (the general readers then try). trimesh reads an ASCII STL line by
@@ -509,6 +572,8 @@ def read_arrays(path: str, data: bytes, label: str, notes: list[str] | None = No
                             "again.")
     if ext == "off":
         return _off_arrays(data, label)
+    if ext == "ply" and (damage := _ply_ascii_damage(data)):
+        raise MeshError(f"{label} is not a whole PLY file: {damage}. Copy or export it again.")
     trimesh_formats = set(trimesh.available_formats())
     import meshio
 

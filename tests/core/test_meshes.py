@@ -765,3 +765,43 @@ def test_a_broken_off_names_the_line_and_what_is_wrong(tmp_path):
     (tmp_path / "tail.off").write_text("\n".join(lines) + "\n\n# end\n\n")
     assert len(read_mesh_arrays(tmp_path / "tail.off")[1]) == 8
 
+
+
+def test_an_ascii_ply_cut_short_is_named_as_such(tmp_path):
+    # an ASCII PLY whose header promises more than it holds read as what it holds: a box
+    # cut after 10 of its 12 faces gave 10 triangles, then "a hole to fill"
+    box = trimesh.creation.box((10, 20, 30))
+    text = trimesh.exchange.ply.export_ply(box, encoding="ascii")
+    body = text.splitlines(keepends=True)
+    for name, data in (("whole.ply", text), ("crlf.ply", text.replace(b"\n", b"\r\n")),
+                       ("blank-tail.ply", text + b"\n\n  \n"),
+                       ("binary.ply", trimesh.exchange.ply.export_ply(box))):
+        (tmp_path / name).write_bytes(data)
+        assert len(read_mesh_arrays(tmp_path / name)[1]) == 12, name
+        assert load_mesh(tmp_path / name).volume == pytest.approx(6000.0), name
+    # polygons of mixed sizes, and elements the header lists that are not read (edges)
+    vertices, polygons = prism(5)
+    mixed = ply_text(vertices, polygons).replace(
+        "end_header", "element edge 2\nproperty int vertex1\nproperty int vertex2\nend_header")
+    (tmp_path / "mixed.ply").write_text(mixed + "0 1\n1 2\n")
+    assert load_mesh(tmp_path / "mixed.ply").volume == pytest.approx(prism_volume(5))
+
+    def refused(name: str, data: bytes) -> str:
+        path = tmp_path / name
+        path.write_bytes(data)
+        with pytest.raises(MeshError) as info:
+            read_mesh_arrays(path)
+        message = str(info.value)
+        assert f"'{path}' is not a whole PLY file" in message, message
+        assert "export it again" in message, message
+        return message
+
+    message = refused("cut.ply", b"".join(body[:-2]))
+    assert "its header promises 8 vertices and 12 faces" in message and "cut short" in message
+    assert "holds 8 vertices and 10 faces" in message
+    message = refused("mid-line.ply", text[:-5])  # cut inside its last face's line
+    assert "holds 8 vertices and 11 faces (and part of one more)" in message
+    message = refused("vertices.ply", b"".join(body[:-15]))
+    assert "holds 5 vertices and no faces" in message
+    message = refused("longer.ply", text + b"3 0 1 2\n")
+    assert "1 more line" in message
