@@ -177,6 +177,29 @@ def _instance_count(obj: bpy.types.Object, depsgraph: bpy.types.Depsgraph) -> in
     return max(0, surfaces - (obj.type != 'MESH'))
 
 
+def unevaluated(obj: bpy.types.Object, view_layer: bpy.types.ViewLayer) -> bool:
+    """Whether what Blender shows of the object is not what its mesh data holds (modifiers,
+    shape keys, a curve's surface) and Blender does not evaluate it in ``view_layer``
+    (:func:`_geometry_evaluated`): reading it would silently give the bare mesh."""
+    stored_is_shown = (obj.type == 'MESH' and not obj.modifiers
+                       and obj.data.shape_keys is None)
+    return not stored_is_shown and not _geometry_evaluated(obj, view_layer)
+
+
+def require_evaluated(obj: bpy.types.Object, what: str, view_layer: bpy.types.ViewLayer,
+                      reader: str) -> None:
+    """InputError naming the object where it is :func:`unevaluated`. ``reader`` names who
+    reads it ("Pack", "Export", "Validate")."""
+    if not unevaluated(obj, view_layer):
+        return
+    read = ("its modifiers" if obj.type == 'MESH'
+            else f"its {GEOMETRY_TYPES[obj.type]} as a surface")
+    raise _input_error(
+        f"{what} '{obj.name}' is disabled in viewports or in an excluded or disabled "
+        f"collection, so Blender does not evaluate {read}: enable it (to keep it out of "
+        f"sight hide it with H instead, which {reader} can read), or apply its modifiers.")
+
+
 def read_input(obj: bpy.types.Object, what: str,
                depsgraph: bpy.types.Depsgraph) -> Triangles:
     """World-space triangles of a Pack input (container or type), modifiers applied.
@@ -186,15 +209,7 @@ def read_input(obj: bpy.types.Object, what: str,
     it is a curve or text with no depth, when it has no faces at all, or when its size is
     absurd (:func:`.engine.check_extent`).
     """
-    stored_is_shown = (obj.type == 'MESH' and not obj.modifiers
-                       and obj.data.shape_keys is None)
-    if not stored_is_shown and not _geometry_evaluated(obj, depsgraph.view_layer):
-        read = ("its modifiers" if obj.type == 'MESH'
-                else f"its {GEOMETRY_TYPES[obj.type]} as a surface")
-        raise _input_error(
-            f"{what} '{obj.name}' is disabled in viewports or in an excluded or disabled "
-            f"collection, so Blender does not evaluate {read}: enable it (to keep it out of "
-            "sight hide it with H instead, which Pack can read), or apply its modifiers.")
+    require_evaluated(obj, what, depsgraph.view_layer, "Pack")
     if _flat_curve(obj):
         raise _input_error(
             f"{what} '{obj.name}' is a flat {GEOMETRY_TYPES[obj.type]} with no volume: give "
@@ -305,6 +320,12 @@ def check_unchanged(context: bpy.types.Context, request: PackRequest) -> None:
         if obj is None or obj.type not in GEOMETRY_TYPES or not obj.users_scene:
             raise _input_error(f"'{name}' was deleted or renamed while packing: nothing was "
                                "added; pack again.")
+        if unevaluated(obj, context.view_layer):
+            raise _input_error(
+                f"'{name}' was disabled in viewports while packing, so Blender no longer "
+                "evaluates its modifiers and the result cannot be checked against it: "
+                "nothing was added; enable it and pack again (hide it with H instead, "
+                "which Pack can read).")
         if object_triangles(obj, depsgraph, outward=True).signature() != signature:
             raise _input_error(f"'{name}' was moved or edited while packing: nothing was "
                                "added; pack again.")
@@ -586,6 +607,7 @@ def gather_export(context: bpy.types.Context, options: Any) -> ExportRequest:
         raise _input_error(f"the container '{cname}' of '{coll.name}' is gone: restore it "
                            "(undo) or pack again.")
     _require_mesh(container, "container", context.scene)
+    require_evaluated(container, "the container", context.view_layer, "Export")
     ctris = object_triangles(container, context.evaluated_depsgraph_get(), outward=True)
     if ctris.signature() != coll.get(summary.PREFIX + "container_sha256"):
         raise _input_error(f"the container '{cname}' was moved or edited after packing "

@@ -582,6 +582,14 @@ class JAMPACKED_OT_validate(bpy.types.Operator):
             return {'CANCELLED'}
         objects = _mesh_targets(context)
         apply_modifiers = context.scene.jampacked.validate_modifiers
+        if apply_modifiers:
+            try:
+                for obj in objects:
+                    bridge.require_evaluated(obj, "Object", context.view_layer, "Validate")
+            except _errors().JampackedError as exc:
+                self.report({'ERROR'}, f"{exc} Or turn off Apply Modifiers to check its "
+                                       "mesh as stored.")
+                return {'CANCELLED'}
         bridge.flush_edit_mode(context)
         depsgraph = context.evaluated_depsgraph_get()
         results = context.window_manager.jampacked_validation.reports

@@ -286,3 +286,22 @@ def test_an_object_moved_out_is_named_by_its_blender_name(bpy, addon, packed, tm
     packed.settings.filepath = str(tmp_path / "x.stl")
     with pytest.raises(RuntimeError, match=rf"places '{objs[0].name}' outside the container"):
         bpy.ops.jampacked.export()
+
+
+def test_export_names_a_container_disabled_in_viewports(bpy, addon, scene, tmp_path):
+    """A container with a modifier, turned off in viewports (the monitor icon) to see the
+    result: Blender no longer evaluates its modifier, so Export read its bare mesh and said
+    it "was moved or edited after packing". It now says what happened and what to do; hidden
+    with H it exports."""
+    scene.box.modifiers.new("Subdivision", 'SUBSURF').levels = 1
+    assert bpy.ops.jampacked.pack() == {'FINISHED'}
+    scene.settings.filepath = str(tmp_path / "x.stl")
+    scene.box.hide_viewport = True
+    with pytest.raises(RuntimeError, match="container 'Box' is disabled in viewports.*"
+                       "hide it with H instead, which Export can read"):
+        bpy.ops.jampacked.export()
+    assert not (tmp_path / "x.stl").exists()
+    scene.box.hide_viewport = False
+    scene.box.hide_set(True)
+    assert bpy.ops.jampacked.export() == {'FINISHED'}
+    assert (tmp_path / "x.stl").is_file()

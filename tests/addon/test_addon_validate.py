@@ -164,3 +164,22 @@ def test_validate_reads_edits_made_in_edit_mode(bpy, addon, modifiers):
             bpy.ops.object.mode_set(mode='OBJECT')
     (report,) = bpy.context.window_manager.jampacked_validation.reports
     assert not report.passed and _counts(report)["open_edges"] == 4
+
+
+def test_validate_refuses_to_read_a_disabled_object_without_its_modifiers(bpy, addon):
+    """With Apply Modifiers on, a cube with Solidify (two shells) disabled in viewports
+    passed as the bare cube: Blender does not evaluate its modifiers there. Validate now
+    names it and changes nothing; enabled, the shells are checked."""
+    shell = cube_object(bpy, "Shell")
+    shell.modifiers.new("Solidify", 'SOLIDIFY').thickness = 0.2
+    bpy.context.scene.jampacked.validate_modifiers = True
+    _select_only(bpy, [shell])
+    shell.hide_viewport = True
+    with pytest.raises(RuntimeError, match="'Shell' is disabled in viewports.*turn off Apply "
+                       "Modifiers"):
+        bpy.ops.jampacked.validate()
+    assert len(bpy.context.window_manager.jampacked_validation.reports) == 0
+    shell.hide_viewport = False
+    assert bpy.ops.jampacked.validate() == {'FINISHED'}
+    [report] = bpy.context.window_manager.jampacked_validation.reports
+    assert "24 faces" in report.summary  # both shells, not the bare 12
