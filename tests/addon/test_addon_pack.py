@@ -298,6 +298,20 @@ def test_open_container_is_a_clear_error(bpy, addon, scene):
     assert not addon.worker.busy()
 
 
+def test_a_container_disabled_while_packing_is_named_as_such(bpy, addon, scene):
+    """Turned off in viewports during a Pack, a container with a modifier reads as its bare
+    mesh: the end check called it moved or edited."""
+    scene.box.modifiers.new("Subdivision", 'SUBSURF').levels = 1
+    run = runner(addon)
+    assert run.begin(bpy.context)
+    scene.box.hide_viewport = True
+    before = scene_state(bpy)
+    assert drive(run, bpy.context) == {'CANCELLED'}
+    assert "'Box' was disabled in viewports while packing" in run.reports[-1][1]
+    assert "enable it and pack again" in run.reports[-1][1]
+    assert scene_state(bpy) == before
+
+
 def test_input_moved_while_packing_changes_nothing(bpy, addon, scene):
     run = runner(addon)
     assert run.begin(bpy.context)
