@@ -571,15 +571,9 @@ def output_path(filepath: str, file_format: str) -> str:
 
 
 def result_collection(context: bpy.types.Context) -> bpy.types.Collection:
-    """The result collection Export writes: the last Pack's, or the active object's."""
-    coll = context.scene.jampacked.result
+    """The result collection Export writes (:func:`.results.shown_result`)."""
+    coll = results.shown_result(context)
     if coll is None:
-        obj = context.active_object
-        for c in (obj.users_collection if obj is not None else ()):
-            if summary.PREFIX + "packing" in c.keys():
-                coll = c
-                break
-    if coll is None or summary.PREFIX + "packing" not in coll.keys():
         raise _input_error("there is no packing to export: run Pack first (or select an "
                            "object of a Jampacked result collection).")
     return coll

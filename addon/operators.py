@@ -441,9 +441,10 @@ class JAMPACKED_OT_make_real(bpy.types.Operator):
 
     @classmethod
     def poll(cls, context: bpy.types.Context) -> bool:
-        coll = context.scene.jampacked.result if context.scene else None
+        coll = results.shown_result(context) if context.scene else None
         if coll is None or instances.points_object(coll) is None:
-            cls.poll_message_set("The last Pack's result has no instances")
+            cls.poll_message_set("The result shown (the active object's, else the last "
+                                 "Pack's) has no instances")
             return False
         return not worker.busy()
 

@@ -136,8 +136,8 @@ class JAMPACKED_PG_settings(bpy.types.PropertyGroup):
         description="Auto: a packing with at least this many objects is added as instances")
     result: PointerProperty(
         name="Result", type=bpy.types.Collection,
-        description="Collection made by the last Pack: its metrics are shown and Export "
-                    "writes it")
+        description="Collection made by the last Pack: the Result panel shows it and "
+                    "Export writes it, unless the active object is in another result")
 
     # export
     export_mode: EnumProperty(name="Mode", items=MODE_ITEMS, default='CONNECT')

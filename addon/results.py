@@ -21,6 +21,24 @@ def is_result(coll: bpy.types.Collection) -> bool:
     return summary.PREFIX + "packing" in coll.keys()
 
 
+def result_of(obj: bpy.types.Object | None) -> bpy.types.Collection | None:
+    """The result collection holding ``obj`` (None when it is in none)."""
+    for c in (obj.users_collection if obj is not None else ()):
+        if is_result(c):
+            return c
+    return None
+
+
+def shown_result(context: bpy.types.Context) -> bpy.types.Collection | None:
+    """The result the Result panel shows and Make Real and Export act on: the active
+    object's result collection where it is in one (its instances object, one of its
+    objects), else the last Pack's (the scene's Result); None where neither is a result."""
+    coll = result_of(context.active_object)
+    if coll is None:
+        coll = context.scene.jampacked.result
+    return coll if coll is not None and is_result(coll) else None
+
+
 def container_of(coll: bpy.types.Collection) -> bpy.types.Object | None:
     """The container object of a result: the one it points to (``jampacked_container_object``,
     which follows a rename), else, for a result made before that was kept, the object of

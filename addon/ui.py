@@ -3,7 +3,7 @@
 # No "from __future__ import annotations": Blender reads class annotations.
 import bpy
 
-from . import instances, result_edits, summary, units, worker
+from . import instances, result_edits, results, summary, units, worker
 
 
 class JAMPACKED_UL_types(bpy.types.UIList):
@@ -141,18 +141,18 @@ def _held_now(coll: bpy.types.Collection) -> tuple[int, float | None] | None:
 
 
 class JAMPACKED_PT_result(_Sidebar, bpy.types.Panel):
-    """Metrics of the last packing (read from its collection's custom properties)."""
+    """Metrics of the active object's result, else the last Pack's (read from its
+    collection's custom properties), and its Make Real buttons."""
 
     bl_label = "Result"
     bl_parent_id = "JAMPACKED_PT_pack"
 
     @classmethod
     def poll(cls, context: bpy.types.Context) -> bool:
-        coll = context.scene.jampacked.result
-        return coll is not None and summary.PREFIX + "packing" in coll.keys()
+        return results.shown_result(context) is not None
 
     def draw(self, context: bpy.types.Context) -> None:
-        coll = context.scene.jampacked.result
+        coll = results.shown_result(context)
         layout = self.layout
         layout.label(text=coll.name, icon='OUTLINER_COLLECTION')
         col = layout.column(align=True)

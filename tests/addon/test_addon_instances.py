@@ -499,3 +499,43 @@ def test_export_writes_the_instances_and_real_objects_the_scene_has(bpy, addon, 
     assert bpy.ops.jampacked.export() == {'FINISHED'}
     message = bpy.context.window_manager.jampacked_job.last_message
     assert f"its {packing.n - 2} placements were certified again" in message, message
+
+
+def test_make_real_acts_on_the_active_instances_objects_result(bpy, addon, scene):
+    """Two containers, each packed as instances: points selected in Edit Mode on the first
+    result's instances object were made real in the last Pack's result (the second), or
+    refused as "no points selected" there. Make Real, the Result panel and Export now follow
+    the active object's result, else the last Pack's; an appended result (the scene's Result
+    empty) can be made real from its instances object."""
+    from addon_helpers import cube_object
+
+    s = scene.settings
+    s.seed = 41
+    coll_a = _pack(bpy, 'INSTANCES')
+    box_b = cube_object(bpy, "Box B", location=(200.0, 0.0, 0.0), scale=(10.0, 9.5, 11.0))
+    s.container, s.seed = box_b, 42
+    coll_b = _pack(bpy, 'INSTANCES')
+    assert coll_a.name in bpy.data.collections and coll_b != coll_a
+    points_a = addon.instances.points_object(coll_a)
+    points_b = addon.instances.points_object(coll_b)
+    n_a, n_b = len(points_a.data.vertices), len(points_b.data.vertices)
+    select = np.zeros(n_b, bool)
+    select[:1] = True  # a stale selection on the second result's points
+    points_b.data.vertices.foreach_set("select", select)
+    select = np.zeros(n_a, bool)
+    select[:2] = True
+    points_a.data.vertices.foreach_set("select", select)
+    bpy.context.view_layer.objects.active = points_a
+    assert addon.results.shown_result(bpy.context) == coll_a
+    assert bpy.ops.jampacked.make_real(which='SELECTED') == {'FINISHED'}
+    job = bpy.context.window_manager.jampacked_job
+    assert job.last_message == (f"Made 2 object(s) real in '{coll_a.name}'; {n_a - 2} "
+                                "instance(s) left.")
+    assert len(points_b.data.vertices) == n_b
+    # an appended result: the scene's Result points nowhere, its instances object is active
+    s.result = None
+    bpy.context.view_layer.objects.active = points_b
+    assert bpy.ops.jampacked.make_real.poll()
+    assert bpy.ops.jampacked.make_real(which='ALL') == {'FINISHED'}
+    assert addon.instances.points_object(coll_b) is None
+    assert len([o for o in coll_b.objects if "jampacked_type" in o.keys()]) == n_b
