@@ -9,6 +9,7 @@ from rich.markup import escape
 from jampacked.cli.args import add_command
 from jampacked.cli.exits import EXIT_ERROR
 from jampacked.cli.reports import consoles, print_summary, warn
+from jampacked.core.batch_verify import wrong_metric
 from jampacked.core.packing import is_spec, load_packing, verify_sources
 from jampacked.core.packing_digest import (
     only_clearance_changed,
@@ -20,8 +21,8 @@ INFO_EPILOG = """\
 examples:
   jampacked info packing.json
 
-Exit status: 0 all good, 1 the file cannot be read or a mesh file it names is missing or
-has changed since the packing was made.
+Exit status: 0 all good, 1 the file cannot be read, a mesh file it names is missing or
+has changed since the packing was made, or its figures or placements were edited.
 """
 
 
@@ -56,6 +57,10 @@ def cmd_info(args: argparse.Namespace) -> int:
                         "certificate's digest no longer matches the placements, frames, "
                         "volumes or certificate): 'jampacked export' certifies them again "
                         "before it exports them, or pack again")
+    wrong = wrong_metric(packing, missing_ok=True)
+    if wrong:
+        problems.insert(0, f"[red]metrics:[/] {escape(wrong)}: the figures above are not "
+                        "this packing's; pack again for true ones")
     n_files = len(packing.types) + (0 if is_spec(packing.container_path) else 1)
     if problems:
         for p in problems:

@@ -55,15 +55,17 @@ def check_done(spec: SceneSpec, path: Path) -> tuple[Packing | None, str]:
     if recorded != placements_digest(p):
         return None, ("its placements, frames, volumes or certificate were changed after it "
                       "was certified (the certificate's digest no longer matches)")
-    wrong = _wrong_metric(p)
+    wrong = wrong_metric(p)
     if wrong:
         return None, wrong
     return p, ""
 
 
-def _wrong_metric(p: Packing) -> str:
+def wrong_metric(p: Packing, *, missing_ok: bool = False) -> str:
     """The first of the packing's numbers that its placements do not give ("" if none):
-    counts, density (recorded type volumes over the container volume), TVD, NNI, shares."""
+    counts, density (recorded type volumes over the container volume), TVD, NNI, shares.
+    With ``missing_ok`` a number the file does not hold is not one of them (files written
+    before it was recorded)."""
     if len(p.types) == 0:
         return "it lists no object types"
     shares = np.array([t.share for t in p.types], float)
@@ -74,6 +76,8 @@ def _wrong_metric(p: Packing) -> str:
                              p.container_volume)
     for key in CHECKED_METRICS:
         said, right = p.metrics.get(key), should[key]
+        if missing_ok and key not in p.metrics:
+            continue
         if not _same_number(said, right):
             return (f"its metrics.{key} reads {_short(said)} but its placements give "
                     f"{_short(right)} (edited after it was made?)")

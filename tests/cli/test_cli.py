@@ -288,6 +288,24 @@ def test_info_says_when_the_placements_changed_after_certification(packed, capsy
     assert main(["info", str(out)]) == 0  # the file as written
 
 
+def test_info_says_when_its_figures_do_not_follow_from_the_placements(packed, capsys):
+    """A density edited in the file read "90.0%" with exit 0, where a batch rerun finds the
+    same edit and packs the scene again."""
+    d, out, *_ = packed
+    doc = json.loads(out.read_text())
+    true = doc["metrics"]["density"]
+    doc["metrics"]["density"] = 0.9
+    edited = d / "figures.json"
+    edited.write_text(json.dumps(doc))
+    assert main(["info", str(edited)]) == 1
+    err = " ".join(capsys.readouterr().err.split())
+    assert (f"metrics: its metrics.density reads 0.9 but its placements give {true:.6g} "
+            "(edited after it was made?): the figures above are not this packing's") in err
+    del doc["metrics"]["density"]  # a figure the file does not hold is not an edit
+    edited.write_text(json.dumps(doc))
+    assert main(["info", str(edited)]) == 0
+
+
 def test_info_says_when_only_the_clearance_asked_changed(packed, capsys):
     # it read "the placements were changed after certification"
     d, out, *_ = packed
