@@ -226,6 +226,7 @@ def read_input(obj: bpy.types.Object, what: str,
             f"{what} '{obj.name}' draws {instanced} instance(s), which Pack cannot read as "
             f"part of its surface (it would pack the object without them): {fix}.")
     tris = object_triangles(obj, depsgraph, outward=True)
+    tris.modifiers = tuple(m.name for m in obj.modifiers if m.show_viewport)
     if not len(tris.faces):
         raise _input_error(
             f"{what} '{obj.name}' has no faces ({len(tris.vertices)} vertices, only loose "

@@ -60,6 +60,8 @@ class Triangles:
         faces: (F, 3) int64 vertex indices (Blender's loop triangles).
         tri_polygon: (F,) int64 polygon of each triangle.
         n_polygons: polygons of the Blender mesh.
+        modifiers: the object's modifiers shown in the viewport, which made these triangles
+            (a defect they make is mended there, not in the mesh).
     """
 
     name: str
@@ -67,6 +69,7 @@ class Triangles:
     faces: np.ndarray
     tri_polygon: np.ndarray
     n_polygons: int
+    modifiers: tuple[str, ...] = ()
 
     def signature(self) -> str:
         """sha256 of the positions and triangles: equal means the same geometry."""
@@ -76,10 +79,21 @@ class Triangles:
         return h.hexdigest()
 
     def mesh_data(self, role: str) -> MeshData:
-        """Checked (and repaired) engine mesh; raises MeshError naming the object."""
+        """Checked (and repaired) engine mesh; raises MeshError naming the object (and its
+        modifiers, where it has some: the advice's edits apply to the mesh they make)."""
+        from jampacked.core.errors import MeshError
         from jampacked.core.meshes import mesh_from_arrays
 
-        return mesh_from_arrays(self.vertices, self.faces, name=self.name, role=role)
+        try:
+            return mesh_from_arrays(self.vertices, self.faces, name=self.name, role=role)
+        except MeshError as exc:
+            if not self.modifiers:
+                raise
+            said = ", ".join(f"'{m}'" for m in self.modifiers)
+            raise MeshError(f"{exc} This is the mesh its modifiers ({said}) make: where the "
+                            "mesh itself is sound, change or remove the modifier that does "
+                            "it, or apply the modifiers first (Object > Apply > Visual "
+                            "Geometry to Mesh) and mend the result.") from None
 
 
 #: the sizes (largest extent, Blender units) Pack takes: beyond them areas and volumes stop

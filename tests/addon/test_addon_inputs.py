@@ -556,6 +556,30 @@ def test_every_container_kind(bpy, addon, kind):
 # ------------------------------------------------------------------------------ the fixes
 
 
+def test_a_defect_its_modifiers_make_names_them(bpy, addon):
+    """A container whose Array modifier makes internal faces was told to select Interior
+    Faces and delete them, which finds nothing in the mesh itself; a Solidify one to delete
+    the extra surfaces. The message now names the modifiers; a mesh without any is told
+    as before."""
+    box = cube_object(bpy, "Arrayed", scale=(3.0, 3.0, 3.0))
+    mod = box.modifiers.new("Array", 'ARRAY')
+    mod.count, mod.relative_offset_displace, mod.use_merge_vertices = 2, (1.0, 0, 0), True
+    hidden = box.modifiers.new("Hidden Bevel", 'BEVEL')
+    hidden.show_viewport = False  # not what Blender shows: not named
+    _settings(bpy, box, [_ico(bpy, "Ico", radius=0.9)])
+    with pytest.raises(RuntimeError) as info:
+        bpy.ops.jampacked.pack()
+    text = str(info.value)
+    assert "'Arrayed'" in text and "This is the mesh its modifiers ('Array') make" in text
+    assert "Hidden Bevel" not in text
+    bpy.ops.wm.read_factory_settings(use_empty=True)
+    box = cube_object(bpy, "Open", faces=CUBE_FACES[:-1], scale=(3.0, 3.0, 3.0))
+    _settings(bpy, box, [_ico(bpy, "Ico", radius=0.9)])
+    with pytest.raises(RuntimeError) as info:
+        bpy.ops.jampacked.pack()
+    assert "'Open'" in str(info.value) and "modifiers" not in str(info.value)
+
+
 def test_a_mirrored_object_is_read_outward(bpy, addon):
     """A negative scale mirrors the mesh and reverses its winding in world space: the
     triangles Pack hands to the engine face outward (the engine had to repair them
