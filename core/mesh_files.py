@@ -218,7 +218,17 @@ def obj_malformed_polygons(data: bytes, limit: int = 3) -> list[str]:
 
 #: Geomview's optional OFF keyword, [ST][C][N][4][n]OFF: 4 adds a homogeneous coordinate to
 #: each vertex, n a line with the dimension (not read)
-_OFF_KEYWORD = re.compile(rb"(?:ST)?C?N?(4)?(n)?OFF")
+_OFF_KEYWORD = re.compile(rb"(?:ST)?C?N?(4)?(n)?OFF(\d*)", re.IGNORECASE)
+#: bytes some tools pad a file's end with (NUL; Ctrl-Z, DOS's end of file): not the data
+_PADDING = b"\x00\x1a"
+
+
+def _off_face_like(words: list[bytes]) -> bool:
+    """An OFF line that reads as a polygon: a corner count of 3 or more and as many whole
+    numbers (an edge line has 2 corners)."""
+    if not words[0].isdigit() or int(words[0]) < 3 or len(words) < int(words[0]) + 1:
+        return False
+    return all(w.isdigit() for w in words[1:int(words[0]) + 1])
 
 
 def _off_arrays(data: bytes, label: str) -> Arrays:
@@ -236,7 +246,8 @@ def _off_arrays(data: bytes, label: str) -> Arrays:
             fewer or more lines than the counts promise (the line and what is wrong).
     """
     rows = [(number, words) for number, line in
-            enumerate(data.removeprefix(b"\xef\xbb\xbf").splitlines(), start=1)
+            enumerate(data.removeprefix(b"\xef\xbb\xbf").translate(None, _PADDING)
+                      .splitlines(), start=1)
             if (words := line.split(b"#", 1)[0].split())]
 
     def shown(words: list[bytes]) -> str:
@@ -258,7 +269,8 @@ def _off_arrays(data: bytes, label: str) -> Arrays:
         if keyword[2]:
             raise bad(number, f"starts with '{shown(words[:1])}' (vertices of any "
                       "dimension), which is not read", "Export it as plain (3D) OFF")
-        words = words[1:]
+        # the first count glued to the keyword ("OFF8 12 0", as ModelNet's files have it)
+        words = [keyword[3], *words[1:]] if keyword[3] else words[1:]
         if not words and len(rows) > 1:  # the counts on the next line, as most write them
             (number, words), at = rows[1], 2
     if len(words) < 2 or not (words[0].isdigit() and words[1].isdigit()):
@@ -266,14 +278,17 @@ def _off_arrays(data: bytes, label: str) -> Arrays:
                   f"not '{shown(words)}'")
     counts, n_vertices, n_faces = number, int(words[0]), int(words[1])
     held = len(rows) - at
-    if held != n_vertices + n_faces:
-        how = (f"holds {held:,} lines of them: it was cut short" if held < n_vertices + n_faces
-               else f"holds {held - n_vertices - n_faces:,} more line"
-               f"{'s' if held - n_vertices - n_faces > 1 else ''} after them: the counts are "
-               "wrong or the file is damaged")
+    # lines after the faces are read as trimesh read them, left out (edges some writers
+    # list, an "end"), unless they are faces: then the counts leave faces out
+    more = sum(1 for _, w in rows[at + n_vertices + n_faces:] if _off_face_like(w))
+    if held < n_vertices + n_faces or more:
+        how = (f"holds {held:,} lines of them: it was cut short" if not more
+               else f"holds {more:,} more face{'s' if more > 1 else ''} after them: the "
+               "counts are wrong or the file is damaged")
         raise MeshError(f"{label} is not a whole OFF file: its counts on line {counts} promise "
                         f"{n_vertices:,} vertices and {n_faces:,} faces, one a line, but it "
                         f"{how}. Copy or export it again.")
+    rows = rows[:at + n_vertices + n_faces]
 
     width = 4 if keyword and keyword[1] else 3
     vertex_rows = rows[at:at + n_vertices]
@@ -300,10 +315,6 @@ def _off_arrays(data: bytes, label: str) -> Arrays:
         if size < 3 or len(words) < size + 1:
             raise bad(number, f"{where} should be a corner count (3 or more) and as many "
                       f"vertex indices, not '{shown(words)}'")
-        if len(words) > size + 5:
-            raise bad(number, f"{where} has {len(words) - size - 1} numbers after its {size} "
-                      "corners, more than a colour's 4: faces joined on one line, or a wrong "
-                      "corner count")
         sizes[i] = size
         corners += words[1:size + 1]
     try:
@@ -430,8 +441,10 @@ def _ply_ascii_damage(data: bytes) -> str | None:
     One line an element, as the format has it; blank lines are not counted; a last line
     with fewer numbers than its properties need (cut inside) is "part of one more"."""
     head, found, body = data.partition(b"end_header")
-    if not found or b"format ascii" not in head:
+    if not found or not any(line.split()[:2] == [b"format", b"ascii"]
+                            for line in head.splitlines()):
         return None
+    body = body.translate(None, _PADDING)
     elements: list[tuple[bytes, int, list[bool]]] = []  # name, count, which are lists
     for words in map(bytes.split, head.splitlines()):
         if words[:1] == [b"element"] and len(words) == 3 and words[2].isdigit():

@@ -755,15 +755,34 @@ def test_a_broken_off_names_the_line_and_what_is_wrong(tmp_path):
     assert "line 10 (face 2 of 5)" in refused("corners.off", lines[:9] + ["4 3 4 5"]
                                                + lines[10:])
     assert "'2 0 1'" in refused("two.off", lines[:8] + ["2 0 1"] + lines[9:])
-    message = refused("joined.off", lines[:12] + [lines[12] + " " + lines[12]])
-    assert "line 13 (face 5 of 5)" in message and "5 numbers after its 4 corners" in message
     message = refused("extra.off", lines + ["3 0 1 2"])
-    assert "1 more line after" in message
+    assert "1 more face after them" in message
     assert "binary" in refused("binary.off", ["OFF BINARY", "6 5 0"])
     assert "line 1" in refused("counts.off", ["OFF six five"] + lines[2:])
     # a file whose last lines are blank or comments still reads
     (tmp_path / "tail.off").write_text("\n".join(lines) + "\n\n# end\n\n")
     assert len(read_mesh_arrays(tmp_path / "tail.off")[1]) == 8
+
+
+@pytest.mark.parametrize("name, edit", [
+    # ModelNet's files glue the first count to the keyword; trimesh read them
+    ("modelnet", lambda lines: ["OFF" + lines[1]] + lines[2:]),
+    ("lower-case keyword", lambda lines: ["off"] + lines[1:]),
+    # after the faces: edges some writers list, a word, NUL or Ctrl-Z padding
+    ("edges listed", lambda lines: lines + ["2 0 1", "2 1 2"]),
+    ("a last word", lambda lines: lines + ["end"]),
+    ("NUL padding", lambda lines: lines + ["\x00\x00"]),
+    ("Ctrl-Z padding", lambda lines: lines + ["\x1a"]),
+    # numbers after a face's corners: a colour, and more than a colour's four
+    ("face colours", lambda lines: lines[:8] + [f"{f} 0.1 0.2 0.3 1.0 7" for f in lines[8:]]),
+])
+def test_off_files_trimesh_read_still_read(tmp_path, name, edit):
+    """A review of the OFF reader found these refused where trimesh had read them."""
+    lines = off_lines(*prism(3))
+    path = tmp_path / "prism.off"
+    path.write_text("\n".join(edit(lines)) + "\n")
+    v, f = read_mesh_arrays(path)
+    assert len(v) == 6 and len(f) == 8, name
 
 
 
@@ -805,3 +824,15 @@ def test_an_ascii_ply_cut_short_is_named_as_such(tmp_path):
     assert "holds 5 vertices and no faces" in message
     message = refused("longer.ply", text + b"3 0 1 2\n")
     assert "1 more line" in message
+    # NUL or Ctrl-Z padding at the end is not a line (trimesh read such files)
+    assert len(read_mesh_arrays(_written(tmp_path / "padded.ply", text + b"\x00\x00\n\x1a"))[1]) \
+        == 12
+    # a binary PLY whose header comment says "format ascii" is binary all the same
+    binary = trimesh.creation.box().export(file_type="ply", encoding="binary")
+    tricky = binary.replace(b"format binary", b"comment format ascii\nformat binary", 1)
+    assert len(read_mesh_arrays(_written(tmp_path / "comment.ply", tricky))[1]) == 12
+
+
+def _written(path, data: bytes):
+    path.write_bytes(data)
+    return path
