@@ -29,6 +29,7 @@ import numpy as np
 import trimesh
 
 from .errors import InputError, MeshError
+from .polygons import concave, polygons_to_triangles
 from .threemf import UNIT_MM, ThreeMFError, read_3mf_model
 
 __all__ = [
@@ -50,6 +51,11 @@ _OBJ_FACE_COMMENT = re.compile(rb"^[ \t]*f[ \t][^\n#]*#", re.MULTILINE)
 #: fields and indented lines, which it skipped (a file of them read as empty, a few as
 #: faces lost)
 _OBJ_ODD_SPACE = re.compile(rb"\A\xef\xbb\xbf|^[ \t]+|\t", re.MULTILINE)
+#: an OBJ face line with four corners or more (its polygon may be concave)
+_OBJ_POLYGON = re.compile(rb"^[ \t]*f(?:[ \t]+[^ \t\r\n#]+){4,}", re.MULTILINE)
+_OBJ_FACE_LINE = re.compile(rb"^f ([^\r\n]*)", re.MULTILINE)
+_OBJ_VERTEX_LINE = re.compile(rb"^v ([^\r\n]*)", re.MULTILINE)
+_OBJ_AFTER_SLASH = re.compile(rb"/[^ ]*")
 _OBJ_RELATIVE_INDEX = re.compile(rb"^[ \t]*[fl][ \t][^\n#]*(?<![\w.])-[0-9]", re.MULTILINE)
 
 Arrays = tuple[np.ndarray, np.ndarray]
@@ -232,8 +238,8 @@ def _off_face_like(words: list[bytes]) -> bool:
 
 
 def _off_arrays(data: bytes, label: str) -> Arrays:
-    """Vertices and triangles of an ASCII OFF file, each polygon fan-triangulated (as trimesh
-    does PLY and OBJ polygons) in file order.
+    """Vertices and triangles of an ASCII OFF file, its polygons triangulated in file order
+    (`polygons.polygons_to_triangles`: convex ones fanned, concave ones ear-clipped).
 
     Read here, not by trimesh or meshio: trimesh's OFF reader fails on polygons of mixed
     sizes where one has over four corners and reads a file cut short as the faces it holds;
@@ -335,13 +341,7 @@ def _off_arrays(data: bytes, label: str) -> Arrays:
                   f"{flat[wrong[0]]}, but its {n_vertices:,} vertices are numbered 0 to "
                   f"{n_vertices - 1:,}")
 
-    # fan each polygon from its first corner: corners 0, k, k+1 for k = 1 .. size-2
-    fans = sizes - 2
-    polygon = np.repeat(np.arange(n_faces), fans)
-    first = (np.cumsum(sizes) - sizes)[polygon]
-    k = np.arange(len(polygon)) - np.repeat(np.cumsum(fans) - fans, fans) + 1
-    faces = flat[np.column_stack([first, first + k, first + k + 1])].reshape(-1, 3)
-    return vertices, faces
+    return vertices, polygons_to_triangles(vertices, sizes, flat)
 
 
 # --------------------------------------------------------------------------------------------
@@ -538,6 +538,34 @@ def _trimesh_stl(data: bytes) -> Arrays | None:
     return None
 
 
+def _obj_concave_arrays(data: bytes) -> Arrays | None:
+    """Vertices and triangles of OBJ text (plain spacing, absolute indices, no comments)
+    where a polygon is concave, each polygon triangulated in its plane (trimesh fans every
+    polygon from its first corner, which on a concave one makes faces that cross); None
+    where every polygon is convex or the text is not plain enough to read here (trimesh
+    then reads it). Only the vertices the faces use are kept, in the file's order."""
+    faces = _OBJ_FACE_LINE.findall(data)
+    points = _OBJ_VERTEX_LINE.findall(data)
+    sizes = np.array([len(line.split()) for line in faces], np.int64)
+    with warnings.catch_warnings():  # a token that is no number ends the numbers read
+        warnings.simplefilter("ignore", DeprecationWarning)
+        flat = np.fromstring(_OBJ_AFTER_SLASH.sub(b"", b" ".join(faces)).decode("latin-1"),
+                             np.float64, sep=" ")
+        vertices = np.fromstring(b" ".join(points).decode("latin-1"), np.float64, sep=" ")
+    # anything but three numbers a vertex and whole indices in range is left to trimesh
+    if (len(vertices) != 3 * len(points) or len(flat) != sizes.sum() or not len(flat)
+            or sizes.min() < 3 or np.any(flat != np.round(flat))):
+        return None
+    flat, vertices = flat.astype(np.int64) - 1, vertices.reshape(-1, 3)
+    if flat.min() < 0 or flat.max() >= len(vertices):
+        return None
+    if not concave(vertices, sizes, flat).any():
+        return None
+    used, flat = np.unique(flat, return_inverse=True)
+    vertices = vertices[used]
+    return vertices, polygons_to_triangles(vertices, sizes, flat)
+
+
 def _obj_arrays(data: bytes, errors: list[str], reader: str) -> Arrays | None:
     try:
         loaded = trimesh.load(io.BytesIO(data), file_type="obj", force="mesh", process=False)
@@ -600,6 +628,10 @@ def read_arrays(path: str, data: bytes, label: str, notes: list[str] | None = No
     errors: list[str] = []
     if ext == "obj":
         absolute = obj_absolute_indices(_obj_plain_spacing(data))
+        if _OBJ_POLYGON.search(absolute):
+            arrays = _obj_concave_arrays(_strip_obj_comments(absolute))
+            if arrays is not None:
+                return arrays
         if absolute is not data or _OBJ_FACE_COMMENT.search(data):
             # trimesh's OBJ reader fails on comments at the end of face lines, counts
             # relative indices from the end of the file and skips indented lines
