@@ -546,6 +546,7 @@ class ExportRequest:
     placements: Any = None
     #: mesh objects in the result that are no placed objects, left out
     left_out: list[str] = field(default_factory=list)
+    collection: str = ""  # the result collection's name, for the report
 
 
 FORMAT_EXTENSIONS = {'STL': ".stl", '3MF': ".3mf", 'OBJ': ".obj", 'PLY': ".ply"}
@@ -633,7 +634,7 @@ def gather_export(context: bpy.types.Context, options: Any) -> ExportRequest:
     return ExportRequest(packing_json=text, container=ctris, types=types,
                          out_path=output_path(s.filepath, s.file_format), options=options,
                          scale=units.mm_per_unit(unit.system, unit.scale_length),
-                         placements=placements, left_out=left_out)
+                         placements=placements, left_out=left_out, collection=coll.name)
 
 
 # ------------------------------------------------------------------------------ validate

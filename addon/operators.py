@@ -296,6 +296,7 @@ class PackRunner(JobRunner):
             coll[results.KEPT] = True
         elif not bridge.inputs_in_results(context.scene, self._request):
             kept = results.replace_previous(context.scene, coll, last)
+        results.make_shown(context, coll)
         p = result.packing
         m, cert = p.metrics, p.certificate
         nni = m.get("nni_mean")
@@ -341,6 +342,7 @@ class ExportRunner(JobRunner):
             # Edit Mode's points and meshes reach their data only in Object Mode
             bpy.ops.object.mode_set(mode='OBJECT')
         request = bridge.gather_export(context, options)
+        self._collection = request.collection
 
         def run(progress: worker.Progress, should_cancel: worker.ShouldCancel) -> Any:
             result = engine.export_triangles(
@@ -364,7 +366,8 @@ class ExportRunner(JobRunner):
     def apply(self, context: bpy.types.Context, result: Any) -> set[str]:
         lines = [summary.export_in_mm(v.summary()) for v in result.validation]
         text = summary.in_blender_words(
-            f"Exported {', '.join(result.paths)}: {result.summary('mm')}")
+            f"Exported '{self._collection}' to {', '.join(result.paths)}: "
+            f"{result.summary('mm')}")
         if lines:
             text += " " + " ".join(lines)
         text += "".join(f" Warning: {summary.export_in_mm(summary.in_blender_words(w))}"

@@ -21,22 +21,29 @@ def is_result(coll: bpy.types.Collection) -> bool:
     return summary.PREFIX + "packing" in coll.keys()
 
 
-def result_of(obj: bpy.types.Object | None) -> bpy.types.Collection | None:
-    """The result collection holding ``obj`` (None when it is in none)."""
-    for c in (obj.users_collection if obj is not None else ()):
-        if is_result(c):
-            return c
-    return None
-
-
 def shown_result(context: bpy.types.Context) -> bpy.types.Collection | None:
     """The result the Result panel shows and Make Real and Export act on: the active
     object's result collection where it is in one (its instances object, one of its
-    objects), else the last Pack's (the scene's Result); None where neither is a result."""
-    coll = result_of(context.active_object)
-    if coll is None:
-        coll = context.scene.jampacked.result
+    objects; of several, the last Pack's), else the last Pack's (the scene's Result); None
+    where neither is a result."""
+    last = context.scene.jampacked.result
+    active = context.active_object
+    holders = [c for c in (active.users_collection if active is not None else ())
+               if is_result(c)]
+    coll = last if last in holders or not holders else holders[0]
     return coll if coll is not None and is_result(coll) else None
+
+
+def make_shown(context: bpy.types.Context, coll: bpy.types.Collection) -> None:
+    """After a Pack made ``coll``: where the active object is in another result, which
+    :func:`shown_result` would show, make one of ``coll``'s objects active instead (as
+    Blender makes an added object active), so the panel and Export show the new one."""
+    active = context.view_layer.objects.active
+    if active is None or shown_result(context) in (None, coll):
+        return
+    first = instances.points_object(coll) or next(iter(coll.objects), None)
+    if first is not None and context.view_layer.objects.get(first.name) == first:
+        context.view_layer.objects.active = first
 
 
 def container_of(coll: bpy.types.Collection) -> bpy.types.Object | None:

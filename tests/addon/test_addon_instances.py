@@ -539,3 +539,31 @@ def test_make_real_acts_on_the_active_instances_objects_result(bpy, addon, scene
     assert bpy.ops.jampacked.make_real(which='ALL') == {'FINISHED'}
     assert addon.instances.points_object(coll_b) is None
     assert len([o for o in coll_b.objects if "jampacked_type" in o.keys()]) == n_b
+
+
+def test_a_fresh_pack_is_shown_though_an_older_results_object_was_active(bpy, addon, scene,
+                                                                          tmp_path):
+    """With Keep Previous, an object of the first result active: after the second Pack the
+    panel and Export followed the first result (the active object's), where Pack's message
+    pointed to the new one. Pack now makes one of the new result's objects active; an
+    object in both results shows the last Pack's; Export's message names what it wrote."""
+    s = scene.settings
+    s.seed, s.keep_previous = 43, True
+    first = _pack(bpy, 'OBJECTS')
+    placed = next(o for o in first.objects if "jampacked_type" in o.keys())
+    bpy.context.view_layer.objects.active = placed
+    s.seed = 44
+    second = _pack(bpy, 'OBJECTS')
+    assert second != first and first.name in bpy.data.collections
+    assert addon.results.shown_result(bpy.context) == second
+    assert bpy.context.view_layer.objects.active.name in second.objects
+    s.export_mode, s.file_format, s.filepath = 'UNION', 'STL', str(tmp_path / "x")
+    assert bpy.ops.jampacked.export() == {'FINISHED'}
+    message = bpy.context.window_manager.jampacked_job.last_message
+    assert message.startswith(f"Exported '{second.name}' to "), message
+    # an object linked into both results: the last Pack's is shown
+    second.objects.link(placed)
+    bpy.context.view_layer.objects.active = placed
+    assert addon.results.shown_result(bpy.context) == second
+    bpy.context.scene.jampacked.result = first
+    assert addon.results.shown_result(bpy.context) == first
