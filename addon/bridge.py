@@ -181,7 +181,7 @@ def unevaluated(obj: bpy.types.Object, view_layer: bpy.types.ViewLayer) -> bool:
     """Whether what Blender shows of the object is not what its mesh data holds (modifiers,
     shape keys, a curve's surface) and Blender does not evaluate it in ``view_layer``
     (:func:`_geometry_evaluated`): reading it would silently give the bare mesh."""
-    stored_is_shown = (obj.type == 'MESH' and not obj.modifiers
+    stored_is_shown = (obj.type == 'MESH' and not any(m.show_viewport for m in obj.modifiers)
                        and obj.data.shape_keys is None)
     return not stored_is_shown and not _geometry_evaluated(obj, view_layer)
 

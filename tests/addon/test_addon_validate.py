@@ -183,3 +183,9 @@ def test_validate_refuses_to_read_a_disabled_object_without_its_modifiers(bpy, a
     assert bpy.ops.jampacked.validate() == {'FINISHED'}
     [report] = bpy.context.window_manager.jampacked_validation.reports
     assert "24 faces" in report.summary  # both shells, not the bare 12
+    # its modifier off in the viewport too: the bare mesh is what Blender shows
+    shell.modifiers["Solidify"].show_viewport = False
+    shell.hide_viewport = True
+    assert bpy.ops.jampacked.validate() == {'FINISHED'}
+    [report] = bpy.context.window_manager.jampacked_validation.reports
+    assert "12 faces" in report.summary
