@@ -5,8 +5,12 @@ Nothing here merges, removes or repairs anything: the arrays are the file's as s
 (:mod:`jampacked.core.threemf`), STL with trimesh's STL reader, OFF with the reader here
 (:func:`_off_arrays`: polygons of mixed sizes, a file cut short named), then trimesh
 (``process=False``), a tolerant OBJ reader (comments on face lines), and meshio as the
-fallback. OBJ faces with negative (relative) indices are resolved against the vertices
-defined before them, as the OBJ format says.
+fallback; the formats trimesh reads only through meshio (VTK, VTU, Gmsh, Medit, ...) are read
+with meshio here first, as trimesh keeps their triangles only. meshio's quads and polygons
+are fanned into triangles; a binary PLY with polygons of mixed sizes (Blender's n-gons),
+which trimesh 5.2 refuses ("PLY is unexpected length!"), is read so. OBJ faces with
+negative (relative) indices are resolved against the vertices defined before them, as the
+OBJ format says.
 
 Also here: a file's sha256 and the ``box:WxDxH`` specification that stands for a file.
 Units and frame are the file's own, except that a 3MF model's declared unit is converted to
@@ -59,6 +63,10 @@ _OBJ_AFTER_SLASH = re.compile(rb"/[^ ]*")
 _OBJ_RELATIVE_INDEX = re.compile(rb"^[ \t]*[fl][ \t][^\n#]*(?<![\w.])-[0-9]", re.MULTILINE)
 
 Arrays = tuple[np.ndarray, np.ndarray]
+
+#: the formats meshio reads that trimesh has a reader of its own for (trimesh reads the other
+#: meshio formats through meshio, triangles only)
+_TRIMESH_OWN_READERS = frozenset({"stl", "obj", "ply", "off"})
 
 #: the mesh file types people pass around (a file named so is taken for a mesh in messages;
 #: any type trimesh or meshio reads is read)
@@ -358,7 +366,65 @@ def _trimesh_arrays(loaded: object) -> Arrays:
     return vertices.reshape(-1, 3), faces.reshape(-1, 3)
 
 
-def _meshio_arrays(path: str) -> Arrays:
+def _fan(polygons: np.ndarray) -> np.ndarray:
+    """(N, k) polygons, k >= 3, as (N * (k - 2), 3) triangles fanned from each polygon's
+    first corner (corners 0, i, i+1), polygon by polygon: as trimesh does PLY and OBJ
+    polygons and :func:`_off_arrays` OFF ones."""
+    k = polygons.shape[1]
+    fan = np.column_stack([np.zeros(k - 2, np.int64), np.arange(1, k - 1), np.arange(2, k)])
+    return polygons[:, fan].reshape(-1, 3)
+
+
+#: meshio's surface cells by their corners: (type name, corners first). Higher-order cells
+#: (triangle6, quad9, ...) list their corners before the nodes on edges and inside.
+_MESHIO_SURFACE = re.compile(r"(triangle|quad)(\d*)")
+
+
+def _meshio_faces(cells: list, label: str) -> np.ndarray:
+    """Triangles of meshio's cell blocks: triangles as they are, quads and polygons of any
+    size (meshio gives one ``polygon`` block per run of one size) fanned, higher-order
+    triangles and quads by their corners; points, lines and volume cells left out.
+
+    Raises:
+        MeshError: a block of surface cells that cannot be read as polygons (none are
+            dropped silently), or volume cells only (no surface to read).
+    """
+    tris: list[np.ndarray] = []
+    volume: list[str] = []
+    for block in cells:
+        name = str(block.type)
+        kind = _MESHIO_SURFACE.fullmatch(name)
+        dim = getattr(block, "dim", None)
+        if kind or name == "polygon":
+            try:
+                data = np.asarray(block.data, dtype=np.int64)
+            except (ValueError, TypeError):  # polygons of several sizes in one block
+                data = None
+            if data is None or data.ndim != 2:
+                tris.extend(_fan(np.asarray(p, np.int64).reshape(1, -1))
+                            for p in block.data)
+                continue
+            corners = data.shape[1] if name == "polygon" else (3 if kind[1] == "triangle"
+                                                                else 4)
+            if data.shape[1] < corners or corners < 3:
+                raise MeshError(f"{label} has '{name}' cells of {data.shape[1]} nodes, "
+                                "which are not read as polygons: export it as STL, PLY or "
+                                "OBJ.")
+            tris.append(_fan(data[:, :corners]))
+        elif dim == 2:
+            raise MeshError(f"{label} has {len(block.data):,} surface cells of type "
+                            f"'{name}', which are not read: export it with triangles, "
+                            "quads or polygons (or as STL, PLY or OBJ).")
+        elif dim == 3:
+            volume.append(name)
+    if not tris and volume:
+        raise MeshError(f"{label} holds volume cells only ({', '.join(sorted(set(volume)))}), "
+                        "no surface: export its boundary surface (triangles or quads), or "
+                        "save it as STL.")
+    return np.concatenate(tris) if tris else np.zeros((0, 3), np.int64)
+
+
+def _meshio_arrays(path: str, label: str) -> Arrays:
     import meshio
 
     # meshio prints to stdout/stderr and calls sys.exit(1) when no reader succeeds
@@ -369,15 +435,7 @@ def _meshio_arrays(path: str) -> Arrays:
     except SystemExit:
         message = " ".join(sink.getvalue().split()) or "no reader succeeded"
         raise ValueError(message) from None
-    tris = []
-    for block in mesh.cells:
-        data = np.asarray(block.data, dtype=np.int64)
-        if block.type == "triangle":
-            tris.append(data)
-        elif block.type == "quad":
-            tris.append(data[:, [0, 1, 2]])
-            tris.append(data[:, [0, 2, 3]])
-    faces = np.concatenate(tris) if tris else np.zeros((0, 3), np.int64)
+    faces = _meshio_faces(mesh.cells, label)
     points = np.asarray(mesh.points, dtype=np.float64)
     if points.ndim == 2 and points.shape[1] == 2:
         points = np.column_stack([points, np.zeros(len(points))])
@@ -639,7 +697,10 @@ def read_arrays(path: str, data: bytes, label: str, notes: list[str] | None = No
             arrays = _obj_arrays(_strip_obj_comments(absolute), errors, "trimesh")
             if arrays is not None:
                 return arrays
-    if ext in trimesh_formats and not errors:
+    # trimesh reads the meshio formats it has no reader of its own for through meshio,
+    # keeping the triangles and dropping quads and polygons: read those here first
+    meshio_own = ext in meshio_formats and ext not in _TRIMESH_OWN_READERS
+    if ext in trimesh_formats and not errors and not meshio_own:
         # materials and textures are not needed: skip them (and missing .mtl files quietly)
         extra = {"skip_materials": True} if ext in ("obj", "glb", "gltf") else {}
         try:
@@ -652,7 +713,9 @@ def read_arrays(path: str, data: bytes, label: str, notes: list[str] | None = No
                 return arrays
     if ext in meshio_formats:
         try:
-            return _meshio_arrays(path)
+            return _meshio_arrays(path, label)
+        except MeshError:
+            raise
         except Exception as exc:  # noqa: BLE001
             errors.append(f"meshio: {exc}")
     detail = "; ".join(e.strip().replace("\n", " ")[:200] for e in errors)

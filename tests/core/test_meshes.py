@@ -836,3 +836,62 @@ def test_an_ascii_ply_cut_short_is_named_as_such(tmp_path):
 def _written(path, data: bytes):
     path.write_bytes(data)
     return path
+
+
+def binary_ply(vertices: np.ndarray, polygons: list[list[int]]) -> bytes:
+    """A binary PLY as Blender writes one: float x y z, faces as ``list uchar uint``."""
+    head = ["ply", "format binary_little_endian 1.0", f"element vertex {len(vertices)}",
+            "property float x", "property float y", "property float z",
+            f"element face {len(polygons)}", "property list uchar uint vertex_indices",
+            "end_header"]
+    body = np.asarray(vertices, "<f4").tobytes()
+    body += b"".join(np.uint8(len(p)).tobytes() + np.asarray(p, "<u4").tobytes()
+                     for p in polygons)
+    return ("\n".join(head) + "\n").encode() + body
+
+
+def test_a_binary_ply_with_polygons_of_mixed_sizes_reads_whole(tmp_path):
+    # Blender's binary PLY of a cylinder with n-gon caps: trimesh refuses lists of mixed
+    # lengths ("PLY is unexpected length!"), then meshio's 'polygon' blocks were dropped:
+    # the caps were lost, silently
+    for sides in (5, 12):
+        vertices, polygons = prism(sides)
+        v, f = read_mesh_arrays(_written(tmp_path / f"p{sides}.ply",
+                                         binary_ply(vertices, polygons)))
+        assert len(f) == 2 * (sides - 2) + 2 * sides and np.allclose(v, vertices)
+        mesh = load_mesh(tmp_path / f"p{sides}.ply")
+        assert_closed_oriented(mesh)
+        assert mesh.volume == pytest.approx(prism_volume(sides), rel=1e-6)
+
+
+@pytest.mark.parametrize("ext", ["vtk", "vtu", "msh", "mesh"])
+def test_meshio_formats_with_quads_and_polygons_read_whole(tmp_path, ext):
+    # trimesh claims these formats but reads them through meshio keeping triangles only: a
+    # cube of quads read as "no triangles", a mixed one with holes, polygons were dropped
+    import meshio
+
+    vertices, polygons = prism(4)
+    quads = np.array(polygons)
+    tris = np.array([t for q in quads[2:] for t in ([q[0], q[1], q[2]], [q[0], q[2], q[3]])])
+    cases = {"quads": [("quad", quads)], "mixed": [("triangle", tris), ("quad", quads[:2])]}
+    if ext in ("vtk", "vtu"):  # the formats with general polygons
+        v6, p6 = prism(6)
+        cases["polygons"] = (v6, [("quad", np.array(p6[2:])), ("polygon", np.array(p6[:2]))])
+    for name, cells in cases.items():
+        points, cells = cells if isinstance(cells, tuple) else (vertices, cells)
+        path = tmp_path / f"{name}.{ext}"
+        meshio.write(path, meshio.Mesh(points, cells))
+        mesh = load_mesh(path)
+        assert_closed_oriented(mesh)
+        sides = 6 if name == "polygons" else 4
+        assert mesh.volume == pytest.approx(prism_volume(sides), rel=1e-6), (name, ext)
+
+
+def test_meshio_cells_that_are_not_read_are_named(tmp_path):
+    # volume cells only (a tetrahedral mesh without its boundary): no surface to read
+    import meshio
+
+    path = tmp_path / "tets.vtu"
+    meshio.write(path, meshio.Mesh(np.eye(4, 3), [("tetra", np.array([[0, 1, 2, 3]]))]))
+    with pytest.raises(MeshError, match=r"tets\.vtu' holds volume cells only \(tetra\)"):
+        read_mesh_arrays(path)
