@@ -22,10 +22,12 @@ from __future__ import annotations
 import contextlib
 import hashlib
 import io
+import json
 import logging
 import math
 import os
 import re
+import urllib.parse
 import warnings
 from pathlib import Path
 
@@ -624,6 +626,53 @@ def _obj_concave_arrays(data: bytes) -> Arrays | None:
     return vertices, polygons_to_triangles(vertices, sizes, flat)
 
 
+def _gltf_document(data: bytes) -> dict | None:
+    """The JSON document of a GLB (its first chunk) or a .gltf file, or None where it is
+    neither (the readers then say what is wrong)."""
+    if data[:4] == b"glTF":
+        size = int.from_bytes(data[12:16], "little")
+        if data[16:20] != b"JSON":
+            return None
+        data = data[20:20 + size]
+    try:
+        document = json.loads(data)
+    except (ValueError, UnicodeDecodeError):
+        return None
+    return document if isinstance(document, dict) else None
+
+
+def _check_gltf(path: str, data: bytes, label: str) -> None:
+    """Refuse the glTF files trimesh misreads or names badly, before it reads them.
+
+    Draco-compressed meshes (``KHR_draco_mesh_compression``): trimesh cannot decode them and
+    reads placeholder zeros (zero volume, degenerate faces) with a warning on stderr. A
+    buffer file that is missing: trimesh's error is its bare name.
+
+    Raises:
+        MeshError: either of those, named.
+    """
+    document = _gltf_document(data)
+    if document is None:
+        return
+    declared = [*document.get("extensionsUsed", []), *document.get("extensionsRequired", [])]
+    if "KHR_draco_mesh_compression" in declared or any(
+            "KHR_draco_mesh_compression" in (primitive.get("extensions") or {})
+            for mesh in document.get("meshes", []) if isinstance(mesh, dict)
+            for primitive in mesh.get("primitives", []) if isinstance(primitive, dict)):
+        raise MeshError(f"{label} is a Draco-compressed glTF, which is not read: export it "
+                        "again without mesh compression (Blender: glTF export > Data > "
+                        "Compression off).")
+    for buffer in document.get("buffers", []):
+        uri = buffer.get("uri") if isinstance(buffer, dict) else None
+        if not isinstance(uri, str) or uri.startswith("data:"):
+            continue
+        wanted = os.path.join(os.path.dirname(path), urllib.parse.unquote(uri))
+        if not os.path.isfile(wanted):
+            raise MeshError(f"{label} keeps its data in the buffer file '{uri}', which is "
+                            f"missing ('{wanted}' does not exist): copy it beside the "
+                            ".gltf, or export it again as .glb (one file).")
+
+
 def _obj_arrays(data: bytes, errors: list[str], reader: str) -> Arrays | None:
     try:
         loaded = trimesh.load(io.BytesIO(data), file_type="obj", force="mesh", process=False)
@@ -683,6 +732,8 @@ def read_arrays(path: str, data: bytes, label: str, notes: list[str] | None = No
             f"{label} has an unknown file type '.{ext}' (no reader for it): "
             f"export it as one of {shown} (or another format meshio reads)."
         )
+    if ext in ("glb", "gltf"):
+        _check_gltf(path, data, label)
     errors: list[str] = []
     if ext == "obj":
         absolute = obj_absolute_indices(_obj_plain_spacing(data))

@@ -895,3 +895,52 @@ def test_meshio_cells_that_are_not_read_are_named(tmp_path):
     meshio.write(path, meshio.Mesh(np.eye(4, 3), [("tetra", np.array([[0, 1, 2, 3]]))]))
     with pytest.raises(MeshError, match=r"tets\.vtu' holds volume cells only \(tetra\)"):
         read_mesh_arrays(path)
+
+
+def _glb_with(glb: bytes, edit) -> bytes:
+    """``glb`` with its JSON chunk changed by ``edit(document)``."""
+    import json
+
+    size = int.from_bytes(glb[12:16], "little")
+    document = json.loads(glb[20:20 + size])
+    edit(document)
+    text = json.dumps(document).encode()
+    text += b" " * (-len(text) % 4)
+    rest = glb[20 + size:]
+    chunk = len(text).to_bytes(4, "little") + b"JSON" + text
+    return glb[:8] + (12 + len(chunk) + len(rest)).to_bytes(4, "little") + chunk + rest
+
+
+def test_a_draco_compressed_gltf_is_refused_by_name(tmp_path):
+    # a Draco-compressed GLB (Blender's glTF export, Compression on) read as placeholder
+    # zeros: "zero volume" or hundreds of degenerate bodies, trimesh's warning on stderr
+    glb = trimesh.creation.box(extents=(10, 10, 10)).export(file_type="glb")
+    assert len(read_mesh_arrays(_written(tmp_path / "plain.glb", glb))[1]) == 12
+
+    def draco(document: dict) -> None:
+        document["extensionsUsed"] = ["KHR_draco_mesh_compression"]
+        document["extensionsRequired"] = ["KHR_draco_mesh_compression"]
+        document["meshes"][0]["primitives"][0]["extensions"] = {
+            "KHR_draco_mesh_compression": {"bufferView": 0, "attributes": {"POSITION": 0}}}
+
+    def primitive_only(document: dict) -> None:
+        draco(document)
+        del document["extensionsUsed"], document["extensionsRequired"]
+
+    for name, edit in (("draco.glb", draco), ("primitive.glb", primitive_only)):
+        with pytest.raises(MeshError, match=r"is a Draco-compressed glTF, which is not read: "
+                           r"export it again without mesh compression \(Blender"):
+            read_mesh_arrays(_written(tmp_path / name, _glb_with(glb, edit)))
+
+
+def test_a_gltf_without_its_buffer_file_names_it(tmp_path):
+    # a .gltf whose .bin is not beside it: trimesh's error was the bare file name, and the
+    # message said "damaged or not really .gltf"
+    files = trimesh.creation.box().export(file_type="gltf")
+    for name, blob in files.items():
+        (tmp_path / name).write_bytes(blob)
+    assert len(read_mesh_arrays(tmp_path / "model.gltf")[1]) == 12
+    (tmp_path / "gltf_buffer_0.bin").unlink()
+    with pytest.raises(MeshError, match=r"model\.gltf' keeps its data in the buffer file "
+                       r"'gltf_buffer_0\.bin', which is missing"):
+        read_mesh_arrays(tmp_path / "model.gltf")
