@@ -10,7 +10,8 @@ with meshio here first, as trimesh keeps their triangles only. meshio's quads an
 are fanned into triangles; a binary PLY with polygons of mixed sizes (Blender's n-gons),
 which trimesh 5.2 refuses ("PLY is unexpected length!"), is read so. OBJ faces with
 negative (relative) indices are resolved against the vertices defined before them, as the
-OBJ format says.
+OBJ format says. A file whose extension is missing or whose read by extension fails (or finds
+no faces) is refused with what its content looks like (:func:`_sniff_format`).
 
 Also here: a file's sha256 and the ``box:WxDxH`` specification that stands for a file.
 Units and frame are the file's own, except that a 3MF model's declared unit is converted to
@@ -29,6 +30,7 @@ import os
 import re
 import urllib.parse
 import warnings
+import zipfile
 from pathlib import Path
 
 import numpy as np
@@ -682,6 +684,60 @@ def _obj_arrays(data: bytes, errors: list[str], reader: str) -> Arrays | None:
         return None
 
 
+#: a first OBJ vertex or face line (indented lines, tabs, as :func:`_obj_plain_spacing` reads)
+_OBJ_VERTEX = re.compile(rb"^[ \t]*v[ \t]", re.MULTILINE)
+_OBJ_FACE = re.compile(rb"^[ \t]*f[ \t]", re.MULTILINE)
+
+
+def _sniff_format(data: bytes) -> tuple[str, str] | None:
+    """The mesh format a file's bytes look like, whatever its name: ``(extension, how
+    messages describe it)``, or None where none is recognised. For messages about a file
+    whose extension is missing or wrong, never to pick a reader: a read by extension that
+    succeeds stands."""
+    head = data[:4096]
+    if head[:4] == b"PK\x03\x04":
+        with contextlib.suppress(Exception):  # any zip that is not a readable package: None
+            names = {n.lower() for n in zipfile.ZipFile(io.BytesIO(data)).namelist()}
+            if "3d/3dmodel.model" in names:
+                return "3mf", "a 3MF file (a zip with 3D/3dmodel.model)"
+        return None
+    if head[:4] == b"glTF":
+        return "glb", "a GLB file (binary glTF: 'glTF' in its first bytes)"
+    text = head.removeprefix(b"\xef\xbb\xbf")
+    if text.split(b"\n", 1)[0].strip().lower() == b"ply":
+        return "ply", "a PLY file ('ply' on its first line)"
+    if b"\0" not in text:  # the text formats
+        if text.lstrip()[:1] == b"{" and b'"asset"' in text:
+            return "gltf", "a glTF file (JSON with an 'asset')"
+        if _is_ascii_stl(data) and re.search(rb"(?i)\bfacet\b", text):
+            return "stl", "an ASCII STL file ('solid', then 'facet' lines)"
+        words = next((w for line in text.splitlines()
+                      if (w := line.split(b"#", 1)[0].split())), [b""])
+        if _OFF_KEYWORD.fullmatch(words[0]):
+            return "off", "an OFF file ('OFF' on its first line)"
+        if _OBJ_VERTEX.search(text) and _OBJ_FACE.search(data):
+            return "obj", "an OBJ file ('v' and 'f' lines)"
+    if len(data) >= 84 and len(data) == 84 + 50 * int.from_bytes(data[80:84], "little"):
+        return "stl", "a binary STL file (its size matches the triangle count in its header)"
+    return None
+
+
+def _refuse_misnamed(ext: str, data: bytes, label: str,
+                     cause: Exception | None = None) -> None:
+    """Raise a MeshError that says what a file looks like and to rename it, where its
+    extension is missing or another format's (its read by extension failed or found no
+    faces); return where its content says nothing else."""
+    found = _sniff_format(data)
+    if found is None or found[0] == ext or (found[0], ext) == ("stl", "stl_ascii"):
+        return
+    kind, what = found
+    if ext:
+        message = f"{label} looks like {what}, not {ext.upper()}: rename it to .{kind}."
+    else:
+        message = f"{label} has no file extension, and it looks like {what}: rename it to .{kind}."
+    raise MeshError(message) from cause
+
+
 def read_arrays(path: str, data: bytes, label: str, notes: list[str] | None = None) -> Arrays:
     """Vertices and triangles of the file ``path`` whose bytes are ``data``, as stored (a
     3MF model in another unit than millimetres: converted to millimetres).
@@ -698,6 +754,19 @@ def read_arrays(path: str, data: bytes, label: str, notes: list[str] | None = No
         MeshError: unknown type, or no reader can read it (damaged, or not really that type).
     """
     ext = extension(path)
+    try:
+        arrays = _read_by_extension(ext, path, data, label, notes)
+    except MeshError as exc:
+        _refuse_misnamed(ext, data, label, exc)
+        raise
+    if not len(arrays[1]):  # a reader that takes other bytes for no faces (OBJ's)
+        _refuse_misnamed(ext, data, label)
+    return arrays
+
+
+def _read_by_extension(ext: str, path: str, data: bytes, label: str,
+                       notes: list[str] | None) -> Arrays:
+    """:func:`read_arrays` by the extension ``ext`` alone."""
     if ext == "3mf":
         try:
             arrays, unit = read_3mf_model(data)
@@ -728,9 +797,10 @@ def read_arrays(path: str, data: bytes, label: str, notes: list[str] | None = No
     meshio_formats = {e.lstrip(".") for e in meshio.extension_to_filetypes}
     if ext not in trimesh_formats and ext not in meshio_formats:
         shown = ", ".join(sorted(set(MESH_EXTENSIONS) & (trimesh_formats | {"3mf"})))
+        what = f"an unknown file type '.{ext}'" if ext else "no file extension"
         raise MeshError(
-            f"{label} has an unknown file type '.{ext}' (no reader for it): "
-            f"export it as one of {shown} (or another format meshio reads)."
+            f"{label} has {what} (no reader for it), and its content is not one that is "
+            f"recognised: export it as one of {shown} (or another format meshio reads)."
         )
     if ext in ("glb", "gltf"):
         _check_gltf(path, data, label)

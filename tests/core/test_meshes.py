@@ -944,3 +944,41 @@ def test_a_gltf_without_its_buffer_file_names_it(tmp_path):
     with pytest.raises(MeshError, match=r"model\.gltf' keeps its data in the buffer file "
                        r"'gltf_buffer_0\.bin', which is missing"):
         read_mesh_arrays(tmp_path / "model.gltf")
+
+
+def test_a_file_with_a_missing_or_wrong_extension_says_what_it_looks_like(tmp_path):
+    # no extension read as "unknown file type '.'"; a 3MF renamed .stl as "its header says
+    # 2,655,588,004 triangles"; a binary STL or GLB renamed .obj as "no triangles"
+    box = trimesh.creation.box(extents=(10, 10, 10))
+    blobs = {"stl": box.export(file_type="stl"), "3mf": box.export(file_type="3mf"),
+             "glb": box.export(file_type="glb"), "obj": box.export(file_type="obj").encode(),
+             "ply": box.export(file_type="ply", encoding="ascii"),
+             "off": "\n".join(off_lines(*prism(5))).encode(),
+             "ascii-stl": box.export(file_type="stl_ascii").encode()}
+    for kind, blob in blobs.items():  # each read whole under its own name
+        ext = kind.removeprefix("ascii-")
+        assert len(read_mesh_arrays(_written(tmp_path / f"{kind}.{ext}", blob))[1]) > 0
+
+    def refused(name: str, kind: str) -> str:
+        with pytest.raises(MeshError) as info:
+            read_mesh_arrays(_written(tmp_path / name, blobs[kind]))
+        return str(info.value)
+
+    for name, kind, what in [
+        ("noext", "stl", "has no file extension, and it looks like a binary STL file"),
+        ("box3mf.stl", "3mf", "looks like a 3MF file (a zip with 3D/3dmodel.model), not STL"),
+        ("boxobj.stl", "obj", "looks like an OBJ file ('v' and 'f' lines), not STL"),
+        ("boxstl.obj", "stl", "looks like a binary STL file"),
+        ("boxglb.obj", "glb", "looks like a GLB file"),
+        ("boxascii.obj", "ascii-stl", "looks like an ASCII STL file"),
+        ("boxply.off", "ply", "looks like a PLY file ('ply' on its first line), not OFF"),
+        ("boxoff.ply", "off", "looks like an OFF file ('OFF' on its first line), not PLY"),
+        ("boxstl.3mf", "stl", "looks like a binary STL file"),
+    ]:
+        message = refused(name, kind)
+        ext = kind.removeprefix("ascii-")
+        assert f"'{tmp_path / name}' {what}" in message and f"rename it to .{ext}." in message, \
+            message
+    # no extension and nothing recognised: said so, not "unknown file type '.'"
+    with pytest.raises(MeshError, match=r"noise' has no file extension \(no reader for it\)"):
+        read_mesh_arrays(_written(tmp_path / "noise", b"\x01\x02 not a mesh\n"))
