@@ -370,13 +370,15 @@ def _trimesh_arrays(loaded: object) -> Arrays:
     return vertices.reshape(-1, 3), faces.reshape(-1, 3)
 
 
-def _fan(polygons: np.ndarray) -> np.ndarray:
-    """(N, k) polygons, k >= 3, as (N * (k - 2), 3) triangles fanned from each polygon's
-    first corner (corners 0, i, i+1), polygon by polygon: as trimesh does PLY and OBJ
-    polygons and :func:`_off_arrays` OFF ones."""
-    k = polygons.shape[1]
-    fan = np.column_stack([np.zeros(k - 2, np.int64), np.arange(1, k - 1), np.arange(2, k)])
-    return polygons[:, fan].reshape(-1, 3)
+def _block_triangles(points: np.ndarray, polygons: np.ndarray) -> np.ndarray:
+    """(N, k) polygons of one meshio block, k >= 3, as (N * (k - 2), 3) triangles (convex
+    ones fanned from their first corner, concave ones ear-clipped: see
+    :func:`polygons.polygons_to_triangles`), each polygon's first triangles, then their
+    second ones, ...: the order quads were split in before polygons were read, kept so that
+    a file reads as it did."""
+    n, k = polygons.shape
+    triangles = polygons_to_triangles(points, np.full(n, k, np.int64), polygons.ravel())
+    return triangles.reshape(n, k - 2, 3).transpose(1, 0, 2).reshape(-1, 3)
 
 
 #: meshio's surface cells by their corners: (type name, corners first). Higher-order cells
@@ -384,14 +386,16 @@ def _fan(polygons: np.ndarray) -> np.ndarray:
 _MESHIO_SURFACE = re.compile(r"(triangle|quad)(\d*)")
 
 
-def _meshio_faces(cells: list, label: str) -> np.ndarray:
-    """Triangles of meshio's cell blocks: triangles as they are, quads and polygons of any
-    size (meshio gives one ``polygon`` block per run of one size) fanned, higher-order
+def _meshio_faces(points: np.ndarray, cells: list, label: str) -> np.ndarray:
+    """Triangles of meshio's cell blocks (``points``: (V, 3) their vertices): triangles as
+    they are, quads and polygons of any size (meshio gives one ``polygon`` block per run of
+    one size) triangulated in their plane, higher-order
     triangles and quads by their corners; points, lines and volume cells left out.
 
     Raises:
         MeshError: a block of surface cells that cannot be read as polygons (none are
-            dropped silently), or volume cells only (no surface to read).
+            dropped silently), a corner that is no vertex, or volume cells only (no surface
+            to read).
     """
     tris: list[np.ndarray] = []
     volume: list[str] = []
@@ -404,17 +408,26 @@ def _meshio_faces(cells: list, label: str) -> np.ndarray:
                 data = np.asarray(block.data, dtype=np.int64)
             except (ValueError, TypeError):  # polygons of several sizes in one block
                 data = None
-            if data is None or data.ndim != 2:
-                tris.extend(_fan(np.asarray(p, np.int64).reshape(1, -1))
-                            for p in block.data)
-                continue
-            corners = data.shape[1] if name == "polygon" else (3 if kind[1] == "triangle"
-                                                                else 4)
-            if data.shape[1] < corners or corners < 3:
-                raise MeshError(f"{label} has '{name}' cells of {data.shape[1]} nodes, "
-                                "which are not read as polygons: export it as STL, PLY or "
-                                "OBJ.")
-            tris.append(_fan(data[:, :corners]))
+            if data is None or data.ndim != 2:  # one polygon at a time
+                rows = [np.asarray(p, np.int64).reshape(1, -1) for p in block.data]
+            else:
+                corners = data.shape[1] if name == "polygon" else (
+                    3 if kind[1] == "triangle" else 4)
+                if data.shape[1] < corners or corners < 3:
+                    raise MeshError(f"{label} has '{name}' cells of {data.shape[1]} nodes, "
+                                    "which are not read as polygons: export it as STL, PLY "
+                                    "or OBJ.")
+                rows = [data[:, :corners]]
+            for polygons in rows:
+                if polygons.size and (polygons.min() < 0 or polygons.max() >= len(points)):
+                    raise MeshError(f"{label} has a '{name}' cell whose corner is not one "
+                                    f"of its {len(points):,} points: the file is damaged; "
+                                    "export it again.")
+                if polygons.shape[1] < 3:
+                    raise MeshError(f"{label} has a '{name}' cell of {polygons.shape[1]} "
+                                    "corners, which is no polygon: the file is damaged; "
+                                    "export it again.")
+                tris.append(_block_triangles(points, polygons))
         elif dim == 2:
             raise MeshError(f"{label} has {len(block.data):,} surface cells of type "
                             f"'{name}', which are not read: export it with triangles, "
@@ -439,11 +452,11 @@ def _meshio_arrays(path: str, label: str) -> Arrays:
     except SystemExit:
         message = " ".join(sink.getvalue().split()) or "no reader succeeded"
         raise ValueError(message) from None
-    faces = _meshio_faces(mesh.cells, label)
     points = np.asarray(mesh.points, dtype=np.float64)
     if points.ndim == 2 and points.shape[1] == 2:
         points = np.column_stack([points, np.zeros(len(points))])
-    return points.reshape(-1, 3), faces
+    points = points.reshape(-1, 3)
+    return points, _meshio_faces(points, mesh.cells, label)
 
 
 def length_unit(path: str | None) -> str:

@@ -982,3 +982,29 @@ def test_a_file_with_a_missing_or_wrong_extension_says_what_it_looks_like(tmp_pa
     # no extension and nothing recognised: said so, not "unknown file type '.'"
     with pytest.raises(MeshError, match=r"noise' has no file extension \(no reader for it\)"):
         read_mesh_arrays(_written(tmp_path / "noise", b"\x01\x02 not a mesh\n"))
+
+
+def test_concave_polygons_read_through_meshio_are_ear_clipped(tmp_path):
+    # an L-shaped prism with its caps as single polygons, as a binary PLY (read by meshio)
+    # and a VTK: a fan from the first corner of a concave cap makes faces that cross
+    import meshio
+
+    outline = np.array([[0, 0], [20, 0], [20, 10], [10, 10], [10, 20], [0, 20]], float)
+    bottom = np.column_stack([outline, np.zeros(6)])
+    vertices = np.vstack([bottom, bottom + [0.0, 0.0, 5.0]])
+    polygons = [list(range(6))[::-1], list(range(6, 12))]
+    polygons += [[i, (i + 1) % 6, 6 + (i + 1) % 6, 6 + i] for i in range(6)]
+    meshio.write(tmp_path / "l.vtk", meshio.Mesh(vertices, [
+        ("quad", np.array(polygons[2:])), ("polygon", np.array(polygons[:2]))]))
+    for path in (_written(tmp_path / "l.ply", binary_ply(vertices, polygons)),
+                 tmp_path / "l.vtk"):
+        v, f = read_mesh_arrays(path)
+        solid = manifold3d.Manifold(manifold3d.Mesh(v.astype(np.float32), f.astype(np.uint32)))
+        assert solid.status() == manifold3d.Error.NoError, path
+        assert solid.volume() == pytest.approx(1500.0) and solid.surface_area() == \
+            pytest.approx(2 * 300 + 5 * 80), path
+    # convex quads are split as before polygons were read: first triangles, then second ones
+    quads = np.array(polygons[2:])
+    meshio.write(tmp_path / "sides.vtu", meshio.Mesh(vertices, [("quad", quads)]))
+    assert np.array_equal(read_mesh_arrays(tmp_path / "sides.vtu")[1],
+                          np.concatenate([quads[:, [0, 1, 2]], quads[:, [0, 2, 3]]]))
