@@ -554,6 +554,31 @@ def _ply_ascii_damage(data: bytes) -> str | None:
             f"{' (and part of one more)' if part else ''}: it was cut short")
 
 
+def _ply_face_count(data: bytes) -> int:
+    """The faces a PLY's header promises (its ``element face`` count; 0 where none)."""
+    head = data.partition(b"end_header")[0]
+    found = re.search(rb"^element[ \t]+face[ \t]+(\d+)", head, re.MULTILINE)
+    return int(found[1]) if found else 0
+
+
+def _ply_polygons_in_plane(path: str, label: str, fanned: Arrays) -> Arrays:
+    """A PLY that trimesh read with polygons of four corners or more (``fanned``: each
+    fanned from its first corner, wrong on a concave one, whose faces then cross): read by
+    meshio, whose polygons are triangulated in their plane (:func:`_meshio_faces`), where
+    that differs, i.e. where a polygon is concave; else trimesh's read, as before."""
+    try:
+        vertices, faces = _meshio_arrays(path, label)
+    except Exception:  # noqa: BLE001 - trimesh's read stands
+        return fanned
+    if (len(vertices) != len(fanned[0]) or len(faces) != len(fanned[1])
+            or not np.array_equal(vertices, fanned[0])):
+        return fanned
+    if np.array_equal(np.unique(np.sort(faces, axis=1), axis=0),
+                      np.unique(np.sort(fanned[1], axis=1), axis=0)):
+        return fanned
+    return vertices, faces
+
+
 def _ply_row_whole(words: list[bytes], lists: list[bool]) -> bool:
     """Whether an ASCII PLY line holds all the numbers its element's properties need (``lists``:
     which are lists, each a count and that many numbers)."""
@@ -838,9 +863,13 @@ def _read_by_extension(ext: str, path: str, data: bytes, label: str,
         # materials and textures are not needed: skip them (and missing .mtl files quietly)
         extra = {"skip_materials": True} if ext in ("obj", "glb", "gltf") else {}
         try:
-            return _trimesh_arrays(trimesh.load(path, force="mesh", process=False, **extra))
+            arrays = _trimesh_arrays(trimesh.load(path, force="mesh", process=False, **extra))
         except Exception as exc:  # noqa: BLE001 - any reader failure falls through
             errors.append(f"trimesh: {exc}")
+        else:
+            if ext == "ply" and len(arrays[1]) > _ply_face_count(data):
+                return _ply_polygons_in_plane(path, label, arrays)
+            return arrays
         if ext == "obj":
             arrays = _obj_arrays(_strip_obj_comments(data), errors, "tolerant OBJ reader")
             if arrays is not None:

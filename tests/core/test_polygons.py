@@ -95,10 +95,11 @@ def test_corners_on_a_line_do_not_make_a_polygon_concave():
     assert not concave(vertices, *_flat(polygons)).any()
 
 
-def test_concave_polygons_of_an_obj_and_an_off_file_read_as_solids(tmp_path):
+def test_concave_polygons_of_obj_off_and_ply_files_read_as_solids(tmp_path):
     """An L-shaped prism as Blender writes it (OBJ with n-gons, normals; not triangulated)
     read with its caps fanned: 'self-intersecting (17 face pairs)' in validate, and pack
-    took it as a type whose parts export then failed. The STL of the same solid passed."""
+    took it as a type whose parts export then failed. The STL of the same solid passed.
+    trimesh fans an ASCII PLY's polygons too."""
     vertices, polygons = extruded(L_SHAPE)
     normals = "vn 0 0 -1\nvn 0 0 1\n"
     obj = "o L\n" + "".join(f"v {x} {y} {z}\n" for x, y, z in vertices) + normals
@@ -107,9 +108,15 @@ def test_concave_polygons_of_an_obj_and_an_off_file_read_as_solids(tmp_path):
     off = ["OFF", f"{len(vertices)} {len(polygons)} 0"]
     off += [f"{x} {y} {z}" for x, y, z in vertices]
     off += [f"{len(p)} " + " ".join(map(str, p)) for p in polygons]
+    ply = ["ply", "format ascii 1.0", f"element vertex {len(vertices)}", "property float x",
+           "property float y", "property float z", f"element face {len(polygons)}",
+           "property list uchar int vertex_indices", "end_header"]
+    ply += [f"{x} {y} {z}" for x, y, z in vertices]
+    ply += [f"{len(p)} " + " ".join(map(str, p)) for p in polygons]
     (tmp_path / "L.obj").write_text(obj)
     (tmp_path / "L.off").write_text("\n".join(off) + "\n")
-    for name in ("L.obj", "L.off"):
+    (tmp_path / "L.ply").write_text("\n".join(ply) + "\n")
+    for name in ("L.obj", "L.off", "L.ply"):
         mesh = load_mesh(tmp_path / name)
         assert mesh.volume == pytest.approx(1500.0, rel=1e-9), name
         m = manifold3d.Manifold(manifold3d.Mesh(mesh.vertices.astype(np.float32),
