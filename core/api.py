@@ -471,33 +471,39 @@ def _certify_ranked(run: _Placed, approx: _Approximation, inputs: PackInputs, st
     certificate and repair. Each certified attempt's summary records its density after
     certification, the kept one's says so. A cancel certifies only the first."""
     kept: tuple[Attempt, dict, RepairStats, float] | None = None
-    for k, att in enumerate(run.ranked):
-        if kept is not None and (att.density <= kept[3] or (
-                stop.should_cancel is not None and stop.should_cancel())):
-            break
-        if k == 0:
-            def progress(f: float, m: str) -> None:
-                report(0.9 + 0.09 * f, m)
-        else:
-            said = (f"attempt {att.index + 1}, denser than attempt {kept[0].index + 1} "
-                    "after its repair: ")
+    objtypes = approx.types
+    # one certifier (and its worker processes) for every attempt: the meshes are the same
+    with Certifier(approx.container, [t.vertices for t in objtypes],
+                   [t.faces for t in objtypes], run.best.solver.t.volume,
+                   np.array([t.max_edge for t in objtypes]),
+                   processes=inputs.options.repair.processes) as certifier:
+        for k, att in enumerate(run.ranked):
+            if kept is not None and (att.density <= kept[3] or (
+                    stop.should_cancel is not None and stop.should_cancel())):
+                break
+            if k == 0:
+                def progress(f: float, m: str) -> None:
+                    report(0.9 + 0.09 * f, m)
+            else:
+                said = (f"attempt {att.index + 1}, denser than attempt {kept[0].index + 1} "
+                        "after its repair: ")
 
-            def progress(f: float, m: str, said: str = said) -> None:
-                report(0.99, said + m)
-        cert, repair = _certify(att.solver, approx, run.shares_of(att), inputs.clearance,
-                                inputs.options, stop, progress)
-        density = snapshot_metrics(att.solver.s, att.solver.t.volume, run.shares_of(att),
-                                   c_volume)["density"]
-        run.attempts[att.index].certified = density
-        if kept is None or density > kept[3]:
-            kept = (att, cert, repair, density)
+                def progress(f: float, m: str, said: str = said) -> None:
+                    report(0.99, said + m)
+            cert, repair = _certify(att.solver, certifier, run.shares_of(att),
+                                    inputs.clearance, inputs.options, stop, progress)
+            density = snapshot_metrics(att.solver.s, att.solver.t.volume,
+                                       run.shares_of(att), c_volume)["density"]
+            run.attempts[att.index].certified = density
+            if kept is None or density > kept[3]:
+                kept = (att, cert, repair, density)
     assert kept is not None
     att, cert, repair, _ = kept
     run.attempts[att.index].kept = True
     return replace(run, best=att), cert, repair
 
 
-def _certify(solver: Solver, approx: _Approximation, q: np.ndarray, clearance: float,
+def _certify(solver: Solver, certifier: Certifier, q: np.ndarray, clearance: float,
              options: PackOptions, stop: Stop,
              progress: Callable[[float, str], None]) -> tuple[dict, RepairStats]:
     """Certify on the real meshes and repair (never skipped, also after cancel); objects
@@ -505,16 +511,11 @@ def _certify(solver: Solver, approx: _Approximation, q: np.ndarray, clearance: f
     progress(fraction of a check, message)."""
     state = solver.s
     state.alive[: state.n] &= (state.scale[: state.n] >= 1.0).astype(np.uint8)
-    objtypes = approx.types
-    with Certifier(approx.container, [t.vertices for t in objtypes],
-                   [t.faces for t in objtypes], solver.t.volume,
-                   np.array([t.max_edge for t in objtypes]),
-                   processes=options.repair.processes) as certifier:
-        return certify_and_repair(
-            solver, certifier, clearance, options.repair,
-            lambda: bool(stop.should_cancel is not None and stop.should_cancel()),
-            timed=stop.deadline is not None, shares=q, max_tvd=options.cavity.max_tvd,
-            progress=progress)
+    return certify_and_repair(
+        solver, certifier, clearance, options.repair,
+        lambda: bool(stop.should_cancel is not None and stop.should_cancel()),
+        timed=stop.deadline is not None, shares=q, max_tvd=options.cavity.max_tvd,
+        progress=progress)
 
 
 def _assemble(container: MeshSource, scene: _Scene, approx: _Approximation, run: _Placed,
