@@ -68,10 +68,14 @@ class SceneResult:
     #: what became of earlier runs' export files that are no longer this scene's
     #: ("removed scene.stl: ...", or why one was left)
     removed: list[str] = field(default_factory=list)
+    #: the warnings of its export (as `jampacked export` prints them)
+    export_warnings: list[str] = field(default_factory=list)
 
     def warnings(self) -> list[str]:
-        """The run's warnings on its packing (as `jampacked pack` prints them)."""
-        return [] if self.packing is None else list(self.packing.report.warnings)
+        """The run's warnings on its packing (as `jampacked pack` prints them), then its
+        export's."""
+        packed = [] if self.packing is None else list(self.packing.report.warnings)
+        return packed + [f"export: {w}" for w in self.export_warnings]
 
     def notes(self) -> list[str]:
         """What the user should read about this scene, beyond its status and numbers: the
@@ -269,10 +273,11 @@ def _export(result: SceneResult, out: Path, cancel: Callable[[], bool],
     """`export_scene` of a written result; a failed export turns it into "failed", its
     packing kept, and the files made again are noted on it."""
     digest = None if result.packing is None else result.packing.certificate.get(DIGEST)
-    error, again, removed = export_scene(result.spec, result.file, digest, out, cancel,
-                                         stale_only)
+    error, again, removed, warned = export_scene(result.spec, result.file, digest, out,
+                                                 cancel, stale_only)
     result.reexported += again
     result.removed += removed
+    result.export_warnings = warned
     if error and cancel():
         result.status, result.message = "cancelled", EXPORT_CANCELLED_NOTE
     elif error:

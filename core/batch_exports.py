@@ -25,7 +25,7 @@ def exports_record(out: Path, spec: SceneSpec) -> Path:
 
 def export_scene(spec: SceneSpec, packing_file: str, digest: str | None, out: Path,
                  cancel: Callable[[], bool], stale_only: bool = False
-                 ) -> tuple[str, list[str], list[str]]:
+                 ) -> tuple[str, list[str], list[str], list[str]]:
     """Export a scene's written packing (`packing_file`, whose certificate's digest is
     `digest`) to the formats the scene asks for (`out`/<id>.<format>, validated and written
     by `export_packing`: all or none) and record how (`exports_record`: the packing's
@@ -34,12 +34,13 @@ def export_scene(spec: SceneSpec, packing_file: str, digest: str | None, out: Pa
     another packing or with other settings (export_mode, export_shell), or from before the
     record. Files the record lists from another packing or settings that were not made
     again are removed (`drop_outdated`). Returns the error ("" if none: a failed export
-    leaves the packing as it is), why each file was made again (with `stale_only`) and the
-    files removed, with why."""
+    leaves the packing as it is), why each file was made again (with `stale_only`), the
+    files removed, with why, and the export's warnings (sealed voids, loose bodies: as
+    `jampacked export` prints them; kept in the record for the runs that make nothing)."""
     settings = _settings(spec)
     record = _read_record(exports_record(out, spec))
     if not spec.export:
-        return "", [], drop_outdated(spec, digest, out, record=record)
+        return "", [], drop_outdated(spec, digest, out, record=record), []
     made = record.get("files", {}) if _current(record, digest, spec) else {}
     paths = [out / f"{spec.id}.{fmt}" for fmt in spec.export]
     again: list[str] = []
@@ -55,25 +56,28 @@ def export_scene(spec: SceneSpec, packing_file: str, digest: str | None, out: Pa
     else:
         made = {}
     if not paths:
-        return "", again, []
+        warned = record.get("warnings", []) if _current(record, digest, spec) else []
+        return "", again, [], [str(w) for w in warned if isinstance(w, str)]
     from jampacked.export.assemble import export_packing
     from jampacked.export.options import ExportOptions
 
     error = ""
+    warned: list[str] = []
     try:
         rep = export_packing(packing_file, [str(p) for p in paths], ExportOptions(
             mode=spec.export_mode, shell=spec.export_shell), should_cancel=cancel)
     except JampackedError as exc:
         error = f"export: {exc}"
     else:
+        warned = list(rep.warnings)
         if rep.passed:
             made.update({p.name: file_sha256(p) for p in paths})
         else:
             error = "export: a file did not validate"
     _write_record(exports_record(out, spec), {
         "format": EXPORTS_FORMAT, "version": 1, "packing": digest, "settings": settings,
-        "files": made})
-    return error, again, drop_outdated(spec, digest, out, set(made), record)
+        "files": made, "warnings": warned})
+    return error, again, drop_outdated(spec, digest, out, set(made), record), warned
 
 
 def drop_outdated(spec: SceneSpec, digest: str | None, out: Path,

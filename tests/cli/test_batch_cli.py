@@ -216,6 +216,33 @@ def test_batch_exports_each_packing_and_a_rerun_makes_only_missing_files(folder)
         assert [r["status"] for r in csv.DictReader(f)] == ["skipped"]
 
 
+def test_an_exports_warnings_are_printed_and_kept_in_the_summary(folder):
+    """A connect export with a closed shell that shuts in a void: `jampacked export` warns
+    that resin and powder printers cannot drain it, where the batch said nothing (an
+    independent check's print-farm scene). The warning is printed and in the summary's
+    message column, on the run that exports and on a rerun that skips the scene."""
+    path = write(folder, """\
+        [[scene]]
+        container = "box:16x15x14"
+        types = ["a.obj", "b.obj"]
+        seed = 1
+        fidelity = "low"
+        export = ["stl"]
+        export_mode = "connect"
+        export_shell = 1.0
+        """)
+    out = folder / "out"
+    for status in ("packed", "skipped"):
+        rc, _, err = run(["batch", str(path), "-o", str(out), "-q"])
+        assert rc == 0
+        said = " ".join(err.split())
+        assert "warning: scene1-s1: export: the result encloses 1 sealed void" in said, said
+        with open(out / "summary.csv", newline="") as f:
+            [row] = list(csv.DictReader(f))
+        assert row["status"] == status
+        assert "export: the result encloses 1 sealed void" in row["message"]
+
+
 def test_a_rerun_with_nothing_to_do_starts_no_cluster(folder, monkeypatch):
     path = write(folder, GOOD.replace('seeds = [1, 2]', 'seeds = [1]').replace(
         ', "box:15x16x14"', ''))
