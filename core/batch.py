@@ -151,6 +151,7 @@ def run_batch(scenes: list[SceneSpec], out_dir: str | os.PathLike, client=None,
     rows, so that a scene taken out of it leaves the summary)."""
     out = Path(out_dir)
     check_output(scenes, out)
+    _check_other_batches(scenes, out, batch)
     if not out.is_dir():
         try:
             out.mkdir(parents=True)
@@ -234,6 +235,23 @@ def output_paths(spec: SceneSpec, out: Path) -> list[Path]:
     """The files a scene writes in `out`: its packing and its exports."""
     exports = [out / f"{spec.id}.{fmt}" for fmt in spec.export]
     return [scene_file(out, spec), *exports, *([exports_record(out, spec)] if exports else [])]
+
+
+def _check_other_batches(scenes: list[SceneSpec], out: Path, batch: str) -> None:
+    """Refuse, before anything is packed, a scene whose id another batch file (still there)
+    wrote in `out` (its summary's row says which): each run of either file would pack it
+    again for its own settings and replace the other's packing and row."""
+    if not batch:
+        return
+    ids = {spec.id for spec in scenes}
+    for row in _summary_rows(out / SUMMARY):
+        other = row.get("batch") or ""
+        if row["id"] in ids and other and other != batch and os.path.isfile(other):
+            raise InputError(
+                f"scene '{row['id']}' in {out} was written by another batch file, {other} "
+                f"(the batch column of {out / SUMMARY}): two batch files writing one scene "
+                "replace each other's packing on every run. Give the scene another name in "
+                "one of them, or write this batch to another folder (-o).")
 
 
 def check_output(scenes: list[SceneSpec], out_dir: str | os.PathLike) -> None:

@@ -243,6 +243,36 @@ def test_an_exports_warnings_are_printed_and_kept_in_the_summary(folder):
         assert "export: the result encloses 1 sealed void" in row["message"]
 
 
+def test_a_scene_another_batch_file_wrote_is_refused_before_any_work(folder):
+    """Two batch files with a scene of the same id, one output folder: each run packed it
+    again for its own container and replaced the other's packing and summary row, saying
+    only that 'the earlier file was not trusted'. It is refused, naming the other file;
+    once that file is gone the scene is this batch's."""
+    first = folder / "first.toml"
+    first.write_text(textwrap.dedent("""\
+        [[scene]]
+        name = "v"
+        container = "box:16x15x14"
+        types = ["a.obj", "b.obj"]
+        seed = 1
+        fidelity = "low"
+        """))
+    other = folder / "other.toml"
+    other.write_text(first.read_text().replace("box:16x15x14", "box:15x16x14"))
+    out = folder / "out"
+    assert run(["batch", str(first), "-o", str(out), "-q"])[0] == 0
+    packed = (out / "v-s1.json").read_bytes()
+    rc, _, err = run(["batch", str(other), "-o", str(out), "-q"])
+    said = " ".join(err.split())
+    assert rc == 1 and f"scene 'v-s1' in {out} was written by another batch file, {first}" \
+        in said, said
+    assert (out / "v-s1.json").read_bytes() == packed
+    assert run(["batch", str(first), "-o", str(out), "-q"])[0] == 0  # its own: skipped
+    first.unlink()
+    assert run(["batch", str(other), "-o", str(out), "-q"])[0] == 0
+    assert (out / "v-s1.json").read_bytes() != packed
+
+
 def test_a_rerun_with_nothing_to_do_starts_no_cluster(folder, monkeypatch):
     path = write(folder, GOOD.replace('seeds = [1, 2]', 'seeds = [1]').replace(
         ', "box:15x16x14"', ''))
