@@ -54,9 +54,10 @@ sha256 still match, it is certified, its placements are the ones certified and i
 follow from them); any other file is packed again, saying why. Export files are made
 again when missing, changed since written, or made with other export settings (recorded
 in OUT/<scene>.exports.json); those of a packing made since are removed. Each scene's
-warnings are printed and go in the summary's message column; the summary's batch column
-holds the batch file's path, and a rerun replaces that file's rows and keeps those of other
-batch files run into OUT. Ctrl-C stops: finished scenes stay written, and the
+warnings, its export's too, are printed and go in the summary's message column; the
+summary's batch column holds the batch file's path, and a rerun replaces that file's rows
+and keeps those of other batch files run into OUT (a scene of the same name that another
+batch file wrote there is refused). Ctrl-C stops: finished scenes stay written, and the
 scene being packed here writes its best certified packing so far, which the next run
 packs again (exit status 130). Exit status:
 0 every scene packed or skipped, 1 a scene failed or the batch file is bad (the message
