@@ -267,18 +267,30 @@ def client_for(target=None, *, workers: int | None = None) -> Iterator:
 
 @contextlib.contextmanager
 def _children_ignore_interrupt() -> Iterator[None]:
-    """Ignore SIGINT while the local cluster starts, so that its worker processes inherit
-    it ignored (on POSIX; on Windows only the preload protects them, once it has run).
-    A Ctrl-C reaches the whole foreground process group: workers starting then died
-    ("Nanny failed to start", a traceback), running ones printed KeyboardInterrupt
-    tracebacks. This process ignores a Ctrl-C during those seconds too (distributed
-    swallowed it there before: the run went on to its end either way). Main thread only."""
+    """Keep a Ctrl-C from the local cluster's worker processes while it starts, and take it
+    here once it has started. A Ctrl-C reaches the whole foreground process group: workers
+    starting then died ("Nanny failed to start", a traceback), running ones printed
+    KeyboardInterrupt tracebacks (once started, the preload `worker_setup` ignores it).
+    SIGINT is blocked in this thread meanwhile, so the threads the cluster starts, and the
+    processes they start, begin with it blocked (on POSIX; on Windows only the preload
+    protects them, once it has run). This process holds a Ctrl-C of those seconds (a
+    handler that records it; or pending, where no thread takes it) and gives it to its own
+    handler once the cluster is up: ignored, as it was, it was lost and the run went on to
+    its end. Main thread only."""
     if threading.current_thread() is not threading.main_thread():
         yield
         return
-    before = signal.signal(signal.SIGINT, signal.SIG_IGN)
+    held: list[int] = []
+    before = signal.signal(signal.SIGINT, lambda signum, frame: held.append(signum))
+    blocks = hasattr(signal, "pthread_sigmask")  # POSIX
+    if blocks:
+        signal.pthread_sigmask(signal.SIG_BLOCK, {signal.SIGINT})
     try:
         yield
     finally:
         # None: a handler not set from Python (an embedding host), which cannot be put back
         signal.signal(signal.SIGINT, signal.default_int_handler if before is None else before)
+        if blocks:  # a Ctrl-C pending meanwhile reaches that handler now
+            signal.pthread_sigmask(signal.SIG_UNBLOCK, {signal.SIGINT})
+        if held:  # one another thread took meanwhile: to that handler too
+            signal.raise_signal(signal.SIGINT)
