@@ -100,6 +100,10 @@ def read_batch(path: str | os.PathLike) -> list[SceneSpec]:
             raise InputError(f"batch file {path}, [defaults]: unknown key {key!r}; known: "
                              f"{', '.join(SETTINGS)}.")
     scenes = doc.get("scene")
+    if isinstance(scenes, dict):  # [scene], one bracket: a single table, not a list of them
+        raise InputError(f"batch file {path}: a scene is written [[scene]], with two "
+                         "brackets on each side (a list of scenes); [scene] makes one table "
+                         "of them all.")
     if not isinstance(scenes, list) or not scenes or not all(isinstance(s, dict)
                                                             for s in scenes):
         raise InputError(f"batch file {path} lists no scenes: add at least one [[scene]] "
@@ -264,6 +268,9 @@ def _mesh(text: str, base: Path, where: str, container: bool = False) -> str:
     except OSError as exc:  # a name too long for the file system
         raise InputError(f"{where}: mesh file {_shorten(text)!r} cannot be looked up: "
                          f"{exc.strerror or exc}. Give a shorter path.") from None
+    if not found and p.is_dir():
+        raise InputError(f"{where}: {text!r} is a folder ({p}), not a mesh file: name each "
+                         "mesh file in it (e.g. types = [\"m/lemon.obj\", \"m/pear.obj\"]).")
     if not found:
         raise InputError(f"{where}: mesh file {text!r} not found (looked for {p}); paths "
                          "are relative to the batch file's folder.")

@@ -84,6 +84,11 @@ def test_a_scene_expands_to_containers_times_sets_times_seeds(folder):
      r"seeds must be whole numbers >= 0, got -2"),
     ("[[scene]]\ncontainer='box:9x9x9'\ntypes=['a.obj']\n", r"'seed' \(or 'seeds', a list\) "
      "is missing"),
+    # [scene] for [[scene]]: "lists no scenes"; a folder as a type: "not found"
+    ("[scene]\ncontainer='box:9x9x9'\ntypes=['a.obj']\nseed=1\n",
+     r"a scene is written \[\[scene\]\], with two brackets"),
+    ("[[scene]]\ncontainer='box:9x9x9'\ntypes=['sub']\nseed=1\n",
+     r"scene 1 \(line 1\): 'sub' is a folder \(.*sub\), not a mesh file: name each mesh file"),
     ("[[scene]]\ncontainer='box:9x9x9'\ntypes=['a.obj', 'b.obj']\nshares=[1]\nseed=1\n",
      r"'shares' has 1 values for 2 types"),
     ("[[scene]]\ncontainer='box:9x9x9'\ntypes=['a.obj']\nseed=1\nfidelity='ultra'\n",
@@ -124,6 +129,7 @@ def test_a_scene_expands_to_containers_times_sets_times_seeds(folder):
      "'export_shell' would trap them"),
 ])
 def test_bad_batch_files_name_the_scene_line_and_key(folder, text, match):
+    (folder / "sub").mkdir()
     path = write(folder, text)
     with pytest.raises(InputError, match=match):
         read_batch(path)
