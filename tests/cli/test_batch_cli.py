@@ -88,7 +88,7 @@ def test_a_scene_expands_to_containers_times_sets_times_seeds(folder):
     ("[scene]\ncontainer='box:9x9x9'\ntypes=['a.obj']\nseed=1\n",
      r"a scene is written \[\[scene\]\], with two brackets"),
     ("[[scene]]\ncontainer='box:9x9x9'\ntypes=['sub']\nseed=1\n",
-     r"scene 1 \(line 1\): 'sub' is a folder \(.*sub\), not a mesh file: name each mesh file"),
+     r"scene 1 \(line 1\), types: 'sub' is a folder \(.*sub\), not a mesh file"),
     ("[[scene]]\ncontainer='box:9x9x9'\ntypes=['a.obj', 'b.obj']\nshares=[1]\nseed=1\n",
      r"'shares' has 1 values for 2 types"),
     ("[[scene]]\ncontainer='box:9x9x9'\ntypes=['a.obj']\nseed=1\nfidelity='ultra'\n",
