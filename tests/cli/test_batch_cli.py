@@ -201,16 +201,18 @@ def test_a_scheduler_address_without_a_port_is_a_clear_error(folder, address):
     assert not (folder / "out").exists()
 
 
+#: one scene of the two polytopes, to which a test adds its export settings
+ONE_SCENE = """\
+[[scene]]
+container = "box:16x15x14"
+types = ["a.obj", "b.obj"]
+seed = 1
+fidelity = "low"
+"""
+
+
 def test_batch_exports_each_packing_and_a_rerun_makes_only_missing_files(folder):
-    path = write(folder, """\
-        [[scene]]
-        container = "box:16x15x14"
-        types = ["a.obj", "b.obj"]
-        seed = 1
-        fidelity = "low"
-        export = ["stl", "obj"]
-        export_mode = "union"
-        """)
+    path = write(folder, ONE_SCENE + 'export = ["stl", "obj"]\nexport_mode = "union"\n')
     out = folder / "out"
     assert run(["batch", str(path), "-o", str(out), "-q"])[0] == 0
     stl = (out / "scene1-s1.stl").stat().st_mtime_ns
@@ -227,16 +229,8 @@ def test_an_exports_warnings_are_printed_and_kept_in_the_summary(folder):
     that resin and powder printers cannot drain it, where the batch said nothing (an
     independent check's print-farm scene). The warning is printed and in the summary's
     message column, on the run that exports and on a rerun that skips the scene."""
-    path = write(folder, """\
-        [[scene]]
-        container = "box:16x15x14"
-        types = ["a.obj", "b.obj"]
-        seed = 1
-        fidelity = "low"
-        export = ["stl"]
-        export_mode = "connect"
-        export_shell = 1.0
-        """)
+    path = write(folder, ONE_SCENE + 'export = ["stl"]\nexport_mode = "connect"\n'
+                         'export_shell = 1.0\n')
     out = folder / "out"
     for status in ("packed", "skipped"):
         rc, _, err = run(["batch", str(path), "-o", str(out), "-q"])
@@ -374,15 +368,7 @@ def test_a_name_with_no_letter_or_digit_is_refused(folder):
 
 
 def test_a_rerun_exports_again_what_changed_settings_or_no_longer_matches(folder):
-    scene = """\
-        [[scene]]
-        container = "box:16x15x14"
-        types = ["a.obj", "b.obj"]
-        seed = 1
-        fidelity = "low"
-        export = ["stl", "obj"]
-        export_mode = "{mode}"
-        """
+    scene = ONE_SCENE + 'export = ["stl", "obj"]\nexport_mode = "{mode}"\n'
     out = folder / "out"
     stl, obj = out / "scene1-s1.stl", out / "scene1-s1.obj"
 
