@@ -255,18 +255,19 @@ def client_for(target=None, *, workers: int | None = None) -> Iterator:
     # before their preload runs
     preload = [*dask.config.get("distributed.worker.preload", []),
                "jampacked.core.worker_setup"]
-    with _children_ignore_interrupt():
+    with _children_ignore_interrupt() as take_held:
         # silence_logs: the nanny's warnings at shutdown (a worker still busy in numba is
         # killed after a few seconds) are not the user's concern
         cluster = LocalCluster(n_workers=workers, threads_per_worker=1, processes=True,
                                dashboard_address=None, silence_logs=logging.ERROR,
                                preload=preload)
-    with cluster, Client(cluster) as client:
-        yield client
+        with cluster, Client(cluster) as client:
+            take_held()  # a Ctrl-C of the start, here, where the cluster closes after it
+            yield client
 
 
 @contextlib.contextmanager
-def _children_ignore_interrupt() -> Iterator[None]:
+def _children_ignore_interrupt() -> Iterator[Callable[[], None]]:
     """Keep a Ctrl-C from the local cluster's worker processes while it starts, and take it
     here once it has started. A Ctrl-C reaches the whole foreground process group: workers
     starting then died ("Nanny failed to start", a traceback), running ones printed
@@ -276,21 +277,32 @@ def _children_ignore_interrupt() -> Iterator[None]:
     protects them, once it has run). This process holds a Ctrl-C of those seconds (a
     handler that records it; or pending, where no thread takes it) and gives it to its own
     handler once the cluster is up: ignored, as it was, it was lost and the run went on to
-    its end. Main thread only."""
+    its end. Yields ``take_held()``, which puts the handler back and gives it a Ctrl-C held
+    meanwhile: call it where what was started is closed should that handler raise (it runs
+    on leaving, if not called before). Main thread only."""
     if threading.current_thread() is not threading.main_thread():
-        yield
+        yield lambda: None
         return
     held: list[int] = []
     before = signal.signal(signal.SIGINT, lambda signum, frame: held.append(signum))
     blocks = hasattr(signal, "pthread_sigmask")  # POSIX
     if blocks:
         signal.pthread_sigmask(signal.SIG_BLOCK, {signal.SIGINT})
-    try:
-        yield
-    finally:
+    taken = False
+
+    def take_held() -> None:
+        nonlocal taken
+        if taken:
+            return
+        taken = True
         # None: a handler not set from Python (an embedding host), which cannot be put back
         signal.signal(signal.SIGINT, signal.default_int_handler if before is None else before)
         if blocks:  # a Ctrl-C pending meanwhile reaches that handler now
             signal.pthread_sigmask(signal.SIG_UNBLOCK, {signal.SIGINT})
         if held:  # one another thread took meanwhile: to that handler too
             signal.raise_signal(signal.SIGINT)
+
+    try:
+        yield take_held
+    finally:
+        take_held()
