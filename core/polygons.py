@@ -26,29 +26,44 @@ def fan(sizes: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
 
 
 def concave(vertices: np.ndarray, sizes: np.ndarray, corners: np.ndarray) -> np.ndarray:
-    """(P,) bool: which polygons turn against their own normal (Newell's) at some corner.
+    """(P,) bool: the polygons of four corners or more that a fan would get wrong: those that
+    turn against their own normal (Newell's) at some corner, and those with an edge of no
+    length (a corner repeated, or two at one place), where the turn there cannot be told.
 
     vertices: (V, 3) positions; sizes: (P,) corner counts (each >= 3); corners: (sum of
-    sizes,) vertex indices, polygon after polygon. A triangle is never concave; corners on
-    a straight line (no turn) do not make a polygon concave."""
+    sizes,) vertex indices, polygon after polygon. Corners on a straight line (no turn) do
+    not make a polygon concave."""
     sizes = np.asarray(sizes, np.int64)
-    if not len(sizes) or sizes.max(initial=0) <= 3:
-        return np.zeros(len(sizes), bool)
+    out = np.zeros(len(sizes), bool)
+    big = np.flatnonzero(sizes > 3)
+    if not len(big):
+        return out
     start = np.cumsum(sizes) - sizes
-    polygon = np.repeat(np.arange(len(sizes)), sizes)
-    local = np.arange(len(corners)) - start[polygon]
-    nxt = start[polygon] + (local + 1) % sizes[polygon]
-    p = vertices[corners]
+    n = sizes[big]
+    polygon = np.repeat(np.arange(len(big)), n)  # among the big ones
+    first = np.cumsum(n) - n
+    local = np.arange(len(polygon)) - first[polygon]
+    at = start[big][polygon] + local  # each big polygon's corners in `corners`
+    nxt = first[polygon] + (local + 1) % n[polygon]  # the next corner, among the big ones
+    p = vertices[corners[at]]
     q = p[nxt]
-    normal = np.add.reduceat(np.cross(p, q), start, axis=0)  # Newell: twice the area vector
-    edge = q - p
-    turn = np.cross(edge, edge[nxt])
-    along = np.einsum("ij,ij->i", turn, normal[polygon])
-    # a turn against the normal beyond rounding, measured against the edges' own sizes
-    scale = np.linalg.norm(edge, axis=1) * np.linalg.norm(edge[nxt], axis=1)
-    scale = scale * np.linalg.norm(normal[polygon], axis=1)
-    against = along < -1e-9 * scale
-    return (np.bincount(polygon, against, minlength=len(sizes)) > 0) & (sizes > 3)
+    x, y, z = p.T
+    qx, qy, qz = q.T
+    # Newell's normal: the sum over edges of p x q (twice the area vector)
+    normal = np.add.reduceat(np.column_stack([y * qz - z * qy, z * qx - x * qz,
+                                              x * qy - y * qx]), first, axis=0)
+    ex, ey, ez = (q - p).T
+    fx, fy, fz = ex[nxt], ey[nxt], ez[nxt]
+    nx, ny, nz = normal[polygon].T
+    along = (ey * fz - ez * fy) * nx + (ez * fx - ex * fz) * ny + (ex * fy - ey * fx) * nz
+    e2 = ex * ex + ey * ey + ez * ez
+    # a turn against the normal beyond rounding, measured against the sizes of the edges
+    # and of the normal (squared, so without square roots)
+    against = (along < 0) & (along * along > 1e-18 * e2 * e2[nxt] * (nx * nx + ny * ny
+                                                                      + nz * nz))
+    bad = against | (e2 == 0)
+    out[big] = np.bincount(polygon, bad, minlength=len(big)) > 0
+    return out
 
 
 def polygons_to_triangles(vertices: np.ndarray, sizes: np.ndarray, corners: np.ndarray
@@ -70,6 +85,18 @@ def polygons_to_triangles(vertices: np.ndarray, sizes: np.ndarray, corners: np.n
     start = np.cumsum(sizes) - sizes
     fans = sizes - 2
     first = np.cumsum(fans) - fans  # each polygon's first triangle
+    # a concave quad's one reflex corner sees the whole quad: the fan from there is right
+    quads = bent[sizes[bent] == 4]
+    if len(quads):
+        ring = corners[start[quads][:, None] + np.arange(4)]
+        reflex = _one_reflex_corner(vertices[ring])
+        done_quads = reflex >= 0
+        k = (reflex[done_quads, None] + np.arange(4)) % 4
+        turned = np.take_along_axis(ring[done_quads], k, axis=1)
+        rows = first[quads[done_quads]]
+        triangles[rows] = turned[:, [0, 1, 2]]
+        triangles[rows + 1] = turned[:, [0, 2, 3]]
+        bent = np.setdiff1d(bent, quads[done_quads])
     out, done = [], 0
     for p in bent:
         ring = corners[start[p]:start[p] + sizes[p]]
@@ -77,6 +104,18 @@ def polygons_to_triangles(vertices: np.ndarray, sizes: np.ndarray, corners: np.n
         done = first[p] + fans[p]
     out.append(triangles[done:])
     return np.concatenate(out).astype(np.int64)
+
+
+def _one_reflex_corner(points: np.ndarray) -> np.ndarray:
+    """(m,) the corner (0-3) of each quad of ``points`` ((m, 4, 3)) that turns against the
+    quad's normal, where exactly one does and no edge has zero length; else -1."""
+    nxt = np.roll(points, -1, axis=1)
+    normal = np.cross(points, nxt).sum(axis=1)
+    edge = nxt - points
+    turn = np.einsum("mij,mj->mi", np.cross(np.roll(edge, 1, axis=1), edge), normal)
+    against = turn < 0  # at corner i: from the edge into it to the edge out of it
+    ok = (against.sum(axis=1) == 1) & (np.einsum("mij,mij->mi", edge, edge) > 0).all(axis=1)
+    return np.where(ok, np.argmax(against, axis=1), -1)
 
 
 def _ear_clipped(points: np.ndarray) -> np.ndarray:

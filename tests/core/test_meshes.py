@@ -3,6 +3,7 @@
 from __future__ import annotations
 
 import hashlib
+import json
 import logging
 from pathlib import Path
 
@@ -1008,3 +1009,29 @@ def test_concave_polygons_read_through_meshio_are_ear_clipped(tmp_path):
     meshio.write(tmp_path / "sides.vtu", meshio.Mesh(vertices, [("quad", quads)]))
     assert np.array_equal(read_mesh_arrays(tmp_path / "sides.vtu")[1],
                           np.concatenate([quads[:, [0, 1, 2]], quads[:, [0, 2, 3]]]))
+
+
+def test_noff_stays_refused_by_name_and_gltf_nulls_are_mesh_errors(tmp_path):
+    """A review found nOFF read past its keyword once the keyword matched any case ('line 2
+    should hold the counts'), and a glTF whose extensionsUsed, meshes or primitives were
+    null raised a bare TypeError from the Draco check."""
+    (tmp_path / "n.off").write_text("nOFF\n3\n3 1 0\n0 0 0\n1 0 0\n0 1 0\n3 0 1 2\n")
+    with pytest.raises(MeshError, match=r"line 1 starts with 'nOFF' \(vertices of any "):
+        read_mesh_arrays(tmp_path / "n.off")
+    box = trimesh.creation.box()
+    for key, path in (("extensionsUsed", ()), ("meshes", ()), ("primitives", ("meshes", 0))):
+        glb = trimesh.exchange.gltf.export_gltf(trimesh.Scene(box))
+        doc = json.loads(glb["model.gltf"])
+        holder = doc
+        for step in path:
+            holder = holder[step]
+        holder[key] = None
+        folder = tmp_path / key
+        folder.mkdir()
+        for name, data in glb.items():
+            (folder / name).write_bytes(json.dumps(doc).encode() if name == "model.gltf"
+                                        else data)
+        try:
+            read_mesh_arrays(folder / "model.gltf")
+        except MeshError:
+            pass  # a damaged file, named as such: what is asked
