@@ -57,9 +57,9 @@ in OUT/<scene>.exports.json); those of a packing made since are removed. Each sc
 warnings, its export's too, are printed and go in the summary's message column; the
 summary's batch column holds the batch file's path, and a rerun replaces that file's rows
 and keeps those of other batch files run into OUT (a scene of the same name that another
-batch file wrote there is refused). Ctrl-C stops: finished scenes stay written, and the
-scene being packed here writes its best certified packing so far, which the next run
-packs again (exit status 130). Exit status:
+batch file beside this one wrote there is refused). Ctrl-C stops: finished scenes stay
+written, and the scene being packed here writes its best certified packing so far, which
+the next run packs again (exit status 130). Exit status:
 0 every scene packed or skipped, 1 a scene failed or the batch file is bad (the message
 names the scene and key), 2 bad arguments.
 """

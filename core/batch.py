@@ -238,15 +238,19 @@ def output_paths(spec: SceneSpec, out: Path) -> list[Path]:
 
 
 def _check_other_batches(scenes: list[SceneSpec], out: Path, batch: str) -> None:
-    """Refuse, before anything is packed, a scene whose id another batch file (still there)
-    wrote in `out` (its summary's row says which): each run of either file would pack it
-    again for its own settings and replace the other's packing and row."""
+    """Refuse, before anything is packed, a scene whose id another batch file (still there,
+    beside this one) wrote in `out` (its summary's row says which): each run of either file
+    would pack it again for its own settings and replace the other's packing and row. A
+    batch file elsewhere is taken for this one's original: a project folder copied with its
+    output keeps rows that name the original's batch file."""
     if not batch:
         return
     ids = {spec.id for spec in scenes}
+    here = os.path.dirname(batch)
     for row in _summary_rows(out / SUMMARY):
         other = row.get("batch") or ""
-        if row["id"] in ids and other and other != batch and os.path.isfile(other):
+        if (row["id"] in ids and other and other != batch and os.path.dirname(other) == here
+                and os.path.isfile(other) and not os.path.samefile(other, batch)):
             raise InputError(
                 f"scene '{row['id']}' in {out} was written by another batch file, {other} "
                 f"(the batch column of {out / SUMMARY}): two batch files writing one scene "

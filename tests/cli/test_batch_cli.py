@@ -268,6 +268,13 @@ def test_a_scene_another_batch_file_wrote_is_refused_before_any_work(folder):
         in said, said
     assert (out / "v-s1.json").read_bytes() == packed
     assert run(["batch", str(first), "-o", str(out), "-q"])[0] == 0  # its own: skipped
+    # a copy of the project (its batch file and output elsewhere) is its own
+    copy = folder / "copy"
+    copy.mkdir()
+    shutil.copytree(out, copy / "out")
+    for name in ("first.toml", "a.obj", "b.obj"):
+        shutil.copy(folder / name, copy / name)
+    assert run(["batch", str(copy / "first.toml"), "-o", str(copy / "out"), "-q"])[0] == 0
     first.unlink()
     assert run(["batch", str(other), "-o", str(out), "-q"])[0] == 0
     assert (out / "v-s1.json").read_bytes() != packed
