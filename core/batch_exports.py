@@ -74,6 +74,8 @@ def export_scene(spec: SceneSpec, packing_file: str, digest: str | None, out: Pa
             made.update({p.name: file_sha256(p) for p in paths})
         else:
             error = "export: a file did not validate"
+    if error and made:  # the files kept from before keep their export's warnings
+        warned = [str(w) for w in record.get("warnings", []) if isinstance(w, str)]
     _write_record(exports_record(out, spec), {
         "format": EXPORTS_FORMAT, "version": 1, "packing": digest, "settings": settings,
         "files": made, "warnings": warned})

@@ -6,6 +6,7 @@ from __future__ import annotations
 import contextlib
 import csv
 import io
+import json
 import shutil
 import signal
 import textwrap
@@ -241,6 +242,30 @@ def test_an_exports_warnings_are_printed_and_kept_in_the_summary(folder):
             [row] = list(csv.DictReader(f))
         assert row["status"] == status
         assert "export: the result encloses 1 sealed void" in row["message"]
+
+
+def test_a_failed_export_keeps_the_warnings_of_the_files_kept(folder, monkeypatch):
+    """A rerun's export of a missing file that fails leaves the earlier files and their
+    record: their export's warnings stay recorded (they were written empty)."""
+    from jampacked.core.errors import MeshError
+    from jampacked.export import assemble
+
+    path = write(folder, ONE_SCENE + 'export = ["stl", "obj"]\nexport_mode = "connect"\n'
+                         'export_shell = 1.0\n')
+    out = folder / "out"
+    assert run(["batch", str(path), "-o", str(out), "-q"])[0] == 0
+    record = out / "scene1-s1.exports.json"
+    warned = json.loads(record.read_text())["warnings"]
+    assert warned and "sealed void" in warned[0]
+    (out / "scene1-s1.obj").unlink()
+
+    def fail(*args, **kwargs):
+        raise MeshError("made to fail by the test")
+
+    monkeypatch.setattr(assemble, "export_packing", fail)
+    assert run(["batch", str(path), "-o", str(out), "-q"])[0] == 1
+    assert json.loads(record.read_text())["warnings"] == warned
+    assert (out / "scene1-s1.stl").is_file()
 
 
 def test_a_scene_another_batch_file_wrote_is_refused_before_any_work(folder):
