@@ -37,9 +37,12 @@ def shown_result(context: bpy.types.Context) -> bpy.types.Collection | None:
 def make_shown(context: bpy.types.Context, coll: bpy.types.Collection) -> None:
     """After a Pack made ``coll``: where the active object is in another result, which
     :func:`shown_result` would show, make one of ``coll``'s objects active instead (as
-    Blender makes an added object active), so the panel and Export show the new one."""
+    Blender makes an added object active), so the panel and Export show the new one; not
+    where the active object is in Edit Mode (its result stays shown)."""
     active = context.view_layer.objects.active
-    if active is None or shown_result(context) in (None, coll):
+    # an object in Edit Mode stays active: made inactive it stays in Edit Mode unseen, and
+    # what leaves Edit Mode first (Export, Make Real) would pass it by
+    if active is None or active.mode != 'OBJECT' or shown_result(context) in (None, coll):
         return
     first = instances.points_object(coll) or next(iter(coll.objects), None)
     if first is not None and context.view_layer.objects.get(first.name) == first:

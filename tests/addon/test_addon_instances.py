@@ -567,3 +567,18 @@ def test_a_fresh_pack_is_shown_though_an_older_results_object_was_active(bpy, ad
     assert addon.results.shown_result(bpy.context) == second
     bpy.context.scene.jampacked.result = first
     assert addon.results.shown_result(bpy.context) == first
+    # the older result's points object in Edit Mode stays active (and in Edit Mode) through
+    # a Pack: made inactive, it stayed in Edit Mode unseen by what leaves Edit Mode first
+    s.seed = 45
+    s.result_kind = 'INSTANCES'
+    third = _pack(bpy, 'INSTANCES')
+    points = addon.instances.points_object(third)
+    bpy.context.view_layer.objects.active = points
+    bpy.ops.object.mode_set(mode='EDIT')
+    s.seed = 46
+    fourth = _pack(bpy, 'INSTANCES')
+    assert fourth != third
+    assert bpy.context.view_layer.objects.active == points and points.mode == 'EDIT'
+    assert addon.results.shown_result(bpy.context) == third
+    bpy.ops.object.mode_set(mode='OBJECT')
+
