@@ -236,7 +236,20 @@ def obj_malformed_polygons(data: bytes, limit: int = 3) -> list[str]:
 
 #: Geomview's optional OFF keyword, [ST][C][N][4][n]OFF: 4 adds a homogeneous coordinate to
 #: each vertex, n a line with the dimension (not read)
-_OFF_KEYWORD = re.compile(rb"(?:ST)?C?N?(4)?(n)?(?i:OFF)(\d*)")
+_OFF_KEYWORD = re.compile(rb"((?:ST)?C?N?4?N?)OFF(\d*)", re.IGNORECASE)
+
+
+def _off_keyword(word: bytes) -> tuple[bool, bool, bytes] | None:
+    """The OFF keyword ``word`` in any case, or None: (a w coordinate follows each vertex
+    (4), a dimension line follows (a lower-case n just before OFF, as Geomview writes it;
+    an upper-case N is normals), the first count glued to it ("OFF8", as ModelNet has it))."""
+    found = _OFF_KEYWORD.fullmatch(word)
+    if found is None:
+        return None
+    prefix = found[1]
+    return b"4" in prefix, prefix.endswith(b"n"), found[2]
+
+
 #: bytes some tools pad a file's end with (NUL; Ctrl-Z, DOS's end of file): not the data
 _PADDING = b"\x00\x1a"
 
@@ -279,16 +292,16 @@ def _off_arrays(data: bytes, label: str) -> Arrays:
     if not rows:
         return np.zeros((0, 3)), np.zeros((0, 3), np.int64)
     number, words = rows[0]
-    keyword, at = _OFF_KEYWORD.fullmatch(words[0]), 1
+    keyword, at = _off_keyword(words[0]), 1
     if keyword:
         if words[1:2] == [b"BINARY"]:
             raise bad(number, "says it is a binary OFF, which is not read",
                       "Export it as ASCII OFF, or as PLY or STL")
-        if keyword[2]:
+        if keyword[1]:
             raise bad(number, f"starts with '{shown(words[:1])}' (vertices of any "
                       "dimension), which is not read", "Export it as plain (3D) OFF")
         # the first count glued to the keyword ("OFF8 12 0", as ModelNet's files have it)
-        words = [keyword[3], *words[1:]] if keyword[3] else words[1:]
+        words = [keyword[2], *words[1:]] if keyword[2] else words[1:]
         if not words and len(rows) > 1:  # the counts on the next line, as most write them
             (number, words), at = rows[1], 2
     if len(words) < 2 or not (words[0].isdigit() and words[1].isdigit()):
@@ -308,7 +321,7 @@ def _off_arrays(data: bytes, label: str) -> Arrays:
                         f"{how}. Copy or export it again.")
     rows = rows[:at + n_vertices + n_faces]
 
-    width = 4 if keyword and keyword[1] else 3
+    width = 4 if keyword and keyword[0] else 3
     vertex_rows = rows[at:at + n_vertices]
     try:
         vertices = np.array([w[:width] for _, w in vertex_rows], np.float64).reshape(-1, width)
@@ -791,7 +804,7 @@ def _sniff_format(data: bytes) -> tuple[str, str] | None:
             return "stl", "an ASCII STL file ('solid', then 'facet' lines)"
         words = next((w for line in text.splitlines()
                       if (w := line.split(b"#", 1)[0].split())), [b""])
-        if _OFF_KEYWORD.fullmatch(words[0]):
+        if _off_keyword(words[0]):
             return "off", "an OFF file ('OFF' on its first line)"
         if _OBJ_VERTEX.search(text) and _OBJ_FACE.search(data):
             return "obj", "an OBJ file ('v' and 'f' lines)"

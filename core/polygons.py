@@ -27,8 +27,9 @@ def fan(sizes: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
 
 def concave(vertices: np.ndarray, sizes: np.ndarray, corners: np.ndarray) -> np.ndarray:
     """(P,) bool: the polygons of four corners or more that a fan would get wrong: those that
-    turn against their own normal (Newell's) at some corner, and those with an edge of no
-    length (a corner repeated, or two at one place), where the turn there cannot be told.
+    turn against their own normal (Newell's) at some corner, and those of five corners or
+    more with an edge of no length (a corner repeated, or two at one place), where the turn
+    there cannot be told.
 
     vertices: (V, 3) positions; sizes: (P,) corner counts (each >= 3); corners: (sum of
     sizes,) vertex indices, polygon after polygon. Corners on a straight line (no turn) do
@@ -61,7 +62,10 @@ def concave(vertices: np.ndarray, sizes: np.ndarray, corners: np.ndarray) -> np.
     # and of the normal (squared, so without square roots)
     against = (along < 0) & (along * along > 1e-18 * e2 * e2[nxt] * (nx * nx + ny * ny
                                                                       + nz * nz))
-    bad = against | (e2 == 0)
+    # a quad with an edge of no length is a triangle, which its fan covers (and a
+    # triangle of no area): flagged, such "quads" (as some writers pad triangles) were
+    # ear-clipped one by one, 85 s a million
+    bad = against | ((e2 == 0) & (n[polygon] > 4))
     out[big] = np.bincount(polygon, bad, minlength=len(big)) > 0
     return out
 
@@ -122,7 +126,10 @@ def _ear_clipped(points: np.ndarray) -> np.ndarray:
     """(n - 2, 3) positions in ``points`` ((n, 3), one polygon's corners in order) of its
     triangles, wound as the polygon is."""
     normal = np.cross(points, np.roll(points, -1, axis=0)).sum(axis=0)
-    normal /= np.linalg.norm(normal)
+    size = float(np.linalg.norm(normal))
+    if not size > 0:  # no area (its corners on a line): the fan, of triangles of no area
+        return fan(np.array([len(points)]))[0]
+    normal /= size
     u = np.cross(normal, [1.0, 0.0, 0.0] if abs(normal[0]) < 0.9 else [0.0, 1.0, 0.0])
     u /= np.linalg.norm(u)
     v = np.cross(normal, u)

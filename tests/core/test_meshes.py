@@ -1035,3 +1035,21 @@ def test_noff_stays_refused_by_name_and_gltf_nulls_are_mesh_errors(tmp_path):
             read_mesh_arrays(folder / "model.gltf")
         except MeshError:
             pass  # a damaged file, named as such: what is asked
+
+
+@pytest.mark.parametrize("keyword, read", [
+    ("coff", True), ("stoff", True), ("Coff", True), ("NOFF", True), ("OFF3", True),
+    ("nOFF", False), ("4nOFF", False)])
+def test_off_keywords_in_any_case(tmp_path, keyword, read):
+    """Only OFF's own letters matched any case for a while: coff and stoff, which read
+    before, were refused. A lower-case n just before OFF is the dimension line's; a count
+    may be glued to the keyword (OFF3, as ModelNet writes it)."""
+    counts = " 1 0\n" if keyword[-1].isdigit() else "\n3 1 0\n"
+    extra = {"c": " 1 0 0 1", "s": " 0 0"}.get(keyword[0].lower(), "")
+    text = keyword + counts + "".join(f"{x}{extra}\n" for x in ("0 0 0", "1 0 0", "0 1 0"))
+    (tmp_path / "k.off").write_text(text + "3 0 1 2\n")
+    if read:
+        assert len(read_mesh_arrays(tmp_path / "k.off")[1]) == 1
+    else:
+        with pytest.raises(MeshError, match="vertices of any dimension"):
+            read_mesh_arrays(tmp_path / "k.off")

@@ -165,3 +165,21 @@ def test_concave_quads_are_fanned_from_their_reflex_corner():
     mesh = trimesh.Trimesh(vertices, faces, process=False)
     assert mesh.area == pytest.approx(3 * 4.0)  # each dart: 4 (shoelace)
     assert (mesh.face_normals[:, 2] > 0).all()
+
+
+def test_a_quad_padding_a_triangle_is_fanned_and_a_polygon_of_no_area_warns_nothing():
+    """A review found "quads" that repeat a corner (some writers pad triangles so) flagged
+    and ear-clipped one by one (85 s a million), and a polygon whose corners lie on a line
+    divided by its zero normal (a RuntimeWarning, NaNs to the triangulator)."""
+    import warnings
+
+    vertices = np.array([[0, 0, 0], [1, 0, 0], [0, 1, 0], [2, 0, 0], [3, 0, 0]], float)
+    padded = np.array([0, 1, 2, 2])
+    assert not concave(vertices, np.array([4]), padded).any()
+    assert polygons_to_triangles(vertices, np.array([4]), padded).tolist() == [[0, 1, 2],
+                                                                              [0, 2, 2]]
+    on_a_line = np.array([0, 1, 1, 3, 4])  # five corners on the x axis, one repeated
+    with warnings.catch_warnings():
+        warnings.simplefilter("error")
+        faces = polygons_to_triangles(vertices, np.array([5]), on_a_line)
+    assert len(faces) == 3 and set(faces.ravel()) <= set(on_a_line)
