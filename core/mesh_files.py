@@ -3,7 +3,7 @@
 Nothing here merges, removes or repairs anything: the arrays are the file's as stored (see
 :mod:`jampacked.core.mesh_repair` for the checks). Readers, in order: 3MF with lxml
 (:mod:`jampacked.core.threemf`), STL with trimesh's STL reader, OFF with the reader here
-(:func:`_off_arrays`: polygons of mixed sizes, a file cut short named), then trimesh
+(:func:`.off_reader.off_arrays`: polygons of mixed sizes, a file cut short named), then trimesh
 (``process=False``), a tolerant OBJ reader (comments on face lines), and meshio as the
 fallback; the formats trimesh reads only through meshio (VTK, VTU, Gmsh, Medit, ...) are read
 with meshio here first, as trimesh keeps their triangles only. meshio's quads and polygons
@@ -23,12 +23,10 @@ from __future__ import annotations
 import contextlib
 import hashlib
 import io
-import json
 import logging
 import math
 import os
 import re
-import urllib.parse
 import warnings
 import zipfile
 from pathlib import Path
@@ -37,6 +35,8 @@ import numpy as np
 import trimesh
 
 from .errors import InputError, MeshError
+from .gltf_check import check_gltf
+from .off_reader import PADDING, off_arrays, off_keyword
 from .polygons import concave, polygons_to_triangles
 from .threemf import UNIT_MM, ThreeMFError, read_3mf_model
 
@@ -232,144 +232,6 @@ def obj_malformed_polygons(data: bytes, limit: int = 3) -> list[str]:
 
 
 # --------------------------------------------------------------------------------------------
-# OFF text
-
-#: Geomview's optional OFF keyword, [ST][C][N][4][n]OFF: 4 adds a homogeneous coordinate to
-#: each vertex, n a line with the dimension (not read)
-_OFF_KEYWORD = re.compile(rb"((?:ST)?C?N?4?N?)OFF(\d*)", re.IGNORECASE)
-
-
-def _off_keyword(word: bytes) -> tuple[bool, bool, bytes] | None:
-    """The OFF keyword ``word`` in any case, or None: (a w coordinate follows each vertex
-    (4), a dimension line follows (a lower-case n just before OFF, as Geomview writes it;
-    an upper-case N is normals), the first count glued to it ("OFF8", as ModelNet has it))."""
-    found = _OFF_KEYWORD.fullmatch(word)
-    if found is None:
-        return None
-    prefix = found[1]
-    return b"4" in prefix, prefix.endswith(b"n"), found[2]
-
-
-#: bytes some tools pad a file's end with (NUL; Ctrl-Z, DOS's end of file): not the data
-_PADDING = b"\x00\x1a"
-
-
-def _off_face_like(words: list[bytes]) -> bool:
-    """An OFF line that reads as a polygon: a corner count of 3 or more and as many whole
-    numbers (an edge line has 2 corners)."""
-    if not words[0].isdigit() or int(words[0]) < 3 or len(words) < int(words[0]) + 1:
-        return False
-    return all(w.isdigit() for w in words[1:int(words[0]) + 1])
-
-
-def _off_arrays(data: bytes, label: str) -> Arrays:
-    """Vertices and triangles of an ASCII OFF file, its polygons triangulated in file order
-    (`polygons.polygons_to_triangles`: convex ones fanned, concave ones ear-clipped).
-
-    Read here, not by trimesh or meshio: trimesh's OFF reader fails on polygons of mixed
-    sizes where one has over four corners and reads a file cut short as the faces it holds;
-    meshio reads triangles only. Comments (#) and blank lines are skipped; one vertex or
-    face a line, as writers write them; numbers after a vertex's x y z (normals, colours)
-    and after a face's corners (its colour) are ignored.
-
-    Raises:
-        MeshError: binary OFF, or a line that breaks the format, an index out of range, or
-            fewer or more lines than the counts promise (the line and what is wrong).
-    """
-    rows = [(number, words) for number, line in
-            enumerate(data.removeprefix(b"\xef\xbb\xbf").translate(None, _PADDING)
-                      .splitlines(), start=1)
-            if (words := line.split(b"#", 1)[0].split())]
-
-    def shown(words: list[bytes]) -> str:
-        return b" ".join(words).decode("latin-1")[:80]
-
-    def bad(number: int, what: str, fix: str = "Export it again (as OFF, PLY or STL)"
-            ) -> MeshError:
-        return MeshError(f"{label} is not a valid OFF file: line {number} {what}. "
-                         f"{fix}.")
-
-    if not rows:
-        return np.zeros((0, 3)), np.zeros((0, 3), np.int64)
-    number, words = rows[0]
-    keyword, at = _off_keyword(words[0]), 1
-    if keyword:
-        if words[1:2] == [b"BINARY"]:
-            raise bad(number, "says it is a binary OFF, which is not read",
-                      "Export it as ASCII OFF, or as PLY or STL")
-        if keyword[1]:
-            raise bad(number, f"starts with '{shown(words[:1])}' (vertices of any "
-                      "dimension), which is not read", "Export it as plain (3D) OFF")
-        # the first count glued to the keyword ("OFF8 12 0", as ModelNet's files have it)
-        words = [keyword[2], *words[1:]] if keyword[2] else words[1:]
-        if not words and len(rows) > 1:  # the counts on the next line, as most write them
-            (number, words), at = rows[1], 2
-    if len(words) < 2 or not (words[0].isdigit() and words[1].isdigit()):
-        raise bad(number, f"should hold the counts of vertices, faces and edges ('8 6 12'), "
-                  f"not '{shown(words)}'")
-    counts, n_vertices, n_faces = number, int(words[0]), int(words[1])
-    held = len(rows) - at
-    # lines after the faces are read as trimesh read them, left out (edges some writers
-    # list, an "end"), unless they are faces: then the counts leave faces out
-    more = sum(1 for _, w in rows[at + n_vertices + n_faces:] if _off_face_like(w))
-    if held < n_vertices + n_faces or more:
-        how = (f"holds {held:,} lines of them: it was cut short" if not more
-               else f"holds {more:,} more face{'s' if more > 1 else ''} after them: the "
-               "counts are wrong or the file is damaged")
-        raise MeshError(f"{label} is not a whole OFF file: its counts on line {counts} promise "
-                        f"{n_vertices:,} vertices and {n_faces:,} faces, one a line, but it "
-                        f"{how}. Copy or export it again.")
-    rows = rows[:at + n_vertices + n_faces]
-
-    width = 4 if keyword and keyword[0] else 3
-    vertex_rows = rows[at:at + n_vertices]
-    try:
-        vertices = np.array([w[:width] for _, w in vertex_rows], np.float64).reshape(-1, width)
-    except ValueError:  # find the line, for the message
-        for i, (number, words) in enumerate(vertex_rows, start=1):
-            try:
-                np.array(words[:width], np.float64).reshape(width)
-            except ValueError:
-                raise bad(number, f"(vertex {i} of {n_vertices:,}) should start with {width} "
-                          f"numbers ({'x y z w' if width == 4 else 'x y z'}), not "
-                          f"'{shown(words)}'") from None
-        raise
-    if width == 4:
-        vertices = vertices[:, :3] / vertices[:, 3:]
-
-    face_rows = rows[at + n_vertices:]
-    sizes = np.zeros(n_faces, np.int64)
-    corners: list[bytes] = []
-    for i, (number, words) in enumerate(face_rows):
-        size = int(words[0]) if words[0].isdigit() else 0
-        where = f"(face {i + 1} of {n_faces:,})"
-        if size < 3 or len(words) < size + 1:
-            raise bad(number, f"{where} should be a corner count (3 or more) and as many "
-                      f"vertex indices, not '{shown(words)}'")
-        sizes[i] = size
-        corners += words[1:size + 1]
-    try:
-        flat = np.array(corners, np.int64)
-    except (ValueError, OverflowError):  # find the line, for the message
-        for i, (number, words) in enumerate(face_rows):
-            try:
-                np.array(words[1:sizes[i] + 1], np.int64)
-            except (ValueError, OverflowError):
-                raise bad(number, f"(face {i + 1} of {n_faces:,}) has a corner that is not a "
-                          f"vertex index (a whole number): '{shown(words)}'") from None
-        raise
-    wrong = np.flatnonzero((flat < 0) | (flat >= n_vertices))
-    if len(wrong):
-        face = int(np.searchsorted(np.cumsum(sizes), wrong[0], side="right"))
-        number = face_rows[face][0]
-        raise bad(number, f"(face {face + 1} of {n_faces:,}) refers to vertex "
-                  f"{flat[wrong[0]]}, but its {n_vertices:,} vertices are numbered 0 to "
-                  f"{n_vertices - 1:,}")
-
-    return vertices, polygons_to_triangles(vertices, sizes, flat)
-
-
-# --------------------------------------------------------------------------------------------
 # readers
 
 
@@ -539,7 +401,7 @@ def _ply_ascii_damage(data: bytes) -> str | None:
     head, found, body = data.partition(b"end_header")
     if not found or not _ply_ascii(data):
         return None
-    body = body.translate(None, _PADDING)
+    body = body.translate(None, PADDING)
     elements: list[tuple[bytes, int, list[bool]]] = []  # name, count, which are lists
     for words in map(bytes.split, head.splitlines()):
         if words[:1] == [b"element"] and len(words) == 3 and words[2].isdigit():
@@ -710,62 +572,6 @@ def _obj_concave_arrays(data: bytes) -> Arrays | None:
     return vertices, polygons_to_triangles(vertices, sizes, flat)
 
 
-def _gltf_document(data: bytes) -> dict | None:
-    """The JSON document of a GLB (its first chunk) or a .gltf file, or None where it is
-    neither (the readers then say what is wrong)."""
-    if data[:4] == b"glTF":
-        size = int.from_bytes(data[12:16], "little")
-        if data[16:20] != b"JSON":
-            return None
-        data = data[20:20 + size]
-    try:
-        document = json.loads(data)
-    except (ValueError, UnicodeDecodeError):
-        return None
-    return document if isinstance(document, dict) else None
-
-
-def _check_gltf(path: str, data: bytes, label: str) -> None:
-    """Refuse the glTF files trimesh misreads or names badly, before it reads them.
-
-    Draco-compressed meshes (``KHR_draco_mesh_compression``): trimesh cannot decode them and
-    reads placeholder zeros (zero volume, degenerate faces) with a warning on stderr. A
-    buffer file that is missing: trimesh's error is its bare name.
-
-    Raises:
-        MeshError: either of those, named.
-    """
-    document = _gltf_document(data)
-    if document is None:
-        return
-
-    def listed(holder: object, key: str) -> list:
-        """``holder[key]`` where both are what the format says (an object, a list)."""
-        value = holder.get(key) if isinstance(holder, dict) else None
-        return value if isinstance(value, list) else []
-
-    def extensions(holder: object) -> dict:
-        value = holder.get("extensions") if isinstance(holder, dict) else None
-        return value if isinstance(value, dict) else {}
-
-    draco = "KHR_draco_mesh_compression"
-    if draco in listed(document, "extensionsUsed") + listed(document, "extensionsRequired") \
-            or any(draco in extensions(primitive) for mesh in listed(document, "meshes")
-                   for primitive in listed(mesh, "primitives")):
-        raise MeshError(f"{label} is a Draco-compressed glTF, which is not read: export it "
-                        "again without mesh compression (Blender: glTF export > Data > "
-                        "Compression off).")
-    for buffer in listed(document, "buffers"):
-        uri = buffer.get("uri") if isinstance(buffer, dict) else None
-        if not isinstance(uri, str) or uri.startswith("data:"):
-            continue
-        wanted = os.path.join(os.path.dirname(path), urllib.parse.unquote(uri))
-        if not os.path.isfile(wanted):
-            raise MeshError(f"{label} keeps its data in the buffer file '{uri}', which is "
-                            f"missing ('{wanted}' does not exist): copy it beside the "
-                            ".gltf, or export it again as .glb (one file).")
-
-
 def _obj_arrays(data: bytes, errors: list[str], reader: str) -> Arrays | None:
     try:
         loaded = trimesh.load(io.BytesIO(data), file_type="obj", force="mesh", process=False)
@@ -804,7 +610,7 @@ def _sniff_format(data: bytes) -> tuple[str, str] | None:
             return "stl", "an ASCII STL file ('solid', then 'facet' lines)"
         words = next((w for line in text.splitlines()
                       if (w := line.split(b"#", 1)[0].split())), [b""])
-        if _off_keyword(words[0]):
+        if off_keyword(words[0]):
             return "off", "an OFF file ('OFF' on its first line)"
         if _OBJ_VERTEX.search(text) and _OBJ_FACE.search(data):
             return "obj", "an OBJ file ('v' and 'f' lines)"
@@ -879,7 +685,7 @@ def _read_by_extension(ext: str, path: str, data: bytes, label: str,
             raise MeshError(f"{label} is not a whole STL file: {damage}. Copy or export it "
                             "again.")
     if ext == "off":
-        return _off_arrays(data, label)
+        return off_arrays(data, label)
     if ext == "ply" and (damage := _ply_ascii_damage(data)):
         raise MeshError(f"{label} is not a whole PLY file: {damage}. Copy or export it again.")
     trimesh_formats = set(trimesh.available_formats())
@@ -894,7 +700,7 @@ def _read_by_extension(ext: str, path: str, data: bytes, label: str,
             f"recognised: export it as one of {shown} (or another format meshio reads)."
         )
     if ext in ("glb", "gltf"):
-        _check_gltf(path, data, label)
+        check_gltf(path, data, label)
     errors: list[str] = []
     if ext == "obj":
         absolute = obj_absolute_indices(_obj_plain_spacing(data))
