@@ -250,12 +250,11 @@ def client_for(target=None, *, workers: int | None = None) -> Iterator:
                          f"got {target!r}.")
     if workers is None or workers < 1:
         raise InputError(f"the number of local workers must be >= 1, got {workers!r}.")
-    # workers ignore Ctrl-C (`worker_setup`, for one the nanny restarts later; the user's
-    # configured preloads too); those started here take it from this process's disposition
-    # before their preload runs
+    # workers ignore Ctrl-C once started (`worker_setup`, also for one the nanny restarts
+    # later; the user's configured preloads too)
     preload = [*dask.config.get("distributed.worker.preload", []),
                "jampacked.core.worker_setup"]
-    with _children_ignore_interrupt() as take_held:
+    with _hold_interrupt() as take_held:
         # silence_logs: the nanny's warnings at shutdown (a worker still busy in numba is
         # killed after a few seconds) are not the user's concern
         cluster = LocalCluster(n_workers=workers, threads_per_worker=1, processes=True,
@@ -267,19 +266,17 @@ def client_for(target=None, *, workers: int | None = None) -> Iterator:
 
 
 @contextlib.contextmanager
-def _children_ignore_interrupt() -> Iterator[Callable[[], None]]:
-    """Keep a Ctrl-C from the local cluster's worker processes while it starts, and take it
-    here once it has started. A Ctrl-C reaches the whole foreground process group: workers
-    starting then died ("Nanny failed to start", a traceback), running ones printed
-    KeyboardInterrupt tracebacks (once started, the preload `worker_setup` ignores it).
-    SIGINT is blocked in this thread meanwhile, so the threads the cluster starts, and the
-    processes they start, begin with it blocked (on POSIX; on Windows only the preload
-    protects them, once it has run). This process holds a Ctrl-C of those seconds (a
-    handler that records it; or pending, where no thread takes it) and gives it to its own
-    handler once the cluster is up: ignored, as it was, it was lost and the run went on to
-    its end. Yields ``take_held()``, which puts the handler back and gives it a Ctrl-C held
-    meanwhile: call it where what was started is closed should that handler raise (it runs
-    on leaving, if not called before). Main thread only."""
+def _hold_interrupt() -> Iterator[Callable[[], None]]:
+    """Hold a Ctrl-C of the seconds the local cluster takes to start, and give it to this
+    process's own handler once it has started. SIGINT was ignored then, so that the worker
+    processes starting inherited it ignored, and a Ctrl-C was lost: the run went on to its
+    end. Now a handler records it, or it stays pending (SIGINT is blocked in this thread,
+    and in the threads the cluster starts) until ``take_held()``, which puts the handler
+    back and gives it what was held: call it where what was started is closed should that
+    handler raise (it runs on leaving, if not called before). Worker processes do not keep
+    the block (multiprocessing's spawn resets it): one still starting when the Ctrl-C comes
+    may print a KeyboardInterrupt traceback as it stops, before its preload (`worker_setup`)
+    ignores SIGINT. Main thread only."""
     if threading.current_thread() is not threading.main_thread():
         yield lambda: None
         return

@@ -219,12 +219,12 @@ def test_a_ctrl_c_while_the_local_cluster_starts_is_taken_once_it_has_started():
     import signal
     import time
 
-    from jampacked.core.cluster import _children_ignore_interrupt
+    from jampacked.core.cluster import _hold_interrupt
 
     seen = []
     before = signal.signal(signal.SIGINT, lambda signum, frame: seen.append(signum))
     try:
-        with _children_ignore_interrupt():
+        with _hold_interrupt():
             assert signal.SIGINT in signal.pthread_sigmask(signal.SIG_BLOCK, set())
             os.kill(os.getpid(), signal.SIGINT)
             time.sleep(0.1)
