@@ -242,8 +242,9 @@ def test_fresh_install_compiles_before_the_time_budget_starts(tmp_path):
 
 #: the budgeted pack's budget (s): at least two attempts long also on a slow machine (an
 #: attempt took 2-4 s on an idle one, 12 s in a clean-clone run of the suite, where 20 s
-#: then left room for one attempt only)
-BUDGET = 30.0
+#: then left room for one attempt only; 16-19 s with other work on the machine, where 30 s
+#: did)
+BUDGET = 40.0
 
 
 @pytest.fixture(scope="module")
