@@ -261,6 +261,15 @@ def _block_triangles(points: np.ndarray, polygons: np.ndarray) -> np.ndarray:
 _MESHIO_SURFACE = re.compile(r"(triangle|quad)(\d*)")
 
 
+def _block_array(block) -> np.ndarray | None:
+    """A meshio cell block's vertex indices as one integer array, or None where its cells
+    differ in size (polygons of several sizes in one block)."""
+    try:
+        return np.asarray(block.data, dtype=np.int64)
+    except (ValueError, TypeError):
+        return None
+
+
 def _meshio_faces(points: np.ndarray, cells: list, label: str) -> np.ndarray:
     """Triangles of meshio's cell blocks (``points``: (V, 3) their vertices): triangles as
     they are, quads and polygons of any size (meshio gives one ``polygon`` block per run of
@@ -279,10 +288,7 @@ def _meshio_faces(points: np.ndarray, cells: list, label: str) -> np.ndarray:
         kind = _MESHIO_SURFACE.fullmatch(name)
         dim = getattr(block, "dim", None)
         if kind or name == "polygon":
-            try:
-                data = np.asarray(block.data, dtype=np.int64)
-            except (ValueError, TypeError):  # polygons of several sizes in one block
-                data = None
+            data = _block_array(block)
             if data is None or data.ndim != 2:  # one polygon at a time
                 rows = [np.asarray(p, np.int64).reshape(1, -1) for p in block.data]
             else:
@@ -471,9 +477,8 @@ def _ply_polygons_in_plane(path: str, label: str, fanned: Arrays) -> Arrays:
 def _block_concave(vertices: np.ndarray, block) -> bool:
     """Whether a meshio cell block holds a polygon of four corners or more that a fan from
     its first corner gets wrong (`polygons.concave`)."""
-    try:
-        data = np.asarray(block.data, dtype=np.int64)
-    except (ValueError, TypeError):  # polygons of several sizes in one block
+    data = _block_array(block)
+    if data is None:
         return True
     if data.ndim != 2 or data.shape[1] < 4 or str(block.type) not in ("quad", "polygon"):
         return False
