@@ -490,10 +490,11 @@ def _certify_ranked(run: _Placed, approx: _Approximation, inputs: PackInputs, st
 
                 def progress(f: float, m: str, said: str = said) -> None:
                     report(0.99, said + m)
-            cert, repair = _certify(att.solver, certifier, run.shares_of(att),
-                                    inputs.clearance, inputs.options, stop, progress)
-            density = snapshot_metrics(att.solver.s, att.solver.t.volume,
-                                       run.shares_of(att), c_volume)["density"]
+            shares = run.shares_of(att)
+            cert, repair = _certify(att.solver, certifier, shares, inputs.clearance,
+                                    inputs.options, stop, progress)
+            density = snapshot_metrics(att.solver.s, att.solver.t.volume, shares,
+                                       c_volume)["density"]
             run.attempts[att.index].certified = density
             if kept is None or density > kept[3]:
                 kept = (att, cert, repair, density)
