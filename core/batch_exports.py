@@ -56,8 +56,8 @@ def export_scene(spec: SceneSpec, packing_file: str, digest: str | None, out: Pa
     else:
         made = {}
     if not paths:
-        warned = record.get("warnings", []) if _current(record, digest, spec) else []
-        return "", again, [], [str(w) for w in warned if isinstance(w, str)]
+        return "", again, [], (_recorded_warnings(record)
+                               if _current(record, digest, spec) else [])
     from jampacked.export.assemble import export_packing
     from jampacked.export.options import ExportOptions
 
@@ -75,11 +75,17 @@ def export_scene(spec: SceneSpec, packing_file: str, digest: str | None, out: Pa
         else:
             error = "export: a file did not validate"
     if error and made:  # the files kept from before keep their export's warnings
-        warned = [str(w) for w in record.get("warnings", []) if isinstance(w, str)]
+        warned = _recorded_warnings(record)
     _write_record(exports_record(out, spec), {
         "format": EXPORTS_FORMAT, "version": 1, "packing": digest, "settings": settings,
         "files": made, "warnings": warned})
     return error, again, drop_outdated(spec, digest, out, set(made), record), warned
+
+
+def _recorded_warnings(record: dict) -> list[str]:
+    """The export warnings an exports record keeps (none where it keeps no list of them)."""
+    warned = record.get("warnings")
+    return [w for w in warned if isinstance(w, str)] if isinstance(warned, list) else []
 
 
 def drop_outdated(spec: SceneSpec, digest: str | None, out: Path,
