@@ -55,15 +55,11 @@ logger = logging.getLogger(__name__)
 
 _BOX_SPEC = re.compile(r"^\s*box\s*:", re.IGNORECASE)
 _OBJ_FACE_COMMENT = re.compile(rb"^[ \t]*f[ \t][^\n#]*#", re.MULTILINE)
-#: what trimesh's OBJ reader misreads: a byte order mark (Windows editors), tabs between
-#: fields and indented lines, which it skipped (a file of them read as empty, a few as
-#: faces lost)
-_OBJ_ODD_SPACE = re.compile(rb"\A\xef\xbb\xbf|^[ \t]+|\t", re.MULTILINE)
 #: an OBJ face line with four corners or more (its polygon may be concave)
 _OBJ_POLYGON = re.compile(rb"^[ \t]*f(?:[ \t]+[^ \t\r\n#]+){4,}", re.MULTILINE)
 _OBJ_FACE_LINE = re.compile(rb"^f ([^\r\n]*)", re.MULTILINE)
 _OBJ_VERTEX_LINE = re.compile(rb"^v ([^\r\n]*)", re.MULTILINE)
-_OBJ_AFTER_SLASH = re.compile(rb"/[^ ]*")
+_OBJ_AFTER_SLASH = re.compile(rb"/[^ \n]*")
 _OBJ_RELATIVE_INDEX = re.compile(rb"^[ \t]*[fl][ \t][^\n#]*(?<![\w.])-[0-9]", re.MULTILINE)
 
 Arrays = tuple[np.ndarray, np.ndarray]
@@ -166,14 +162,30 @@ def parse_box_spec(spec: str) -> tuple[float, float, float] | None:
 def _obj_plain_spacing(data: bytes) -> bytes:
     """``data`` with single spaces between an OBJ line's fields and none before them (the
     same object where there is nothing to change)."""
-    if not _OBJ_ODD_SPACE.search(data):
+    if not (data.startswith((b"\xef\xbb\xbf", b" ")) or b"\t" in data or b"\n " in data):
         return data
     data = data.removeprefix(b"\xef\xbb\xbf").replace(b"\t", b" ")
     return re.sub(rb"^ +", b"", data, flags=re.MULTILINE)
 
 
 def _strip_obj_comments(data: bytes) -> bytes:
+    """``data`` without comments, its lines ended by newlines alone."""
+    if b"#" not in data and b"\r" not in data:
+        return data
     return b"\n".join(line.split(b"#", 1)[0] for line in data.splitlines())
+
+
+def _words_per_line(text: bytes) -> np.ndarray:
+    """(L,) the number of words (as ``bytes.split`` cuts them) on each of the L lines of
+    ``text``, which ends with a newline and has no other line ends."""
+    chars = np.frombuffer(text, np.uint8)
+    word = ~_WHITESPACE[chars]
+    begins = np.cumsum(word & ~np.concatenate(([False], word[:-1])))
+    return np.diff(begins[chars == ord("\n")], prepend=0)
+
+
+_WHITESPACE = np.zeros(256, bool)
+_WHITESPACE[list(b" \t\n\r\x0b\x0c")] = True
 
 
 def obj_absolute_indices(data: bytes) -> bytes:
@@ -182,7 +194,7 @@ def obj_absolute_indices(data: bytes) -> bytes:
     defined *before* that line. trimesh counts from the end of the whole file instead.
 
     Returns ``data`` itself when it has no negative index."""
-    if not _OBJ_RELATIVE_INDEX.search(data):
+    if not _minus_on_face_line(data) or not _OBJ_RELATIVE_INDEX.search(data):
         return data
     counts = {b"v": 0, b"vt": 0, b"vn": 0}
     out = []
@@ -204,6 +216,22 @@ def obj_absolute_indices(data: bytes) -> bytes:
             line = b" ".join(fields) + (sep + comment if sep else b"")
         out.append(line)
     return b"\n".join(out) + b"\n"
+
+
+def _minus_on_face_line(data: bytes) -> bool:
+    """Whether a minus sign may stand on an OBJ face or line element (f, l) of ``data``:
+    False only where every minus is on a line that starts with something else (the
+    regular expression that finds the negative indices takes seconds over a large file)."""
+    chars = np.frombuffer(data, np.uint8)
+    minus = np.flatnonzero(chars == ord("-"))
+    if not len(minus):
+        return False
+    starts = np.concatenate(([0], np.flatnonzero(chars == ord("\n")) + 1))
+    starts = np.unique(starts[np.searchsorted(starts, minus, side="right") - 1])
+    head = chars[starts]
+    second = chars[np.minimum(starts + 1, len(chars) - 1)]
+    return bool(np.any(_WHITESPACE[head] | (np.isin(head, list(b"fl"))
+                                            & np.isin(second, list(b" \t")))))
 
 
 def obj_malformed_polygons(data: bytes, limit: int = 3) -> list[str]:
@@ -552,15 +580,16 @@ def _obj_concave_arrays(data: bytes) -> Arrays | None:
     polygon from its first corner, which on a concave one makes faces that cross); None
     where every polygon is convex or the text is not plain enough to read here (trimesh
     then reads it). Only the vertices the faces use are kept, in the file's order."""
-    faces = _OBJ_FACE_LINE.findall(data)
-    points = _OBJ_VERTEX_LINE.findall(data)
-    sizes = np.array([len(line.split()) for line in faces], np.int64)
-    numbers = np.array([len(line.split()) for line in points], np.int64)  # x y z [w|r g b]
+    faces = b"\n".join(_OBJ_FACE_LINE.findall(data)) + b"\n"
+    points = b"\n".join(_OBJ_VERTEX_LINE.findall(data)) + b"\n"
+    sizes = _words_per_line(faces)
+    numbers = _words_per_line(points)  # x y z [w|r g b]
+    if b"/" in faces:
+        faces = _OBJ_AFTER_SLASH.sub(b"", faces)
     with warnings.catch_warnings():  # a token that is no number ends the numbers read
         warnings.simplefilter("ignore", DeprecationWarning)
-        flat = np.fromstring(_OBJ_AFTER_SLASH.sub(b"", b" ".join(faces)).decode("latin-1"),
-                             np.float64, sep=" ")
-        values = np.fromstring(b" ".join(points).decode("latin-1"), np.float64, sep=" ")
+        flat = np.fromstring(faces.decode("latin-1"), np.float64, sep=" ")
+        values = np.fromstring(points.decode("latin-1"), np.float64, sep=" ")
     # anything but numbers (three or more a vertex) and whole indices is left to trimesh
     if (len(values) != numbers.sum() or (len(numbers) and numbers.min() < 3)
             or len(flat) != sizes.sum() or not len(flat) or sizes.min() < 3
@@ -713,7 +742,7 @@ def _read_by_extension(ext: str, path: str, data: bytes, label: str,
             arrays = _obj_concave_arrays(_strip_obj_comments(absolute))
             if arrays is not None:
                 return arrays
-        if absolute is not data or _OBJ_FACE_COMMENT.search(data):
+        if absolute is not data or (b"#" in data and _OBJ_FACE_COMMENT.search(data)):
             # trimesh's OBJ reader fails on comments at the end of face lines, counts
             # relative indices from the end of the file and skips indented lines
             logger.debug("%s: read with comments and relative indices resolved", label)

@@ -1053,3 +1053,23 @@ def test_off_keywords_in_any_case(tmp_path, keyword, read):
     else:
         with pytest.raises(MeshError, match="vertices of any dimension"):
             read_mesh_arrays(tmp_path / "k.off")
+
+
+def test_obj_relative_indices_count_back_from_their_line(tmp_path):
+    # -1 is the last vertex defined before the face line (trimesh counts from the file's
+    # end): with each face written after its own corners, a wrong count gives other faces
+    box = trimesh.creation.box((10, 20, 30))
+    lines = []
+    for face in box.faces:
+        lines += [f"v {x!r} {y!r} {z!r}" for x, y, z in box.vertices[face]]
+        lines.append("f -3 -2 -1")
+    variants = {"relative.obj": "\n".join(lines),
+                "indented.obj": "\n".join("  " + line for line in lines),
+                "slashes.obj": "\n".join(["vn 0 0 1"] + [
+                    line.replace("f -3 -2 -1", "f -3//-1 -2//-1 -1//-1") for line in lines])}
+    for name, text in variants.items():
+        (tmp_path / name).write_text(text)
+        v, f = read_mesh_arrays(tmp_path / name)
+        assert len(f) == 12, name
+        np.testing.assert_allclose(v[f], box.vertices[box.faces], err_msg=name)
+        assert load_mesh(tmp_path / name).volume == pytest.approx(6000.0), name
