@@ -350,18 +350,21 @@ def _meshio_faces(points: np.ndarray, cells: list, label: str) -> np.ndarray:
     return np.concatenate(tris) if tris else np.zeros((0, 3), np.int64)
 
 
-def _meshio_read(path: str) -> tuple[np.ndarray, list]:
-    """meshio's read of ``path``: its (V, 3) points (2D ones at z = 0) and cell blocks.
+def _meshio_read(path: str, data: bytes) -> tuple[np.ndarray, list]:
+    """meshio's read of ``path`` (``data``: its bytes): its (V, 3) points (2D ones at
+    z = 0) and cell blocks.
 
     Raises:
         ValueError: no meshio reader read it (what meshio said)."""
     import meshio
 
+    renamed = _ply_face_list_renamed(data) if extension(path) == "ply" else None
     # meshio prints to stdout/stderr and calls sys.exit(1) when no reader succeeds
     sink = io.StringIO()
     try:
         with contextlib.redirect_stdout(sink), contextlib.redirect_stderr(sink):
-            mesh = meshio.read(path)
+            mesh = (meshio.read(path) if renamed is None
+                    else meshio.read(io.BytesIO(renamed), file_format="ply"))
     except SystemExit:
         message = " ".join(sink.getvalue().split()) or "no reader succeeded"
         raise ValueError(message) from None
@@ -371,8 +374,8 @@ def _meshio_read(path: str) -> tuple[np.ndarray, list]:
     return points.reshape(-1, 3), mesh.cells
 
 
-def _meshio_arrays(path: str, label: str) -> Arrays:
-    points, cells = _meshio_read(path)
+def _meshio_arrays(path: str, data: bytes, label: str) -> Arrays:
+    points, cells = _meshio_read(path, data)
     return points, _meshio_faces(points, cells, label)
 
 
@@ -483,15 +486,18 @@ def _ply_face_count(data: bytes) -> int:
     return int(found[1]) if found else 0
 
 
-def _ply_polygons_in_plane(path: str, label: str, fanned: Arrays) -> Arrays:
-    """An ASCII PLY that trimesh read with polygons of four corners or more (``fanned``: each
-    fanned from its first corner, wrong on a concave one, whose faces then cross): read by
-    meshio too, and where one of its polygons is concave, its read, whose polygons are
-    triangulated in their plane (:func:`_meshio_faces`); else trimesh's, as before. A
-    binary PLY's polygons stay trimesh's: meshio reads one of a million quads in 2.5 s
-    against trimesh's 0.4 s (one of mixed sizes, which trimesh refuses, is meshio's)."""
+def _ply_polygons_in_plane(path: str, data: bytes, label: str, fanned: Arrays) -> Arrays:
+    """A PLY (``data``: its bytes) that trimesh read with polygons of four corners or more
+    (``fanned``: each fanned from its first corner, wrong on a concave one, whose faces then
+    cross): where one of its polygons is concave, the polygons triangulated in their plane;
+    else trimesh's read, as before. A binary PLY's polygons (all of one size: trimesh refuses
+    mixed ones there, which meshio then reads) are taken from trimesh's parse before its fan;
+    an ASCII PLY's from meshio's read (meshio reads a million binary quads in 2.5 s against
+    trimesh's 0.4 s; trimesh fans an ASCII PLY's polygons of mixed sizes as it parses)."""
+    if not _ply_ascii(data):
+        return _ply_polygons_of_one_size(data, fanned)
     try:
-        vertices, cells = _meshio_read(path)
+        vertices, cells = _meshio_read(path, data)
     except Exception:  # noqa: BLE001 - trimesh's read stands
         return fanned
     if not any(_block_concave(vertices, block) for block in cells):
@@ -500,6 +506,42 @@ def _ply_polygons_in_plane(path: str, label: str, fanned: Arrays) -> Arrays:
         return vertices, _meshio_faces(vertices, cells, label)
     except MeshError:
         return fanned
+
+
+def _ply_polygons_of_one_size(data: bytes, fanned: Arrays) -> Arrays:
+    """:func:`_ply_polygons_in_plane` for a binary PLY, by trimesh's parse of its faces
+    before the fan (an (F, k) array where all have k corners)."""
+    try:
+        parsed = trimesh.exchange.ply.load_ply(io.BytesIO(data), skip_materials=True)
+        vertices = np.asarray(parsed["vertices"], np.float64)
+        polygons = np.asarray(parsed["faces"])
+    except Exception:  # noqa: BLE001 - trimesh's read stands
+        return fanned
+    if (polygons.ndim != 2 or polygons.shape[1] < 4 or not polygons.size
+            or not np.array_equal(vertices, fanned[0])):
+        return fanned
+    sizes = np.full(len(polygons), polygons.shape[1])
+    corners = polygons.ravel().astype(np.int64)
+    if (corners.min() < 0 or corners.max() >= len(vertices)
+            or not concave(vertices, sizes, corners).any()):
+        return fanned
+    return vertices, polygons_to_triangles(vertices, sizes, corners)
+
+
+def _ply_face_list_renamed(data: bytes) -> bytes | None:
+    """A PLY whose face list is named ``vertex_index`` (as some writers name it; trimesh
+    reads either name) with the name meshio knows, ``vertex_indices``; None where there is
+    nothing to rename."""
+    end = data.find(b"end_header")
+    if end < 0 or b"vertex_indices" in data[:end]:
+        return None
+    header, count = _PLY_SINGULAR_LIST.subn(rb"\1vertex_indices\2", data[:end], count=1)
+    return header + data[end:] if count else None
+
+
+#: a face list property named in the singular
+_PLY_SINGULAR_LIST = re.compile(rb"(property[ \t]+list[ \t]+\S+[ \t]+\S+[ \t]+)vertex_index"
+                                rb"([ \t]*\r?\n)")
 
 
 def _block_concave(vertices: np.ndarray, block) -> bool:
@@ -760,9 +802,8 @@ def _read_by_extension(ext: str, path: str, data: bytes, label: str,
         except Exception as exc:  # noqa: BLE001 - any reader failure falls through
             errors.append(f"trimesh: {exc}")
         else:
-            if (ext == "ply" and _ply_ascii(data)
-                    and len(arrays[1]) > _ply_face_count(data)):
-                return _ply_polygons_in_plane(path, label, arrays)
+            if ext == "ply" and len(arrays[1]) > _ply_face_count(data):
+                return _ply_polygons_in_plane(path, data, label, arrays)
             return arrays
         if ext == "obj":
             arrays = _obj_arrays(_strip_obj_comments(data), errors, "tolerant OBJ reader")
@@ -770,7 +811,7 @@ def _read_by_extension(ext: str, path: str, data: bytes, label: str,
                 return arrays
     if ext in meshio_formats:
         try:
-            return _meshio_arrays(path, label)
+            return _meshio_arrays(path, data, label)
         except MeshError:
             raise
         except Exception as exc:  # noqa: BLE001

@@ -39,6 +39,8 @@ def concave(vertices: np.ndarray, sizes: np.ndarray, corners: np.ndarray) -> np.
     big = np.flatnonzero(sizes > 3)
     if not len(big):
         return out
+    if len(big) == len(sizes) and sizes.min() == sizes.max():  # all of one size
+        return _concave_of_one_size(vertices[np.asarray(corners).reshape(len(sizes), -1)])
     start = np.cumsum(sizes) - sizes
     n = sizes[big]
     polygon = np.repeat(np.arange(len(big)), n)  # among the big ones
@@ -68,6 +70,30 @@ def concave(vertices: np.ndarray, sizes: np.ndarray, corners: np.ndarray) -> np.
     bad = against | ((e2 == 0) & (n[polygon] > 4))
     out[big] = np.bincount(polygon, bad, minlength=len(big)) > 0
     return out
+
+
+def _concave_of_one_size(p: np.ndarray) -> np.ndarray:
+    """:func:`concave` for (P, k, 3) corners of polygons all of k > 3 corners, by the same
+    arithmetic in the same order on (P, k) arrays (several times faster than the gathers)."""
+    k = p.shape[1]
+    q = np.roll(p, -1, axis=1)
+    x, y, z = np.moveaxis(p, 2, 0)
+    qx, qy, qz = np.moveaxis(q, 2, 0)
+    cx, cy, cz = y * qz - z * qy, z * qx - x * qz, x * qy - y * qx
+    nx, ny, nz = cx[:, 0].copy(), cy[:, 0].copy(), cz[:, 0].copy()
+    for i in range(1, k):  # corner after corner, as np.add.reduceat sums
+        nx += cx[:, i]
+        ny += cy[:, i]
+        nz += cz[:, i]
+    ex, ey, ez = qx - x, qy - y, qz - z
+    fx, fy, fz = (np.roll(e, -1, axis=1) for e in (ex, ey, ez))
+    nx, ny, nz = nx[:, None], ny[:, None], nz[:, None]
+    along = (ey * fz - ez * fy) * nx + (ez * fx - ex * fz) * ny + (ex * fy - ey * fx) * nz
+    e2 = ex * ex + ey * ey + ez * ez
+    against = (along < 0) & (along * along > 1e-18 * e2 * np.roll(e2, -1, axis=1) * (
+        nx * nx + ny * ny + nz * nz))
+    bad = against | ((e2 == 0) & (k > 4))
+    return bad.any(axis=1)
 
 
 def polygons_to_triangles(vertices: np.ndarray, sizes: np.ndarray, corners: np.ndarray

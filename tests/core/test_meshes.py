@@ -1073,3 +1073,37 @@ def test_obj_relative_indices_count_back_from_their_line(tmp_path):
         assert len(f) == 12, name
         np.testing.assert_allclose(v[f], box.vertices[box.faces], err_msg=name)
         assert load_mesh(tmp_path / name).volume == pytest.approx(6000.0), name
+
+
+def _manifold_of(path) -> manifold3d.Manifold:
+    v, f = read_mesh_arrays(path)
+    return manifold3d.Manifold(manifold3d.Mesh(v.astype(np.float32), f.astype(np.uint32)))
+
+
+def test_concave_polygons_of_binary_ply_and_of_a_singular_face_list_are_cut_right(tmp_path):
+    # a binary PLY whose faces are all quads, two of them darts (concave), kept trimesh's fan
+    # from the first corner; a face list named vertex_index (trimesh reads it, meshio does
+    # not) kept the fan in ASCII, and was refused in binary with mixed sizes
+    dart = np.array([[0, 0], [20, 2], [0, 20], [5, 5]], float)  # reflex at its last corner
+    vertices, polygons = prism(4)
+    vertices[:4, :2], vertices[4:, :2] = dart, dart
+    files = {"darts.ply": binary_ply(vertices, polygons)}
+    outline = np.array([[0, 0], [20, 0], [20, 10], [10, 10], [10, 20], [0, 20]], float)
+    l_vertices = np.vstack([np.column_stack([outline, np.full(6, z)]) for z in (0.0, 5.0)])
+    l_polygons = [list(range(6))[::-1], list(range(6, 12))]
+    l_polygons += [[i, (i + 1) % 6, 6 + (i + 1) % 6, 6 + i] for i in range(6)]
+    files["l-ascii.ply"] = ply_text(l_vertices, l_polygons).encode()
+    files["l-binary.ply"] = binary_ply(l_vertices, l_polygons)
+    files["darts-singular.ply"] = files["darts.ply"]
+    areas = {"darts": 2 * 150.0, "l": 2 * 300.0}  # the caps' (shoelace)
+    for name, data in files.items():
+        if name != "darts.ply":
+            data = data.replace(b"vertex_indices\n", b"vertex_index\n")
+        path = _written(tmp_path / name, data)
+        solid = _manifold_of(path)
+        assert solid.status() == manifold3d.Error.NoError, name
+        area = areas[name.split("-")[0].split(".")[0]]
+        assert solid.volume() == pytest.approx(area / 2 * 5), name
+        top = trimesh.Trimesh(*read_mesh_arrays(path), process=False)
+        caps = np.abs(top.face_normals[:, 2]) > 0.5
+        assert top.area_faces[caps].sum() == pytest.approx(area), name  # no face folded over

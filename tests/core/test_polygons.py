@@ -183,3 +183,26 @@ def test_a_quad_padding_a_triangle_is_fanned_and_a_polygon_of_no_area_warns_noth
         warnings.simplefilter("error")
         faces = polygons_to_triangles(vertices, np.array([5]), on_a_line)
     assert len(faces) == 3 and set(faces.ravel()) <= set(on_a_line)
+
+
+@pytest.mark.parametrize("k", [4, 5, 7])
+def test_polygons_of_one_size_are_judged_as_the_general_path_judges_them(k):
+    """All polygons of one size take a path on (P, k) arrays: the same answer, bit for bit,
+    as the general path (forced here by one triangle more) on random, planar, near-flat and
+    repeated-corner polygons."""
+    rng = np.random.default_rng(k)
+    n = 3000
+    angles = np.sort(rng.uniform(0, 2 * np.pi, (n, k)), axis=1)
+    cases = [rng.normal(size=(n * k, 3)),
+             np.column_stack([rng.normal(size=(n * k, 2)), np.zeros(n * k)]),
+             np.stack([np.cos(angles), np.sin(angles),
+                       1e-9 * rng.normal(size=(n, k))], -1).reshape(-1, 3)]
+    cases[2][::7] = cases[2][1::7]
+    seen = set()
+    for points in cases:
+        sizes, corners = np.full(n, k), np.arange(n * k)
+        one_size = concave(points, sizes, corners)
+        general = concave(points, np.append(sizes, 3), np.append(corners, [0, 1, 2]))[:-1]
+        assert np.array_equal(one_size, general)
+        seen |= set(one_size.tolist())
+    assert seen == {True, False}
