@@ -9,6 +9,7 @@ grid, which can fall short of the true depth by about half a cell at its peak.
 
 from __future__ import annotations
 
+import math
 from collections.abc import Sequence
 from dataclasses import dataclass
 
@@ -46,6 +47,14 @@ def measured_depth(vertices: np.ndarray, faces: np.ndarray,
     return max(float(fine.values.max()), 0.0), fine
 
 
+def rounded_up(factor: float) -> str:
+    """``factor`` to three significant digits, rounded up: a scale factor said "at least"
+    that, followed, leaves the object a little smaller than the bound, not larger (2.4167
+    said as 2.42, not 2.41)."""
+    step = 10.0 ** (math.floor(math.log10(factor)) - 2)
+    return f"{math.ceil(factor / step - 1e-9) * step:.3g}"
+
+
 def refuse_no_room(label: str, vertices: np.ndarray, sizes: list[TypeSize], depth: float,
                    spacing: float, clearance: float) -> None:
     """Refuse a scene where even the smallest of the types asked for (``sizes``, with their
@@ -68,9 +77,18 @@ def refuse_no_room(label: str, vertices: np.ndarray, sizes: list[TypeSize], dept
         f"{t.label}: needs at least {needs(t)}, "
         f"{' x '.join(f'{x:.4g}' for x in t.extents)} units across" for t in big[:5])
     more = f"; and {len(big) - 5} more" if len(big) > 5 else ""
-    room = most - clearance
-    factor = (f"by a factor of at least {big[0].room / room:.3g}"
-              if room > 0 else "after lowering the clearance")
+    # the factor said is the least that takes a type within both bounds a placement needs:
+    # the depth measured (not its upper bound, which left the type too deep) and the
+    # container's diagonal (`refuse_too_long`), so that the next run is not refused again
+    room = depth - clearance
+    reach = float(np.linalg.norm(c_ext)) - 2.0 * clearance
+    if room > 0 and reach > 0:
+        first = min(big, key=lambda t: max(t.room / room, float(t.extents.max()) / reach))
+        least = max(first.room / room, float(first.extents.max()) / reach)
+        factor = (f"by a factor of more than {rounded_up(least)}, at which {first.label} "
+                  "would only just fit, with no room to move")
+    else:
+        factor = "after lowering the clearance"
     plus = f" plus the clearance {clearance:g}" if clearance else ""
     # a clearance deeper than the container: most likely given in mm for a file in metres
     alone = (f" The clearance alone is more than the container's depth ({depth:.4g}): it is "
@@ -108,7 +126,7 @@ def refuse_too_long(label: str, vertices: np.ndarray, sizes: Sequence[TypeSize],
     plus = f" (with the clearance {clearance:g} at both ends)" if clearance else ""
     # the clearance does not scale with the objects: they need the room it leaves
     room = reach - 2.0 * clearance
-    objects = (f"by a factor of at least {least / room:.3g}" if room > 0
+    objects = (f"by a factor of at least {rounded_up(least / room)}" if room > 0
                else "after lowering the clearance")
     raise PackingError(
         f"no object fits: the container {label} is {' x '.join(f'{x:.4g}' for x in c_ext)} "
@@ -116,7 +134,7 @@ def refuse_too_long(label: str, vertices: np.ndarray, sizes: Sequence[TypeSize],
         f"{'s' if len(live) > 1 else ''} {listed}{more} {'are' if len(live) > 1 else 'is'} "
         f"longer than that{plus}. Scale the objects down (--type-scale / type_scale, "
         f"{objects}) or the container up (--container-size / container_size, by a factor "
-        f"of at least {(least + 2.0 * clearance) / reach:.3g})"
+        f"of at least {rounded_up((least + 2.0 * clearance) / reach)})"
         f"{', or lower the clearance' if clearance else ''}.")
 
 
