@@ -200,6 +200,26 @@ def require_evaluated(obj: bpy.types.Object, what: str, view_layer: bpy.types.Vi
         f"sight hide it with H instead, which {reader} can read), or apply its modifiers.")
 
 
+def _refuse_flattened(obj: bpy.types.Object, what: str) -> None:
+    """Refuse an object flattened by a Scale (or Delta Scale) of 0 along an axis, its own or
+    a parent's, naming that Scale, not the mesh (the engine would say its mesh has no
+    volume, as of a file)."""
+    holder = obj
+    while holder is not None and all(x != 0 for x in (*holder.scale, *holder.delta_scale)):
+        holder = holder.parent
+    if holder is None:
+        return
+    whose = "its Scale" if holder == obj else f"the Scale of its parent '{holder.name}'"
+    scale = " x ".join(f"{x:.3g}" for x in holder.scale)
+    if all(x != 0 for x in holder.scale):
+        whose, scale = whose.replace("Scale", "Delta Scale"), " x ".join(
+            f"{x:.3g}" for x in holder.delta_scale)
+    raise _input_error(
+        f"{what} '{obj.name}' is flattened by {whose} ({scale}): with no thickness it has no "
+        "volume. Set that Scale to no zero along any axis (sidebar > Item, or Object "
+        "Properties > Transform).")
+
+
 def read_input(obj: bpy.types.Object, what: str,
                depsgraph: bpy.types.Depsgraph) -> Triangles:
     """World-space triangles of a Pack input (container or type), modifiers applied.
@@ -210,6 +230,7 @@ def read_input(obj: bpy.types.Object, what: str,
     absurd (:func:`.engine.check_extent`).
     """
     require_evaluated(obj, what, depsgraph.view_layer, "Pack")
+    _refuse_flattened(obj, what)
     if _flat_curve(obj):
         raise _input_error(
             f"{what} '{obj.name}' is a flat {GEOMETRY_TYPES[obj.type]} with no volume: give "

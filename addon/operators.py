@@ -582,7 +582,7 @@ class JAMPACKED_OT_validate(bpy.types.Operator):
     def execute(self, context: bpy.types.Context) -> set[str]:
         missing = engine.engine_missing()
         if missing:
-            self.report({'ERROR'}, missing)
+            note(self, context, 'ERROR', missing)
             return {'CANCELLED'}
         objects = _mesh_targets(context)
         apply_modifiers = context.scene.jampacked.validate_modifiers
@@ -591,8 +591,8 @@ class JAMPACKED_OT_validate(bpy.types.Operator):
                 for obj in objects:
                     bridge.require_evaluated(obj, "Object", context.view_layer, "Validate")
             except _errors().JampackedError as exc:
-                self.report({'ERROR'}, f"{exc} Or turn off Apply Modifiers to check its "
-                                       "mesh as stored.")
+                note(self, context, 'ERROR', f"{exc} Or turn off Apply Modifiers to check "
+                                             "its mesh as stored.")
                 return {'CANCELLED'}
         bridge.flush_edit_mode(context)
         depsgraph = context.evaluated_depsgraph_get()
@@ -623,12 +623,13 @@ class JAMPACKED_OT_validate(bpy.types.Operator):
             failed += not report.passed
         seconds = time.perf_counter() - t0
         shown = _select_failing(context, objects)
+        # the panel's status line follows (an earlier Export's error no longer stands there)
         if failed:
-            self.report({'WARNING'}, f"{failed} of {len(objects)} mesh(es) fail: "
-                                     + "; ".join(r.summary for r in results if not r.passed))
+            note(self, context, 'WARNING', f"{failed} of {len(objects)} mesh(es) fail: "
+                 + "; ".join(r.summary for r in results if not r.passed))
         else:
-            self.report({'INFO'}, f"{len(objects)} mesh(es) pass ({seconds:.1f} s): "
-                                  + "; ".join(r.summary for r in results))
+            note(self, context, 'INFO', f"{len(objects)} mesh(es) pass ({seconds:.1f} s): "
+                 + "; ".join(r.summary for r in results))
         if shown:
             self.report({'INFO'}, f"Selected {shown[1]} offending element(s) of "
                                   f"'{shown[0]}' in edit mode.")
@@ -729,8 +730,8 @@ class JAMPACKED_OT_make_manifold(bpy.types.Operator):
         # the last Validate no longer describes these meshes
         context.window_manager.jampacked_validation.reports.clear()
         _validation_cache.clear()
-        self.report({'INFO'}, "Made manifold: " + "; ".join(done) + ". Validate again to "
-                              "check.")
+        note(self, context, 'INFO', "Made manifold: " + "; ".join(done) + ". Validate again "
+             "to check.")
         return {'FINISHED'}
 
 

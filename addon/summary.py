@@ -132,7 +132,20 @@ _BLENDER_WORDS = (
     ("--shell", "Shell"),
     ("--drain", "Drain"),
     ("--connector", "Connector"),
+    # a mesh's defects are fixed in Edit Mode, not by exporting a file again
+    ("Check that the right file was exported; re-export it from your modelling tool as a "
+     "closed solid.", "Check that it is the right object, and make it a closed solid in Edit "
+     "Mode."),
+    ("re-export it from your modelling tool as a closed solid",
+     "make it a closed solid in Edit Mode (Make Manifold in this panel mends holes and "
+     "flipped faces)"),
     # in Blender the placements change by moving, adding or deleting objects and points
+    ("Every object must sit within the container: re-run the packing, or fix these "
+     "placements.", "Every object must sit within the container: move it back inside, or "
+     "pack again."),
+    ("re-run the packing, or fix or remove these placements",
+     "pack again, or fix or delete these objects"),
+    ("re-run the packing, or fix these placements", "pack again, or fix these objects"),
     ("the packing was changed after it was certified (its certificate's digest no longer "
      "matches its placements)", "the result's objects were moved, added or deleted since "
      "Pack certified them"),

@@ -167,7 +167,8 @@ def check_placements(packing: Packing, type_radius: np.ndarray, lo: np.ndarray,
         i = int(far[0])
         raise InputError(
             f"cannot export: {where} places {_objects(packing, far, labels)} outside the "
-            f"container ({object_name(packing, i, labels)} is {size[i]:.4g} units across at "
+            f"container ({object_name(packing, i, labels)} is up to {2.0 * size[i]:.4g} units "
+            f"across, at "
             f"({', '.join(f'{c:.4g}' for c in t[i])}); the container spans "
             f"({', '.join(f'{c:.4g}' for c in lo)}) to ({', '.join(f'{c:.4g}' for c in hi)})). "
             "Every object must sit within the container: re-run the packing, or fix these "

@@ -86,7 +86,7 @@ def test_export_errors_say_millimetres(bpy, addon, packed, tmp_path):
     packed.settings.filepath = str(tmp_path / "x.stl")
     placed = next(o for o in packed.settings.result.objects if o.type == 'MESH')
     placed.location.x += 1000.0
-    with pytest.raises(RuntimeError, match=r"is [\d.]+ mm across at \(") as caught:
+    with pytest.raises(RuntimeError, match=r"is up to [\d.e+]+ mm across, at \(") as caught:
         bpy.ops.jampacked.export()
     assert " units" not in str(caught.value)
     assert not (tmp_path / "x.stl").exists()
@@ -286,6 +286,10 @@ def test_an_object_moved_out_is_named_by_its_blender_name(bpy, addon, packed, tm
     packed.settings.filepath = str(tmp_path / "x.stl")
     with pytest.raises(RuntimeError, match=rf"places '{objs[0].name}' outside the container"):
         bpy.ops.jampacked.export()
+    # what to do, in Blender's words (it read "re-run the packing, or fix these placements")
+    message = bpy.context.window_manager.jampacked_job.last_message
+    assert message.endswith("within the container: move it back inside, or pack again."), \
+        message
 
 
 def test_export_names_a_container_disabled_in_viewports(bpy, addon, scene, tmp_path):

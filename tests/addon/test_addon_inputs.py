@@ -95,14 +95,14 @@ def _modified(kind, **settings):
     return build
 
 
-def _transformed(scale, parent=False):
+def _transformed(scale, parent=False, flat=False):
     def build(bpy, name, rng):
         obj = _ico(bpy, name)
         obj.rotation_euler = [rng.uniform(-3, 3) for _ in range(3)]
         obj.scale = scale
         if parent:
             empty = _link(bpy, bpy.data.objects.new(f"{name} parent", None))
-            empty.scale = (0.6, 0.9, 0.7)
+            empty.scale = (0.6, 0.0 if flat else 0.9, 0.7)
             empty.rotation_euler = (0.4, -0.3, 1.1)
             obj.parent = empty
         return obj
@@ -308,7 +308,12 @@ TYPE_KINDS = [
     Kind("open", _arrays([(0, 0, 0), (1, 0, 0), (0, 1, 0), (0, 0, 1)],
                          [(0, 2, 1), (0, 1, 3), (0, 3, 2)]), NOT_A_SOLID),
     Kind("nan vertex", _nan, r"'{name}' has non-finite vertex coordinates"),
-    Kind("flattened", _transformed((1.0, 0.0, 1.0)), NOT_A_SOLID),
+    # its Scale named (it read "has zero volume ... Check that the right file was exported")
+    Kind("flattened", _transformed((1.0, 0.0, 1.0)),
+         r"'{name}' is flattened by its Scale \(1 x 0 x 1\): .*sidebar > Item", "read"),
+    Kind("flattened by its parent", _transformed((1.0, 1.0, 1.0), parent=True, flat=True),
+         r"'{name}' is flattened by the Scale of its parent '{name} parent' \(0.6 x 0 x 0.7\)",
+         "read"),
     Kind("huge", _transformed((1e12, 1e12, 1e12)), HUGE, "read"),
     Kind("tiny", _transformed((1e-8, 2e-8, 1e-8)), HUGE, "read"),
     Kind("disabled in viewports", _hidden("disabled"),
@@ -361,6 +366,8 @@ CONTAINER_KINDS = [
                                                         scale=(3.0, 3.0, 3.0)),
          NOT_A_SOLID),
     Kind("huge box", _box((3e12, 3e12, 3e12)), HUGE, "read"),
+    Kind("flattened box", _box((3.0, 3.0, 0.0)),
+         r"'{name}' is flattened by its Scale \(3 x 3 x 0\)", "read"),
     Kind("camera", _no_data('CAMERA'), NO_SURFACE, "pick"),
     Kind("no vertices", _arrays([], []), r"'{name}' has no faces \(0 vertices", "read"),
     Kind("deleted", _deleted, r"'{name}' is in no scene \(it was deleted\)", "pick"),

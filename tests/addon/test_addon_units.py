@@ -186,6 +186,14 @@ def test_engine_messages_in_blender_words():
         require_gap(0.0)
     assert summary.in_blender_words(str(err.value)).endswith(
         "Re-pack with a Clearance (e.g. 0.2 mm), or export in Union or Connect mode.")
+    from jampacked.core.errors import MeshError
+    from jampacked.core.meshes import mesh_from_arrays
+
+    with pytest.raises(MeshError) as err:  # faces that cancel out: no file to export again
+        mesh_from_arrays(np.eye(3), np.array([[0, 1, 2], [0, 2, 1]]), name="Box",
+                         role="container")
+    assert summary.in_blender_words(str(err.value)).endswith(
+        "Check that it is the right object, and make it a closed solid in Edit Mode."), err.value
     assert summary.in_blender_words("Fix: fill the holes; then export again.") == \
         "Fix: fill the holes; then pack again."
     assert summary.in_blender_words(
@@ -458,10 +466,10 @@ def test_a_blender_packing_stays_as_certified_through_its_name_and_units():
      "The drain opens 4 mm away from it and 0.5 mm lower, at"),
     ("the cavity's drain opens 4 away from the shell's 2 thick wall",
      "The cavity's drain opens 4 mm away from the shell's 2 mm thick wall"),
-    ("'X' is 15.32 units across at (-39.86, -21.21, 174.3); the container spans (-50, -50, "
-     "-50) to (50, 50, 50).",
-     "'X' is 15.32 mm across at (-39.86, -21.21, 174.3) mm; the container spans (-50, -50, "
-     "-50) mm to (50, 50, 50) mm."),
+    ("'X' is up to 15.32 units across, at (-39.86, -21.21, 174.3); the container spans "
+     "(-50, -50, -50) to (50, 50, 50).",
+     "'X' is up to 15.32 mm across, at (-39.86, -21.21, 174.3) mm; the container spans "
+     "(-50, -50, -50) mm to (50, 50, 50) mm."),
     ("--resolution saved 138 triangles (surfaces moved at most 0.124 mm); 2 bodies",
      "Resolution saved 138 triangles (surfaces moved at most 0.124 mm); 2 bodies"),
     ("--shell 1e-05 is too thin", "Shell 1e-05 mm is too thin"),

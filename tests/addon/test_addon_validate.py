@@ -189,3 +189,21 @@ def test_validate_refuses_to_read_a_disabled_object_without_its_modifiers(bpy, a
     assert bpy.ops.jampacked.validate() == {'FINISHED'}
     [report] = bpy.context.window_manager.jampacked_validation.reports
     assert "12 faces" in report.summary
+
+
+def test_validate_and_make_manifold_replace_the_panels_last_message(bpy, addon):
+    # an earlier Export's error stayed on the panel's status line after a Validate that
+    # passed: the line now tells the last operation's outcome
+    job = bpy.context.window_manager.jampacked_job
+    job.last_message, job.last_level = "Cannot export: an earlier error", 'ERROR'
+    good = cube_object(bpy, "Good")
+    _select_only(bpy, [good])
+    assert bpy.ops.jampacked.validate() == {'FINISHED'}
+    assert job.last_message.startswith("1 mesh(es) pass") and job.last_level == 'INFO'
+    holed = cube_object(bpy, "Holed", faces=CUBE_FACES[:-1], location=(10.0, 0.0, 0.0))
+    _select_only(bpy, [holed])
+    assert bpy.ops.jampacked.validate() == {'FINISHED'}
+    bpy.ops.object.mode_set(mode='OBJECT')
+    assert job.last_message.startswith("1 of 1 mesh(es) fail") and job.last_level == 'WARNING'
+    assert bpy.ops.jampacked.make_manifold() == {'FINISHED'}
+    assert job.last_message.startswith("Made manifold: ") and job.last_level == 'INFO'

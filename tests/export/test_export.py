@@ -6,6 +6,7 @@ import io
 import itertools
 import json
 import os
+import re
 import zipfile
 from pathlib import Path
 
@@ -1243,9 +1244,13 @@ def test_objects_far_outside_the_container_are_refused_by_name(tmp_path, transla
     t = _grid(26.0)[:4]
     t[2] = translation
     out = tmp_path / "u.stl"
-    with pytest.raises(InputError, match=r"object 2 \(polytope1\) outside the container"):
+    with pytest.raises(InputError, match=r"object 2 \(polytope1\) outside the container") \
+            as err:
         export_packing(_made(translations=t), out, ExportOptions(mode="union"))
     assert not out.exists()
+    # its size said is a bound of its extent (it was its radius: less than its longest side)
+    across = float(re.search(r"is up to ([0-9.]+) units across", str(err.value))[1])
+    assert across >= float(np.ptp(load_mesh(P1).vertices, axis=0).max())
 
 
 @pytest.mark.parametrize("value", [None, [1], "abc", float("nan"), -5.0, True])
