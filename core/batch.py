@@ -39,7 +39,7 @@ from .summary import number
 
 SUMMARY = "summary.csv"
 COLUMNS = ("id", "status", "seed", "container", "types", "count", "density", "tvd",
-           "nni_mean", "certified", "seconds", "file", "batch", "message")
+           "nni_mean", "certified", "seconds", "file", "batch", "folder", "message")
 #: what a scene stopped by Ctrl-C while packing says in the summary
 CANCELLED_NOTE = ("stopped by Ctrl-C before the end: its best certified packing so far is "
                   "written, not exported, and the next run packs it again")
@@ -238,24 +238,37 @@ def output_paths(spec: SceneSpec, out: Path) -> list[Path]:
 
 
 def _check_other_batches(scenes: list[SceneSpec], out: Path, batch: str) -> None:
-    """Refuse, before anything is packed, a scene whose id another batch file (still there,
-    beside this one) wrote in `out` (its summary's row says which): each run of either file
-    would pack it again for its own settings and replace the other's packing and row. A
-    batch file elsewhere is taken for this one's original: a project folder copied with its
-    output keeps rows that name the original's batch file."""
+    """Refuse, before anything is packed, a scene whose id another batch file (still there)
+    wrote in `out` (its summary's row says which): each run of either file would pack it
+    again for its own settings and replace the other's packing and row. A row that names
+    the folder it was written in (its ``folder``) and names another folder was copied here
+    with a project (its batch file is this one's original); a row of an older summary,
+    without it, counts only where the other batch file lies beside this one."""
     if not batch:
         return
     ids = {spec.id for spec in scenes}
     here = os.path.dirname(batch)
     for row in _summary_rows(out / SUMMARY):
         other = row.get("batch") or ""
-        if (row["id"] in ids and other and other != batch and os.path.dirname(other) == here
+        folder = row.get("folder") or ""
+        written_here = (_same_folder(folder, out) if folder
+                        else os.path.dirname(other) == here)
+        if (row["id"] in ids and other and other != batch and written_here
                 and os.path.isfile(other) and not os.path.samefile(other, batch)):
             raise InputError(
                 f"scene '{row['id']}' in {out} was written by another batch file, {other} "
                 f"(the batch column of {out / SUMMARY}): two batch files writing one scene "
                 "replace each other's packing on every run. Give the scene another name in "
                 "one of them, or write this batch to another folder (-o).")
+
+
+def _same_folder(recorded: str, out: Path) -> bool:
+    """Whether the folder a summary row recorded is `out` (the same folder by another path
+    too)."""
+    try:
+        return os.path.samefile(recorded, out)
+    except OSError:  # gone, or not there: moved or copied since
+        return False
 
 
 def check_output(scenes: list[SceneSpec], out_dir: str | os.PathLike) -> None:
@@ -353,8 +366,9 @@ def write_summary(results: list[SceneResult], path: str | os.PathLike, batch: st
     for row in _summary_rows(path):
         if row.get("id") not in ids and not (batch and row.get("batch") == batch):
             w.writerow({k: row.get(k) or "" for k in COLUMNS})
+    folder = str(Path(path).parent.resolve()) if batch else ""
     for r in results:
-        w.writerow({**r.row(), "batch": batch})
+        w.writerow({**r.row(), "batch": batch, "folder": folder})
     try:
         with atomic_output(path, "w") as f:
             f.write(buf.getvalue())

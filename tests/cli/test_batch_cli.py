@@ -305,6 +305,34 @@ def test_a_scene_another_batch_file_wrote_is_refused_before_any_work(folder):
     assert (out / "v-s1.json").read_bytes() != packed
 
 
+def test_a_scene_a_batch_file_in_another_folder_wrote_here_is_refused(folder):
+    """Two batch files in different folders writing one scene id into one output folder
+    replaced each other's packing on every run: only a batch file beside this one was
+    caught (a copied project keeps rows naming its original's). The summary now records
+    the folder each row was written in, which tells the two apart."""
+    first = folder / "first.toml"
+    first.write_text(textwrap.dedent("""\
+        [[scene]]
+        name = "v"
+        container = "box:16x15x14"
+        types = ["../a.obj", "../b.obj"]
+        seed = 1
+        fidelity = "low"
+        """))
+    (folder / "one").mkdir()
+    (folder / "two").mkdir()
+    first = first.rename(folder / "one" / "first.toml")
+    other = folder / "two" / "other.toml"
+    other.write_text(first.read_text().replace("box:16x15x14", "box:15x16x14"))
+    out = folder / "shared-out"
+    assert run(["batch", str(first), "-o", str(out), "-q"])[0] == 0
+    packed = (out / "v-s1.json").read_bytes()
+    rc, _, err = run(["batch", str(other), "-o", str(out), "-q"])
+    said = " ".join(err.split())
+    assert rc == 1 and f"was written by another batch file, {first}" in said, said
+    assert (out / "v-s1.json").read_bytes() == packed
+
+
 def test_a_rerun_with_nothing_to_do_starts_no_cluster(folder, monkeypatch):
     path = write(folder, GOOD.replace('seeds = [1, 2]', 'seeds = [1]').replace(
         ', "box:15x16x14"', ''))
