@@ -11,7 +11,7 @@ from rich.markup import escape
 from rich.progress import BarColumn, MofNCompleteColumn, Progress, TextColumn, TimeElapsedColumn
 from rich.table import Table
 
-from jampacked.cli.args import add_command
+from jampacked.cli.args import UsageError, add_command
 from jampacked.cli.cluster_args import add_cluster_arguments, cluster_client
 from jampacked.cli.exits import EXIT_INTERRUPTED
 from jampacked.cli.interrupt import CancelOnInterrupt
@@ -87,8 +87,10 @@ def add_batch_parser(sub: argparse._SubParsersAction) -> None:
 def cmd_batch(args: argparse.Namespace) -> int:
     """Run ``jampacked batch``; returns the exit status."""
     out, err = consoles()
+    if not args.output.strip():  # else the current folder, silently
+        raise UsageError("-o is empty: give a folder, e.g. -o out (it is created if missing)")
     scenes = read_batch(args.file)
-    check_output(scenes, args.output)  # before a cluster starts or a scene is packed
+    check_output(scenes, args.output, args.file)  # before a cluster starts or a scene is packed
     with contextlib.ExitStack() as stack:
         # no cluster to start when every scene is already done and verified
         checked = {s.id: check_done(s, scene_file(args.output, s)) for s in scenes}

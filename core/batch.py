@@ -149,8 +149,8 @@ def run_batch(scenes: list[SceneSpec], out_dir: str | os.PathLike, client=None,
     `check_done` of scenes by id, where the caller has already run it. batch: the batch
     file's path, which the summary's rows record (a rerun of that file replaces all of its
     rows, so that a scene taken out of it leaves the summary)."""
+    check_output(scenes, out_dir, batch)
     out = Path(out_dir)
-    check_output(scenes, out)
     _check_other_batches(scenes, out, batch)
     if not out.is_dir():
         try:
@@ -158,7 +158,7 @@ def run_batch(scenes: list[SceneSpec], out_dir: str | os.PathLike, client=None,
         except OSError as exc:
             raise InputError(f"cannot create output folder {out}: {exc.strerror or exc}. "
                              "Give another folder with -o.") from None
-        check_output(scenes, out)
+        check_output(scenes, out, batch)
     report = progress or (lambda d, t, m: None)
     cancel = should_cancel or (lambda: False)
     results: dict[str, SceneResult] = {}
@@ -271,13 +271,18 @@ def _same_folder(recorded: str, out: Path) -> bool:
         return False
 
 
-def check_output(scenes: list[SceneSpec], out_dir: str | os.PathLike) -> None:
+def check_output(scenes: list[SceneSpec], out_dir: str | os.PathLike,
+                 batch: str | os.PathLike = "") -> None:
     """Refuse, before anything is packed, an output folder the batch cannot write in: a
     file where the folder should be, a folder (or its nearest existing parent, when it is
     not there yet) that refuses new files (permissions, an immutable attribute, a
-    read-only disk), or a folder where a packing, an export or the summary is to go.
-    Raises InputError naming the path and how to fix it."""
+    read-only disk), a folder where a packing, an export or the summary is to go, or an
+    input (the batch file, a scene's mesh) where one is to go. Raises InputError naming the
+    path and how to fix it."""
     out = Path(out_dir)
+    if not str(out_dir).strip():
+        raise InputError("the output folder (-o) is empty: give a folder, e.g. -o out (it "
+                         "is created if missing).")
     if out.exists() and not out.is_dir():
         raise InputError(f"output folder {out} is a file, not a folder; give a folder with "
                          "-o (it is created if missing).")
@@ -294,13 +299,27 @@ def check_output(scenes: list[SceneSpec], out_dir: str | os.PathLike) -> None:
     if refused:
         raise InputError(f"cannot write in output folder {out}: {refused}. "
                          f"{refusal_advice(out)} or give another folder with -o.")
+    inputs = {os.path.realpath(p) for p in _input_files(scenes, batch)}
     for spec in scenes:
         for path in [*output_paths(spec, out), out / SUMMARY]:
+            what = "its summary" if path.name == SUMMARY else f"scene {spec.id}"
             if path.is_dir():
                 raise InputError(
-                    f"{path} is a folder, but the batch writes "
-                    f"{'its summary' if path.name == SUMMARY else f'scene {spec.id}'} "
-                    "there. Move or remove that folder, or give another folder with -o.")
+                    f"{path} is a folder, but the batch writes {what} there. Move or remove "
+                    "that folder, or give another folder with -o.")
+            if os.path.realpath(path) in inputs:
+                raise InputError(
+                    f"{path} is an input of the batch (its batch file or a mesh), but the "
+                    f"batch writes {what} there, which would replace it. Give another "
+                    "folder with -o, or rename the input.")
+
+
+def _input_files(scenes: list[SceneSpec], batch: str | os.PathLike) -> list[str]:
+    """The files a batch reads: its batch file and its scenes' meshes (not box specs)."""
+    files = [os.fspath(batch)] if batch else []
+    for spec in scenes:
+        files += [p for p in (spec.container, *spec.types) if os.path.isfile(p)]
+    return files
 
 
 def _export(result: SceneResult, out: Path, cancel: Callable[[], bool],

@@ -16,6 +16,7 @@ import pytest
 from testdata import mesh_path
 
 from jampacked.cli.main import main
+from jampacked.core.batch import run_batch
 from jampacked.core.batch_file import read_batch
 from jampacked.core.errors import InputError
 from jampacked.core.packing_json import load_packing
@@ -331,6 +332,34 @@ def test_a_scene_a_batch_file_in_another_folder_wrote_here_is_refused(folder):
     said = " ".join(err.split())
     assert rc == 1 and f"was written by another batch file, {first}" in said, said
     assert (out / "v-s1.json").read_bytes() == packed
+
+
+def test_outputs_that_would_replace_an_input_or_an_empty_folder_are_refused(folder):
+    """A batch file named as a scene's packing (or as the summary) and run into its own
+    folder was replaced by the packing, with exit 0; an empty -o wrote into the current
+    folder. Both are refused before anything is packed."""
+    text = textwrap.dedent(GOOD).replace('seeds = [1, 2]', 'seed = 1').replace(
+        ', "box:15x16x14"', '')
+    for name, what in (("small-s1.json", "scene small-s1"), ("summary.csv", "its summary")):
+        path = folder / name
+        path.write_text(text)
+        rc, _, err = run(["batch", str(path), "-o", str(folder), "-q"])
+        said = " ".join(err.split())
+        assert rc == 1 and f"{path} is an input of the batch" in said and what in said, said
+        assert path.read_text() == text
+        path.unlink()
+    # a mesh named as a scene's export
+    (folder / "small-s1.stl").write_bytes((folder / "a.obj").read_bytes())
+    path = write(folder, text.replace('"a.obj", "b.obj"', '"small-s1.obj", "b.obj"')
+                 + 'export = ["obj"]\n')
+    (folder / "small-s1.obj").write_bytes((folder / "a.obj").read_bytes())
+    rc, _, err = run(["batch", str(path), "-o", str(folder), "-q"])
+    assert rc == 1 and "small-s1.obj is an input of the batch" in " ".join(err.split()), err
+    assert (folder / "small-s1.obj").read_bytes() == (folder / "a.obj").read_bytes()
+    rc, _, err = run(["batch", str(path), "-o", "", "-q"])
+    assert rc == 2 and "-o is empty" in err, err
+    with pytest.raises(InputError, match=r"the output folder \(-o\) is empty"):
+        run_batch(read_batch(path), "")
 
 
 def test_a_rerun_with_nothing_to_do_starts_no_cluster(folder, monkeypatch):

@@ -10,6 +10,7 @@ import dataclasses
 import io
 import json
 import shutil
+from dataclasses import replace
 
 import pytest
 from testdata import mesh_path
@@ -97,6 +98,14 @@ def test_an_edited_file_is_not_trusted(copy, change, reason):
     edit(copy, change)
     done, why = check_done(SPEC, copy)
     assert done is None and reason in why
+
+
+def test_a_clearance_edited_to_the_batch_files_new_one_is_packed_again(copy):
+    # the digest does not cover the clearance asked: a file whose inputs were edited to
+    # the clearance the batch file now asks was skipped, certified for none
+    edit(copy, lambda d: d["inputs"].update(clearance=0.5))
+    done, why = check_done(replace(SPEC, clearance=0.5), copy)
+    assert done is None and why == "it asks a clearance of 0.5, but was certified with 0", why
 
 
 @pytest.mark.parametrize("shares", [(0.5, 0.5), None])
