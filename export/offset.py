@@ -27,6 +27,7 @@ since a sealed speck of a void only traps resin or powder.
 from __future__ import annotations
 
 import math
+from collections.abc import Callable
 
 import manifold3d as m3
 import numpy as np
@@ -177,18 +178,25 @@ def _drop_specks(inner: m3.Manifold, thickness: float) -> list[m3.Manifold]:
 
 
 def _simplified(raw: m3.Manifold, thickness: float, tolerance: float,
-                diagonal: float, marched: m3.Manifold | None = None
+                diagonal: float, marched: m3.Manifold | None = None,
+                thick_enough: Callable[[np.ndarray, np.ndarray], bool] | None = None
                 ) -> tuple[list[m3.Manifold], float]:
-    """The cavities, simplified to ``tolerance`` where that provably keeps them watertight.
+    """The cavities, simplified to ``tolerance`` where that provably keeps them watertight
+    and the wall T thick.
 
     manifold3d's simplification can fold triangles over or leave slivers (elalish/manifold
-    #970; how often: docs/notes-export.md). So each attempt is validated
-    (closed, no degenerate faces, no self-intersections), with smaller tolerances next, and
-    the unsimplified surface last: `raw` where it validates, else `marched` (the surface as
-    marched, watertight by construction, where `raw` moved its vertices). Returns
-    (cavities, the tolerance used, 0.0 for none).
+    #970; how often: docs/notes-export.md), and its tolerance bounds how far vertices move,
+    not faces: a long face across a saddle (a torus's inner equator) cut into the wall by
+    more than the tolerance. So each attempt is validated (closed, no degenerate faces, no
+    self-intersections), with smaller tolerances next, and the first that also keeps
+    ``thick_enough(vertices, faces)`` is taken, else the first valid one (on a grid coarse
+    for T the unsimplified surface's own faces cut in as far, with ten times the
+    triangles), else the unsimplified surface: `raw` where it validates, else `marched`
+    (the surface as marched, watertight by construction, where `raw` moved its vertices).
+    Returns (cavities, the tolerance used, 0.0 for none).
     """
     exact = raw.get_tolerance()
+    valid: tuple[list[m3.Manifold], float] | None = None
     for factor in SIMPLIFY_LADDER if tolerance > 0 else ():
         # simplify; remove the slivers it leaves (far below print precision); restore the
         # tolerance so that later booleans keep the container's own mesh exact
@@ -198,8 +206,13 @@ def _simplified(raw: m3.Manifold, thickness: float, tolerance: float,
         if not parts:
             return parts, factor * tolerance
         v, f = solid_arrays(m3.Manifold.compose(parts))
-        if validate_arrays(v, f).passed:
+        if not validate_arrays(v, f).passed:
+            continue
+        if thick_enough is None or thick_enough(v, f):
             return parts, factor * tolerance
+        valid = valid or (parts, factor * tolerance)
+    if valid is not None:
+        return valid
     if marched is not None and not validate_arrays(*solid_arrays(raw)).passed:
         raw = marched  # the push folded the surface somewhere: as marched
     return _drop_specks(raw, thickness), 0.0
@@ -271,8 +284,18 @@ def inner_solid(vertices: np.ndarray, faces: np.ndarray, thickness: float, spaci
               if AT_LEAST_T else v)
     raw = marched if pushed is v else to_solid(pushed, f)
     diagonal = float(np.linalg.norm(vertices.max(axis=0) - vertices.min(axis=0)))
+    grid = np.ascontiguousarray(values, np.float64)
+
+    def thick_enough(v: np.ndarray, f: np.ndarray) -> bool:
+        """The distance grid at least T at each face's centre and edges' midpoints."""
+        corners = v[f]
+        points = np.vstack([corners.mean(axis=1),
+                            (0.5 * (corners + np.roll(corners, -1, axis=1))).reshape(-1, 3)])
+        return float(sample_grid_many(grid, origin, spacing, points).min()) >= thickness
+
     parts, used = _simplified(raw, thickness, tolerance, diagonal,
-                              None if raw is marched else marched)
+                              None if raw is marched else marched,
+                              thick_enough if AT_LEAST_T else None)
     if not parts:
         raise _too_thick(thickness, _deepest(values, origin, spacing, vertices, faces))
     return m3.Manifold.compose(parts), len(parts), used
