@@ -195,18 +195,23 @@ def _checked_input(vertices: np.ndarray, faces: np.ndarray, thickness: float,
     return v, f
 
 
+#: a wall measured thinner than this fraction of T is said to be under T
+THINNEST_SAID = 0.999
+
+
 def _accuracy_notes(least: float, measured: np.ndarray, thickness: float, spacing: float,
                     resolution: float | None, tolerance: float) -> list[str]:
-    """A note where the measured wall is more than 5% under T at its thinnest (the grid
-    was coarse for it), or more than 10% over T at its median (T plus a simplification
-    tolerance asked by a coarse --resolution)."""
+    """A note where the measured wall is under T at its thinnest (beyond the figure's
+    rounding: the grid was coarse for it; `--shell` promises at least T), or more than 10%
+    over T at its median (T plus a simplification tolerance asked by a coarse
+    --resolution)."""
     if not measured.size:
         return []
     median = float(np.median(measured))
     fix = ("give a finer --resolution" if resolution is not None and spacing == resolution
            else f"the distance grid is capped at {MAX_GRID_NODES:,} nodes: use a thicker "
            "wall or a smaller container")
-    if least < 0.95 * thickness:
+    if least < THINNEST_SAID * thickness:
         return [f"the wall is {least:.3g} thick at its thinnest, under the {thickness:g} "
                 f"asked: the grid spacing {spacing:.3g} is coarse for this thickness; {fix}."]
     if median > 1.1 * thickness:

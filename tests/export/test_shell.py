@@ -430,4 +430,7 @@ def test_the_accuracy_notes_read_the_thinnest_spot_and_the_median():
     assert thick.startswith("the wall is 2.22 thick at its median, 11% over the 2 asked: no "
                             "part of it may be thinner than 2, and the inner surface is "
                             "simplified by up to 0.2") and "give a finer --resolution" in thick
-    assert _accuracy_notes(0.99, points, 1.0, 0.25, None, 0.0125) == []
+    assert _accuracy_notes(0.9995, points, 1.0, 0.25, None, 0.0125) == []
+    # --shell promises at least T: a wall 1% under it is said (it was from 5% only)
+    [under] = _accuracy_notes(0.99, points, 1.0, 0.25, None, 0.0125)
+    assert under.startswith("the wall is 0.99 thick at its thinnest, under the 1 asked")
