@@ -485,12 +485,12 @@ def _write(bodies: Bodies, names: list[str], paths: list[str], split_files: bool
     outputs: list[MeshOutput] = []
     for p in paths:
         if split_files:
-            for (bv, bf), name in zip(bodies, names, strict=True):
-                outputs.append(MeshOutput(_part_path(p, name), bv, bf))
+            for (bv, bf), name in zip(bodies, names, strict=True):  # a 3MF's object, named
+                outputs.append(MeshOutput(_part_path(p, name), bv, bf, names=[name]))
         elif len(bodies) > 1:
             data = instances if instances is not None and p.lower().endswith(".3mf") else bodies
             outputs.append(MeshOutput(p, data, names=names))
         else:
-            outputs.append(MeshOutput(p, bodies[0][0], bodies[0][1]))
+            outputs.append(MeshOutput(p, bodies[0][0], bodies[0][1], names=names[:1]))
     out.validation += write_meshes(outputs, protect=protect, check_cancel=check_cancel)
     return [os.fspath(o.path) for o in outputs]

@@ -354,6 +354,18 @@ def test_parts_split_writes_one_valid_file_per_part(apart, tmp_path):
         assert Path(p).name.startswith("part_polytope") and validate_file(p).passed
 
 
+def test_a_split_3mf_names_its_object_after_its_part(apart, tmp_path):
+    # each file's one object read "body 1", where the 3MF of all parts names them by type
+    rep = export_packing(apart, tmp_path / "part.3mf",
+                         ExportOptions(mode="parts", split_files=True))
+    for p in rep.paths:
+        with zipfile.ZipFile(p) as z:
+            model = etree.fromstring(z.read("3D/3dmodel.model"))
+        [name] = [o.get("name") for o in model.iterfind("m:resources/m:object",
+                                                         {"m": model.nsmap[None]})]
+        assert Path(p).stem == f"part_{name}", (p, name)
+
+
 def test_split_names_an_earlier_exports_parts_left_beside_it(apart, tmp_path):
     # a 40-part job then a 28-part one into the same name left 12 of the first job's
     # files among the second's, with no word
