@@ -142,7 +142,8 @@ def _stale_export(path: Path, record: dict, made: dict, settings: dict,
     if not path.is_file():
         return "missing"
     if not record:
-        return "no record of how it was made (exported by an older jampacked)"
+        return (f"no record of how it was made ({path.stem}.exports.json is missing or "
+                "unreadable, or an older jampacked exported it)")
     if record.get("packing") != digest:
         return "made from another packing"
     if record.get("settings") != settings:

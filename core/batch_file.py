@@ -319,7 +319,7 @@ def _settings(d: dict, where: str) -> dict[str, Any]:
             if not ok:
                 rule = ("from 0 to 1" if key == "mix_tolerance" else
                         ">= 0" if low is not None else "> 0")
-                raise InputError(f"{where}: {key!r} must be a number {rule}, got {v!r}.")
+                raise InputError(f"{where}: {key!r} must be a finite number {rule}, got {v!r}.")
             v = float(v)
         out[key] = v
     return out

@@ -354,6 +354,18 @@ def test_an_export_edited_since_is_left_and_said_so(packed, tmp_path):
     assert (tmp_path / "x-s2.exports.json").is_file()  # still its record
 
 
+def test_an_export_whose_record_was_deleted_is_made_again_saying_so(packed, tmp_path):
+    # it said "exported by an older jampacked" of a record deleted by hand
+    spec = dataclasses.replace(SPEC, export=("stl",))
+    shutil.copy(packed, scene_file(tmp_path, spec))
+    run_batch([spec], tmp_path)
+    (tmp_path / "x-s2.exports.json").unlink()
+    [again] = run_batch([spec], tmp_path)
+    assert again.status == "skipped" and again.reexported == [
+        "x-s2.stl: no record of how it was made (x-s2.exports.json is missing or unreadable, "
+        "or an older jampacked exported it)"], again.reexported
+
+
 def test_a_scene_taken_out_of_its_batch_file_leaves_the_summary(packed, tmp_path):
     # the rows of a batch file's earlier run stayed after the file dropped the scene, and
     # looked like scenes of the current batch
