@@ -598,14 +598,13 @@ def verify_sources(packing: Packing) -> list[str]:
     if not is_spec(packing.container_path):
         entries.append(("container", packing.container_path, packing.container_sha256))
     entries += [(f"type {t.name!r}", t.path, t.sha256) for t in packing.types]
+    missing: list[int] = []
     for label, p, sha in entries:
         if p is None:
             continue
         if not os.path.isfile(p):
-            problems.append(f"{label}: mesh file {p} is missing; restore it, or edit its "
-                            '"path" in the packing file to point to where the file is now '
-                            "(absolute, or relative to the packing file's folder), or re-run "
-                            "the packing")
+            missing.append(len(problems))
+            problems.append(f"{label}: mesh file {p} is missing")
             continue
         if sha is None:
             continue
@@ -621,4 +620,10 @@ def verify_sources(packing: Packing) -> list[str]:
                 f"(sha256 {actual[:12]}... but the packing records {sha[:12]}...); "
                 "re-run the packing or restore the original file"
             )
+    if missing:  # the fix once, after the last missing file
+        them, its = ("it", "its") if len(missing) == 1 else ("them", "each one's")
+        problems[missing[-1]] += (
+            f"; restore {them}, or edit {its} \"path\" in the packing file to point to where "
+            "the file is now (absolute, or relative to the packing file's folder), or re-run "
+            "the packing")
     return problems

@@ -308,6 +308,14 @@ def test_a_mesh_at_neither_path_is_named_with_the_way_to_point_to_it(scene):
     assert len(problems) == 1
     assert re.search(r"type 'apple': mesh file .*apple\.obj is missing; .*edit its \"path\" in "
                      r"the packing file to point to where the file is now", problems[0])
+    # several missing: each named, the fix said once (it was repeated after each)
+    for name in files:
+        if os.path.exists(files[name]):
+            os.remove(files[name])
+    problems = verify_sources(load_packing(tmp / "elsewhere" / "deeper" / "p.json"))
+    missing = [x for x in problems if " is missing" in x]
+    assert len(missing) >= 2 and all(x.endswith(" is missing") for x in missing[:-1])
+    assert missing[-1].count("restore them, or edit each one's \"path\"") == 1, problems
 
 
 def test_empty_packing_round_trip(tmp_path):
