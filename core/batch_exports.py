@@ -33,16 +33,28 @@ def export_scene(spec: SceneSpec, packing_file: str, digest: str | None, out: Pa
     record does not vouch for: missing, changed since written (truncated, edited), made from
     another packing or with other settings (export_mode, export_shell), or from before the
     record. Files the record lists from another packing or settings that were not made
-    again are removed (`drop_outdated`). Returns the error ("" if none: a failed export
-    leaves the packing as it is), why each file was made again (with `stale_only`), the
-    files removed, with why, and the export's warnings (sealed voids, loose bodies: as
-    `jampacked export` prints them; kept in the record for the runs that make nothing)."""
+    again are removed (`drop_outdated`), and so are those of a format the scene no longer
+    asks for (`_drop_unasked`), unchanged since written. Returns the error ("" if none: a
+    failed export leaves the packing as it is), why each file was made again (with
+    `stale_only`), the files removed, with why, and the export's warnings (sealed voids,
+    loose bodies: as `jampacked export` prints them; kept in the record for the runs that
+    make nothing)."""
     settings = _settings(spec)
     record = _read_record(exports_record(out, spec))
-    if not spec.export:
-        return "", [], drop_outdated(spec, digest, out, record=record), []
     made = record.get("files", {}) if _current(record, digest, spec) else {}
     paths = [out / f"{spec.id}.{fmt}" for fmt in spec.export]
+    asked = {p.name for p in paths}
+    dropped = _drop_unasked(out, made, asked)
+    if any(name not in asked for name in made):  # the record lists only what is asked
+        made = {k: v for k, v in made.items() if k in asked}
+        record = {**record, "files": made}
+        if made or spec.export or not all(note.startswith("removed") for note in dropped):
+            _write_record(exports_record(out, spec), record)
+        else:  # it describes nothing now
+            exports_record(out, spec).unlink(missing_ok=True)
+            record = {}
+    if not spec.export:
+        return "", [], dropped + drop_outdated(spec, digest, out, record=record), []
     again: list[str] = []
     if stale_only:
         stale = []
@@ -56,8 +68,8 @@ def export_scene(spec: SceneSpec, packing_file: str, digest: str | None, out: Pa
     else:
         made = {}
     if not paths:
-        return "", again, [], (_recorded_warnings(record)
-                               if _current(record, digest, spec) else [])
+        return "", again, dropped, (_recorded_warnings(record)
+                                    if _current(record, digest, spec) else [])
     from jampacked.export.assemble import export_packing
     from jampacked.export.options import ExportOptions
 
@@ -79,7 +91,30 @@ def export_scene(spec: SceneSpec, packing_file: str, digest: str | None, out: Pa
     _write_record(exports_record(out, spec), {
         "format": EXPORTS_FORMAT, "version": 1, "packing": digest, "settings": settings,
         "files": made, "warnings": warned})
-    return error, again, drop_outdated(spec, digest, out, set(made), record), warned
+    return error, again, dropped + drop_outdated(spec, digest, out, set(made), record), warned
+
+
+def _drop_unasked(out: Path, made: dict, asked: set[str]) -> list[str]:
+    """Remove the files a current record (`made`: name -> sha256) lists that the scene no
+    longer asks for (a format taken out of its `export`), unchanged since written; returns
+    what was removed or left, with why."""
+    notes = []
+    for name, sha in made.items():
+        path = out / str(name)
+        if name in asked or path.name != name or not path.is_file():
+            continue
+        try:
+            if file_sha256(path) != sha:
+                notes.append(f"left {name}: its format is no longer asked for, but it was "
+                             "changed since")
+                continue
+            path.unlink()
+        except OSError as exc:
+            notes.append(f"could not remove {name}, whose format is no longer asked for: "
+                         f"{exc.strerror or exc}")
+            continue
+        notes.append(f"removed {name}: its format is no longer asked for")
+    return notes
 
 
 def _recorded_warnings(record: dict) -> list[str]:

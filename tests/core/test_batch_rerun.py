@@ -366,6 +366,24 @@ def test_an_export_whose_record_was_deleted_is_made_again_saying_so(packed, tmp_
         "or an older jampacked exported it)"], again.reexported
 
 
+def test_a_format_taken_out_of_a_scenes_exports_is_removed_and_unlisted(packed, tmp_path):
+    # the file stayed, and its record went on listing it, after the batch file dropped its
+    # format (and after the file was deleted by hand)
+    spec = dataclasses.replace(SPEC, export=("stl", "ply"))
+    shutil.copy(packed, scene_file(tmp_path, spec))
+    run_batch([spec], tmp_path)
+    record = tmp_path / "x-s2.exports.json"
+    assert set(json.loads(record.read_text())["files"]) == {"x-s2.stl", "x-s2.ply"}
+    [again] = run_batch([dataclasses.replace(spec, export=("stl",))], tmp_path)
+    assert again.status == "skipped" and again.removed == [
+        "removed x-s2.ply: its format is no longer asked for"], again.removed
+    assert not (tmp_path / "x-s2.ply").exists() and (tmp_path / "x-s2.stl").is_file()
+    assert set(json.loads(record.read_text())["files"]) == {"x-s2.stl"}
+    (tmp_path / "x-s2.stl").unlink()
+    [none] = run_batch([dataclasses.replace(spec, export=())], tmp_path)
+    assert none.removed == [] and not record.exists()
+
+
 def test_a_scene_taken_out_of_its_batch_file_leaves_the_summary(packed, tmp_path):
     # the rows of a batch file's earlier run stayed after the file dropped the scene, and
     # looked like scenes of the current batch
