@@ -141,8 +141,8 @@ _BLENDER_WORDS = (
      "flipped faces)"),
     # in Blender the placements change by moving, adding or deleting objects and points
     ("Every object must sit within the container: re-run the packing, or fix these "
-     "placements.", "Every object must sit within the container: move it back inside, or "
-     "pack again."),
+     "placements.", "Every object must sit within the container: move these objects back "
+     "inside, or pack again."),
     ("re-run the packing, or fix or remove these placements",
      "pack again, or fix or delete these objects"),
     ("re-run the packing, or fix these placements", "pack again, or fix these objects"),

@@ -16,7 +16,7 @@ from .batch_file import SceneSpec
 from .errors import JampackedError
 from .metrics import compute_metrics
 from .options import CavityPassOptions
-from .packing_digest import DIGEST, clearance_changed, placements_digest
+from .packing_digest import DIGEST, clearance_changed, placements_digest, uncertified_since
 from .packing_json import load_packing, verify_sources
 from .packing_types import Packing
 
@@ -56,8 +56,7 @@ def check_done(spec: SceneSpec, path: Path) -> tuple[Packing | None, str]:
         return None, ("its placements, frames, volumes or certificate were changed after it "
                       "was certified (the certificate's digest no longer matches)")
     if clearance_changed(p):  # the digest does not cover the clearance asked
-        return None, (f"it asks a clearance of {p.inputs.clearance:g}, but was certified "
-                      f"with {p.certificate.get('clearance'):g}")
+        return None, f"it {uncertified_since(p)}"
     wrong = wrong_metric(p)
     if wrong:
         return None, wrong

@@ -74,17 +74,15 @@ def concave(vertices: np.ndarray, sizes: np.ndarray, corners: np.ndarray) -> np.
 
 def _concave_of_one_size(p: np.ndarray) -> np.ndarray:
     """:func:`concave` for (P, k, 3) corners of polygons all of k > 3 corners, by the same
-    arithmetic in the same order on (P, k) arrays (several times faster than the gathers)."""
+    arithmetic in the same order on (P, k) arrays (1.5-1.7 times as fast as the gathers)."""
     k = p.shape[1]
     q = np.roll(p, -1, axis=1)
     x, y, z = np.moveaxis(p, 2, 0)
     qx, qy, qz = np.moveaxis(q, 2, 0)
-    cx, cy, cz = y * qz - z * qy, z * qx - x * qz, x * qy - y * qx
-    nx, ny, nz = cx[:, 0].copy(), cy[:, 0].copy(), cz[:, 0].copy()
-    for i in range(1, k):  # corner after corner, as np.add.reduceat sums
-        nx += cx[:, i]
-        ny += cy[:, i]
-        nz += cz[:, i]
+    cross = np.stack([y * qz - z * qy, z * qx - x * qz, x * qy - y * qx], axis=-1)
+    # summed by np.add.reduceat over the same runs of k as the general path, in its order
+    nx, ny, nz = np.add.reduceat(cross.reshape(-1, 3), np.arange(0, p.shape[0] * k, k),
+                                 axis=0).T
     ex, ey, ez = qx - x, qy - y, qz - z
     fx, fy, fz = (np.roll(e, -1, axis=1) for e in (ex, ey, ez))
     nx, ny, nz = nx[:, None], ny[:, None], nz[:, None]

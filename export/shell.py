@@ -201,10 +201,10 @@ THINNEST_SAID = 0.999
 
 def _accuracy_notes(least: float, measured: np.ndarray, thickness: float, spacing: float,
                     resolution: float | None, tolerance: float) -> list[str]:
-    """A note where the measured wall is under T at its thinnest (beyond the figure's
-    rounding: the grid was coarse for it; `--shell` promises at least T), or more than 10%
-    over T at its median (T plus a simplification tolerance asked by a coarse
-    --resolution)."""
+    """A note where the measured wall is under T at its thinnest by more than 0.1% (said
+    to four digits, so that the figure reads under T: the grid was coarse for it; `--shell`
+    promises at least T), or more than 10% over T at its median (T plus a simplification
+    tolerance asked by a coarse --resolution)."""
     if not measured.size:
         return []
     median = float(np.median(measured))
@@ -212,7 +212,7 @@ def _accuracy_notes(least: float, measured: np.ndarray, thickness: float, spacin
            else f"the distance grid is capped at {MAX_GRID_NODES:,} nodes: use a thicker "
            "wall or a smaller container")
     if least < THINNEST_SAID * thickness:
-        return [f"the wall is {least:.3g} thick at its thinnest, under the {thickness:g} "
+        return [f"the wall is {least:.4g} thick at its thinnest, under the {thickness:g} "
                 f"asked: the grid spacing {spacing:.3g} is coarse for this thickness; {fix}."]
     if median > 1.1 * thickness:
         return [f"the wall is {median:.3g} thick at its median, {median / thickness - 1:.0%} "

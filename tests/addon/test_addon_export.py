@@ -288,7 +288,8 @@ def test_an_object_moved_out_is_named_by_its_blender_name(bpy, addon, packed, tm
         bpy.ops.jampacked.export()
     # what to do, in Blender's words (it read "re-run the packing, or fix these placements")
     message = bpy.context.window_manager.jampacked_job.last_message
-    assert message.endswith("within the container: move it back inside, or pack again."), \
+    assert message.endswith("within the container: move these objects back inside, or pack "
+                            "again."), \
         message
 
 

@@ -434,3 +434,5 @@ def test_the_accuracy_notes_read_the_thinnest_spot_and_the_median():
     # --shell promises at least T: a wall 1% under it is said (it was from 5% only)
     [under] = _accuracy_notes(0.99, points, 1.0, 0.25, None, 0.0125)
     assert under.startswith("the wall is 0.99 thick at its thinnest, under the 1 asked")
+    [under] = _accuracy_notes(1.997, np.full(5, 2.05), 2.0, 0.5, None, 0.05)
+    assert under.startswith("the wall is 1.997 thick")  # not "2 thick ... under the 2"
