@@ -98,22 +98,30 @@ def _drop_unasked(out: Path, made: dict, asked: set[str]) -> list[str]:
     """Remove the files a current record (`made`: name -> sha256) lists that the scene no
     longer asks for (a format taken out of its `export`), unchanged since written; returns
     what was removed or left, with why."""
+    return _remove_recorded(out, made, asked, "its format is no longer asked for",
+                            "its format is no longer asked for")
+
+
+def _remove_recorded(out: Path, files: dict, keep: set[str] | frozenset[str], why: str,
+                     removed: str) -> list[str]:
+    """Remove the export files a record lists (`files`: name -> sha256 as written) but
+    `keep`, where unchanged since written; those changed since are left. `why`: what makes
+    them outdated, `removed`: the note of one removed. Returns what was removed or left,
+    with why."""
     notes = []
-    for name, sha in made.items():
+    for name, sha in files.items():
         path = out / str(name)
-        if name in asked or path.name != name or not path.is_file():
-            continue
+        if name in keep or path.name != name or not path.is_file():
+            continue  # kept, not a plain name in `out`, or gone
         try:
             if file_sha256(path) != sha:
-                notes.append(f"left {name}: its format is no longer asked for, but it was "
-                             "changed since")
+                notes.append(f"left {name}: {why}, but changed since")
                 continue
             path.unlink()
         except OSError as exc:
-            notes.append(f"could not remove {name}, whose format is no longer asked for: "
-                         f"{exc.strerror or exc}")
+            notes.append(f"could not remove {name} ({why}): {exc.strerror or exc}")
             continue
-        notes.append(f"removed {name}: its format is no longer asked for")
+        notes.append(f"removed {name}: {removed}")
     return notes
 
 
@@ -136,23 +144,9 @@ def drop_outdated(spec: SceneSpec, digest: str | None, out: Path,
         record = _read_record(exports_record(out, spec))
     if not record or _current(record, digest, spec):
         return []
-    notes = []
-    for name, sha in record["files"].items():
-        path = out / str(name)
-        if name in keep or path.name != name or not path.is_file():
-            continue  # made again, not a plain name in `out`, or gone
-        try:
-            if file_sha256(path) != sha:
-                notes.append(f"left {name}: made from an earlier packing or settings, but "
-                             "changed since")
-                continue
-            path.unlink()
-        except OSError as exc:
-            notes.append(f"could not remove {name}, made from an earlier packing or "
-                         f"settings: {exc.strerror or exc}")
-            continue
-        notes.append(f"removed {name}: an export of an earlier packing or settings, not "
-                     "made again")
+    notes = _remove_recorded(out, record["files"], keep,
+                             "made from an earlier packing or settings",
+                             "an export of an earlier packing or settings, not made again")
     if not spec.export and not any(note.startswith(("left", "could not")) for note in notes):
         try:  # it describes nothing now
             exports_record(out, spec).unlink()

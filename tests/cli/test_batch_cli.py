@@ -271,20 +271,24 @@ def test_a_failed_export_keeps_the_warnings_of_the_files_kept(folder, monkeypatc
     assert (out / "scene1-s1.stl").is_file()
 
 
+#: one scene, 'v', which two batch files write in the tests below
+SCENE_V = textwrap.dedent("""\
+    [[scene]]
+    name = "v"
+    container = "box:16x15x14"
+    types = ["a.obj", "b.obj"]
+    seed = 1
+    fidelity = "low"
+    """)
+
+
 def test_a_scene_another_batch_file_wrote_is_refused_before_any_work(folder):
     """Two batch files with a scene of the same id, one output folder: each run packed it
     again for its own container and replaced the other's packing and summary row, saying
     only that 'the earlier file was not trusted'. It is refused, naming the other file;
     once that file is gone the scene is this batch's."""
     first = folder / "first.toml"
-    first.write_text(textwrap.dedent("""\
-        [[scene]]
-        name = "v"
-        container = "box:16x15x14"
-        types = ["a.obj", "b.obj"]
-        seed = 1
-        fidelity = "low"
-        """))
+    first.write_text(SCENE_V)
     other = folder / "other.toml"
     other.write_text(first.read_text().replace("box:16x15x14", "box:15x16x14"))
     out = folder / "out"
@@ -314,14 +318,7 @@ def test_a_scene_a_batch_file_in_another_folder_wrote_here_is_refused(folder):
     caught (a copied project keeps rows naming its original's). The summary now records
     the folder each row was written in, which tells the two apart."""
     first = folder / "first.toml"
-    first.write_text(textwrap.dedent("""\
-        [[scene]]
-        name = "v"
-        container = "box:16x15x14"
-        types = ["../a.obj", "../b.obj"]
-        seed = 1
-        fidelity = "low"
-        """))
+    first.write_text(SCENE_V.replace('"a.obj", "b.obj"', '"../a.obj", "../b.obj"'))
     (folder / "one").mkdir()
     (folder / "two").mkdir()
     first = first.rename(folder / "one" / "first.toml")
