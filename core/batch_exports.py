@@ -34,7 +34,7 @@ def export_scene(spec: SceneSpec, packing_file: str, digest: str | None, out: Pa
     another packing or with other settings (export_mode, export_shell), or from before the
     record. Files the record lists from another packing or settings that were not made
     again are removed (`drop_outdated`), and so are those of a format the scene no longer
-    asks for (`_drop_unasked`), unchanged since written. Returns the error ("" if none: a
+    asks for, unchanged since written. Returns the error ("" if none: a
     failed export leaves the packing as it is), why each file was made again (with
     `stale_only`), the files removed, with why, and the export's warnings (sealed voids,
     loose bodies: as `jampacked export` prints them; kept in the record for the runs that
@@ -44,7 +44,9 @@ def export_scene(spec: SceneSpec, packing_file: str, digest: str | None, out: Pa
     made = record.get("files", {}) if _current(record, digest, spec) else {}
     paths = [out / f"{spec.id}.{fmt}" for fmt in spec.export]
     asked = {p.name for p in paths}
-    dropped = _drop_unasked(out, made, asked)
+    # a format taken out of the scene's `export`: its file goes, unchanged since written
+    unasked = "its format is no longer asked for"
+    dropped = _remove_recorded(out, made, asked, unasked, unasked)
     if any(name not in asked for name in made):  # the record lists only what is asked
         made = {k: v for k, v in made.items() if k in asked}
         record = {**record, "files": made}
@@ -92,14 +94,6 @@ def export_scene(spec: SceneSpec, packing_file: str, digest: str | None, out: Pa
         "format": EXPORTS_FORMAT, "version": 1, "packing": digest, "settings": settings,
         "files": made, "warnings": warned})
     return error, again, dropped + drop_outdated(spec, digest, out, set(made), record), warned
-
-
-def _drop_unasked(out: Path, made: dict, asked: set[str]) -> list[str]:
-    """Remove the files a current record (`made`: name -> sha256) lists that the scene no
-    longer asks for (a format taken out of its `export`), unchanged since written; returns
-    what was removed or left, with why."""
-    return _remove_recorded(out, made, asked, "its format is no longer asked for",
-                            "its format is no longer asked for")
 
 
 def _remove_recorded(out: Path, files: dict, keep: set[str] | frozenset[str], why: str,
