@@ -299,7 +299,7 @@ def check_output(scenes: list[SceneSpec], out_dir: str | os.PathLike,
     if refused:
         raise InputError(f"cannot write in output folder {out}: {refused}. "
                          f"{refusal_advice(out)} or give another folder with -o.")
-    inputs = {os.path.realpath(p) for p in _input_files(scenes, batch)}
+    inputs = _file_ids(_input_files(scenes, batch))
     for spec in scenes:
         for path in [*output_paths(spec, out), out / SUMMARY]:
             what = "its summary" if path.name == SUMMARY else f"scene {spec.id}"
@@ -307,11 +307,24 @@ def check_output(scenes: list[SceneSpec], out_dir: str | os.PathLike,
                 raise InputError(
                     f"{path} is a folder, but the batch writes {what} there. Move or remove "
                     "that folder, or give another folder with -o.")
-            if os.path.realpath(path) in inputs:
+            if _file_ids([path]) & inputs:
                 raise InputError(
                     f"{path} is an input of the batch (its batch file or a mesh), but the "
                     f"batch writes {what} there, which would replace it. Give another "
                     "folder with -o, or rename the input.")
+
+
+def _file_ids(paths: list) -> set[tuple[int, int]]:
+    """The (device, inode) of each of `paths` that exists: one file by any name (a link,
+    another case on a file system that ignores it) has one."""
+    ids = set()
+    for p in paths:
+        try:
+            st = os.stat(p)
+        except OSError:
+            continue
+        ids.add((st.st_dev, st.st_ino))
+    return ids
 
 
 def _input_files(scenes: list[SceneSpec], batch: str | os.PathLike) -> list[str]:

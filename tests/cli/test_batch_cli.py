@@ -7,6 +7,7 @@ import contextlib
 import csv
 import io
 import json
+import os
 import shutil
 import signal
 import textwrap
@@ -347,6 +348,14 @@ def test_outputs_that_would_replace_an_input_or_an_empty_folder_are_refused(fold
         assert rc == 1 and f"{path} is an input of the batch" in said and what in said, said
         assert path.read_text() == text
         path.unlink()
+    # the same file by another name (a hard link; another case where the file system
+    # ignores case) is the input too
+    path = folder / "scenes.toml"
+    path.write_text(text)
+    os.link(path, folder / "small-s1.json")
+    rc, _, err = run(["batch", str(path), "-o", str(folder), "-q"])
+    assert rc == 1 and "small-s1.json is an input of the batch" in " ".join(err.split()), err
+    (folder / "small-s1.json").unlink()
     # a mesh named as a scene's export
     (folder / "small-s1.stl").write_bytes((folder / "a.obj").read_bytes())
     path = write(folder, text.replace('"a.obj", "b.obj"', '"small-s1.obj", "b.obj"')
