@@ -216,8 +216,8 @@ def _refuse_flattened(obj: bpy.types.Object, what: str) -> None:
             f"{x:.3g}" for x in holder.delta_scale)
     raise _input_error(
         f"{what} '{obj.name}' is flattened by {whose} ({scale}): with no thickness it has no "
-        "volume. Set that Scale to no zero along any axis (sidebar > Item, or Object "
-        "Properties > Transform).")
+        "volume. Give that Scale a value other than 0 on every axis (sidebar > Item; Delta "
+        "Scale under Object Properties > Transform > Delta Transform).")
 
 
 def read_input(obj: bpy.types.Object, what: str,
