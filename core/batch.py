@@ -27,7 +27,7 @@ from pathlib import Path
 
 from .api import pack
 from .atomic import atomic_output, refusal_advice, write_refusal
-from .batch_exports import drop_outdated, export_scene, exports_record
+from .batch_exports import drop_outdated, export_scene, exports_record, recorded_exports
 from .batch_file import SceneSpec
 from .batch_verify import check_done
 from .errors import InputError, JampackedError, OutputError
@@ -183,8 +183,11 @@ def run_batch(scenes: list[SceneSpec], out_dir: str | os.PathLike, client=None,
         path = scene_file(out, spec)
         if not path.exists():
             return ""
+        exports = recorded_exports(out, spec)
+        beside = (f" So are its exports beside it ({', '.join(exports)}): print none of "
+                  "them for this scene." if exports else "")
         return (f" {path.name} is an earlier run's file, not this scene's packing "
-                f"({why_not.get(spec.id) or 'not verified'}); left as it was.")
+                f"({why_not.get(spec.id) or 'not verified'}); left as it was.{beside}")
 
     def finish(spec: SceneSpec, packing: Packing | None, error: str = "") -> None:
         if packing is None:

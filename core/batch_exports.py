@@ -119,6 +119,12 @@ def _remove_recorded(out: Path, files: dict, keep: set[str] | frozenset[str], wh
     return notes
 
 
+def recorded_exports(out: Path, spec: SceneSpec) -> list[str]:
+    """The names of the export files the scene's record lists that are in `out`."""
+    files = _read_record(exports_record(out, spec)).get("files", {})
+    return [str(name) for name in files if (out / str(name)).is_file()]
+
+
 def _recorded_warnings(record: dict) -> list[str]:
     """The export warnings an exports record keeps (none where it keeps no list of them)."""
     warned = record.get("warnings")

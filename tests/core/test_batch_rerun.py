@@ -238,6 +238,25 @@ def test_a_scene_that_fails_on_a_rerun_says_its_earlier_file_is_not_its_packing(
         assert "earlier run's file" in next(csv.DictReader(f))["message"]
 
 
+def test_a_failed_scenes_earlier_exports_are_named_with_its_earlier_packing(
+        packed, tmp_path, monkeypatch):
+    # the earlier packing was said to be left as it was; its exports beside it were not
+    # named, and a print shop could print them
+    spec = dataclasses.replace(SPEC, export=("stl",))
+    shutil.copy(packed, scene_file(tmp_path, spec))
+    run_batch([spec], tmp_path)
+    edit(scene_file(tmp_path, spec), _density)
+
+    def fails(spec, should_cancel=None):
+        raise batch.InputError("object type a cannot fit: ...")
+
+    monkeypatch.setattr(batch, "pack_scene", fails)
+    [r] = run_batch([spec], tmp_path)
+    assert r.status == "failed" and r.message.endswith(
+        "left as it was. So are its exports beside it (x-s2.stl): print none of them for "
+        "this scene."), r.message
+
+
 def test_ctrl_c_writes_the_scenes_best_packing_and_a_rerun_packs_it_again(packed, tmp_path,
                                                                           monkeypatch):
     # Ctrl-C while a scene packs here: pack() returns its best certified packing so far
