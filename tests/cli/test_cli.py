@@ -30,6 +30,10 @@ P1 = mesh_path("polyhedra/convex5/polytope1.obj")
 P3 = mesh_path("polyhedra/convex5/polytope3.obj")
 
 SMALL = ["--fidelity", "low", "--time-budget", "4", "--seed", "1"]
+#: for runs that need a packing but not a good one: a 1 s budget, on a box (20 units) where
+#: phase 1 places objects in a fraction of it (the late passes would fill any budget)
+BRIEF = ["box:20x20x20", "--type", str(P1), "--fidelity", "low", "--time-budget", "1",
+         "--seed", "1"]
 
 
 def run(argv: list[str]) -> tuple[int, str, str]:
@@ -140,7 +144,8 @@ def test_preview_axis_is_z_unless_the_container_is_thin_across_another():
 
 def test_preview_of_a_container_thin_across_y_cuts_across_y(tmp_path):
     out, png = tmp_path / "p.json", tmp_path / "flat.png"
-    rc, _, se = run(["pack", "box:50x16x50", "--type", str(P1), *SMALL, "-q", "-o", str(out),
+    rc, _, se = run(["pack", "box:40x13x40", "--type", str(P1), "--fidelity", "low",
+                     "--time-budget", "2", "--seed", "1", "-q", "-o", str(out),
                      "--preview", str(png)])
     assert rc == 0, se
     import matplotlib.image as mpimg
@@ -148,7 +153,7 @@ def test_preview_of_a_container_thin_across_y_cuts_across_y(tmp_path):
     flat = mpimg.imread(png)
     write_preview(load_packing(out), tmp_path / "z.png", axis="z")
     along_z = mpimg.imread(tmp_path / "z.png")
-    # panels of the 50 x 50 x-z section are square; the x-y ones 50 x 16 (at their lowest)
+    # panels of the 40 x 40 x-z section are square; the x-y ones 40 x 13 (at their lowest)
     assert flat.shape[1] == along_z.shape[1] and flat.shape[0] > 1.5 * along_z.shape[0]
     rgb = np.round(flat[..., :3] * 255).astype(int)
     assert np.any(np.all(np.abs(rgb - (31, 119, 180)) <= 2, axis=-1))  # objects were cut
@@ -404,8 +409,7 @@ def test_a_full_disk_is_an_error_that_names_the_file(failing, tmp_path, monkeypa
     else:
         monkeypatch.setattr(preview_module, failing, full)
     out, png = tmp_path / "p.json", tmp_path / "p.png"
-    rc = main(["pack", "box:30x30x30", "--type", str(P1), *SMALL, "-q", "-o", str(out),
-               "--preview", str(png)])
+    rc = main(["pack", *BRIEF, "-q", "-o", str(out), "--preview", str(png)])
     err = " ".join(capsys.readouterr().err.split())
     assert rc == 1 and "Traceback" not in err
     what, path = (("the packing", out) if failing == "save_packing" else ("the preview", png))
@@ -426,8 +430,7 @@ def test_terminated_after_the_packing_is_saved_says_so(tmp_path, monkeypatch, ca
 
     monkeypatch.setattr(preview_module, "write_preview", terminated)
     out, png = tmp_path / "p.json", tmp_path / "p.png"
-    rc = main(["pack", "box:30x30x30", "--type", str(P1), *SMALL, "-q", "-o", str(out),
-               "--preview", str(png)])
+    rc = main(["pack", *BRIEF, "-q", "-o", str(out), "--preview", str(png)])
     err = " ".join(capsys.readouterr().err.split())
     assert rc == 128 + signal.SIGTERM
     assert f"terminated after the packing was saved to {out}; the preview {png} was not " \
@@ -576,7 +579,8 @@ def test_mix_tolerance_reaches_the_late_passes(tmp_path):
     the packing file records it."""
     out = tmp_path / "p.json"
     rc, _, se = run(["pack", "box:30x30x30", "--type", str(P1), "--type", str(P3),
-                     *SMALL, "--mix-tolerance", "0.01", "-q", "-o", str(out)])
+                     "--fidelity", "low", "--time-budget", "1", "--seed", "1",
+                     "--mix-tolerance", "0.01", "-q", "-o", str(out)])
     assert rc == 0, se
     assert load_packing(out).inputs.options.cavity.max_tvd == 0.01
 
@@ -734,21 +738,25 @@ def test_pack_says_it_compiles_before_the_budget_and_notes_a_slow_compile(tmp_pa
     from jampacked.core.numba_cache import COMPILE_MESSAGE
 
     messages = []
+
+    def placing() -> bool:  # the messages asked about all come before placement starts:
+        return any(m.startswith("phase 1") for m in messages)  # stop there, as a Ctrl-C
+
     monkeypatch.setattr(api, "cache_is_cold", lambda: True)
     api.pack("box:30x30x30", [str(P1)], fidelity="low", seed=1,
-             progress=lambda f, m: messages.append(m))
+             progress=lambda f, m: messages.append(m), should_cancel=placing)
     assert COMPILE_MESSAGE in messages
     assert messages.index(COMPILE_MESSAGE) < min(
         i for i, m in enumerate(messages) if m.startswith("phase 1"))
     monkeypatch.setattr(api, "cache_is_cold", lambda: False)
     messages.clear()
     api.pack("box:30x30x30", [str(P1)], fidelity="low", seed=1,
-             progress=lambda f, m: messages.append(m))
+             progress=lambda f, m: messages.append(m), should_cancel=placing)
+    assert placing()  # the warm run got as far as placement
     assert COMPILE_MESSAGE not in messages
 
     monkeypatch.setattr(numba_cache, "SLOW_WARM_UP", 0.0)  # any compile time counts as slow
-    rc, _, se = run(["pack", "box:30x30x30", "--type", str(P1), *SMALL,
-                     "-o", str(tmp_path / "p.json")])
+    rc, _, se = run(["pack", *BRIEF, "-o", str(tmp_path / "p.json")])
     assert rc == 0, se
     assert "compiling the engine took" in se and "first run only" in se
 
