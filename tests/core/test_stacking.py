@@ -10,7 +10,7 @@ from jampacked.core import placement
 from jampacked.core.api import pack
 from jampacked.core.container import build_container
 from jampacked.core.metrics import nni, tvd_of_counts
-from jampacked.core.options import AttemptOptions, PackOptions
+from jampacked.core.options import AttemptOptions, CavityPassOptions, PackOptions
 from jampacked.core.packing_json import load_packing, save_packing
 from jampacked.core.phases import _trim_to_mix
 from jampacked.core.placement import STACK_FULL, STACK_KEPT, STACK_PUSH_TESTS
@@ -26,9 +26,9 @@ class _Type:
         self.faces = np.asarray(mesh.faces, np.int64)
 
 
-def _box_container(extents):
+def _box_container(extents, spacing: float = 0.5):
     b = trimesh.creation.box(extents=extents)
-    return build_container(b.vertices, b.faces, float(b.volume), 0.5)
+    return build_container(b.vertices, b.faces, float(b.volume), spacing)
 
 
 def _turned(mesh: trimesh.Trimesh, angle: float = 0.7, shift=(0.0, 0.0, 0.0)):
@@ -196,7 +196,11 @@ def test_a_ball_or_a_clearance_too_wide_gives_no_stack():
     # over STACKED of a large box, less than their random packings do
     capsule = trimesh.creation.capsule(height=6.0, radius=3.0)
     assert STACKED < capsule.volume / np.prod(capsule.extents) < BOXY
-    assert stack_start(_box_container((120.5, 120.5, 120.5)), [_Type(capsule)],
+    # that large box holds rows of them over STACKED (6 x 6 x 12 boxes 0.02 apart), so only
+    # BOXY refuses them; its grid is 2 mm (0.5 built 227^3 cells for a search never made)
+    rows = np.floor(120.5 / (capsule.extents + 0.02))
+    assert np.prod(rows) * capsule.volume / 120.5 ** 3 > STACKED
+    assert stack_start(_box_container((120.5, 120.5, 120.5), spacing=2.0), [_Type(capsule)],
                        np.array([capsule.volume]), np.array([1.0]), np.array([0.01]), 0.0,
                        0.0, np.random.default_rng(0)) is None
     cube = trimesh.creation.box(extents=(10.0, 10.0, 10.0))
@@ -264,14 +268,19 @@ def test_a_stack_that_fills_the_crate_ends_the_budget_early(tmp_path):
 
 
 def test_a_fixed_count_of_attempts_runs_them_all_after_a_full_stack(tmp_path):
-    # attempts side by side on a cluster must give what they give one after another
+    # attempts side by side on a cluster must give what they give one after another. The
+    # cavity passes run at their first factor only: the others took 27 of the second
+    # attempt's 30 s and decide nothing here
     brick = trimesh.creation.box(extents=(20.0, 10.0, 5.0))
     brick.export(tmp_path / "brick.stl")
-    opts = PackOptions(attempts=AttemptOptions(count=2))
+    opts = PackOptions(attempts=AttemptOptions(count=2),
+                       cavity=CavityPassOptions(factors=(0.8,)))
     p = pack("box:63x42x32", [str(tmp_path / "brick.stl")], seed=1, time_budget=60.0,
              options=opts)
     assert [a.stopped for a in p.report.attempts] == [None, None]
     assert p.report.attempts[0].density > p.report.attempts[1].density
+    # the first attempt's stack was full: without the count it would have ended the run
+    assert p.report.attempts[0].kept and p.report.phase1.extra["stack_filled"] >= STACK_KEPT
 
 
 def test_a_stack_that_leaves_room_does_not_end_the_budget(tmp_path):
@@ -292,7 +301,8 @@ def test_cans_stand_staggered_where_that_holds_more():
     assert radius == pytest.approx(3.0) and half[k] == pytest.approx(5.0)
     assert round_about(*(lambda b: (b.vertices, *box_frame(b.vertices, b.faces)))(
         trimesh.creation.box(extents=(6.0, 6.0, 10.0)))) is None
-    cont = _box_container((61.0, 61.0, 40.0))
+    # a 1 mm grid: the same 402 sites as 0.5 mm's (to 1e-6 of the spacing), in half the time
+    cont = _box_container((61.0, 61.0, 40.0), spacing=1.0)
     st = stack_start(cont, [_Type(can)], np.array([can.volume]), np.array([1.0]),
                      np.array([0.01]), 0.0, 0.0, np.random.default_rng(0))
     assert st is not None and len(st.typ) > 360
@@ -330,13 +340,18 @@ def test_coins_stand_in_columns_in_a_jar(tmp_path):
 
 def test_without_a_budget_a_stack_that_leaves_room_competes_with_phase_1(tmp_path):
     # in a small box two tile sizes share the larger one's rows; an attempt from phase 1
-    # follows the stack and the denser is kept
+    # follows the stack and the denser is kept. The cavity passes run at their first factor
+    # only: the others took 30 of the second attempt's 35 s and decide nothing here
     paths = _two_tiles(tmp_path)
-    p = pack("box:30x26x12", paths, seed=1)
+    opts = PackOptions(cavity=CavityPassOptions(factors=(0.8,)))
+    p = pack("box:30x26x12", paths, seed=1, options=opts)
     attempts = p.report.attempts
     assert len(attempts) == 2
     kept = max(attempts, key=lambda a: a.density)
-    assert p.metrics["count"] <= kept.count and p.certificate["certified"]
+    assert kept.kept and p.metrics["count"] <= kept.count and p.certificate["certified"]
+    # the stack (kept, the denser here) left room: that is why phase 1 followed
+    assert p.report.phase1.extra["lattice"] == "stacked"
+    assert p.report.phase1.extra["stack_filled"] < STACK_KEPT
 
 
 def test_a_type_whose_box_is_off_its_origin_stays_inside():
@@ -372,11 +387,12 @@ def test_a_budget_shorter_than_the_search_keeps_the_stack_and_says_nothing_wrong
 
 
 def _stacked(meshes, shares, container: trimesh.Trimesh, wall_margin: float = 0.0,
-             **kwargs):
-    """stack_start for `meshes` in `container`, margins 0.01, no clearance, seed 1."""
+             spacing: float = 0.5, **kwargs):
+    """stack_start for `meshes` in `container` (its grid at `spacing`), margins 0.01, no
+    clearance, seed 1."""
     types = [_Type(m) for m in meshes]
     cont = build_container(container.vertices, container.faces, float(container.volume),
-                           0.5)
+                           spacing)
     st = stack_start(cont, types, np.array([m.volume for m in meshes]), np.array(shares),
                      np.full(len(meshes), 0.01), 0.0, wall_margin, np.random.default_rng(1),
                      **kwargs)
@@ -449,7 +465,9 @@ def test_coins_of_two_sizes_stand_in_columns_in_a_jar():
     coins = [trimesh.creation.cylinder(radius=r, height=2.0, sections=48)
              for r in (12.5, 10.0)]
     jar = trimesh.creation.cylinder(radius=40.0, height=60.0, sections=96)
-    st, _, _ = _stacked(coins, [0.5, 0.5], jar, wall_margin=0.078)
+    # a 1 mm grid: the same 205 sites as 0.5 mm's (to 1e-6 of the spacing), in a third of
+    # the time
+    st, _, _ = _stacked(coins, [0.5, 0.5], jar, wall_margin=0.078, spacing=1.0)
     assert st is not None
     counts = np.bincount(st.typ, minlength=2)
     assert abs(counts[0] - counts[1]) <= 1
@@ -535,9 +553,11 @@ def test_rows_of_two_lengths_in_a_cone_keep_the_mix_and_their_sites():
     # its ends, most of them long bricks (TVD 0.25: 18 long, 53 short); turning the rows
     # apart then lost a third of the sites (106 -> 71). Each line is now typed over the
     # stretch its sites inside span, and a turn that loses sites is not taken
+    # a 1 mm grid: the same 82 sites as 0.5 mm's (to 1e-6 of the spacing), in half the time
     cone = trimesh.creation.cone(radius=50.0, height=60.0, sections=64)
     st, types, meshes = _stacked([trimesh.creation.box(extents=e) for e in
-                                  ((30.0, 10.0, 5.0), (10.0, 10.0, 5.0))], [0.5, 0.5], cone)
+                                  ((30.0, 10.0, 5.0), (10.0, 10.0, 5.0))], [0.5, 0.5], cone,
+                                 spacing=1.0)
     assert st is not None
     counts = np.bincount(st.typ, minlength=2)
     assert tvd_of_counts(counts.astype(float), np.array([0.5, 0.5])) <= 0.04
