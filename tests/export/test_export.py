@@ -144,10 +144,24 @@ def overlapping(tmp_path):
     return _packing(tmp_path, _grid(9.0), [0, 1] * 4)
 
 
+def _apart(tmp: Path) -> Path:
+    return _packing(tmp, _grid(26.0), [0, 1, 1, 0, 0, 1, 1, 0], clearance=1.0)
+
+
 @pytest.fixture
 def apart(tmp_path):
     """8 objects 6+ units apart, clearance 1."""
-    return _packing(tmp_path, _grid(26.0), [0, 1, 1, 0, 0, 1, 1, 0], clearance=1.0)
+    return _apart(tmp_path)
+
+
+@pytest.fixture(scope="module")
+def apart_drained(tmp_path_factory):
+    """`apart` exported as a union with a 2 mm shell and a 4 mm drain, up the default +z:
+    (its report, the STL). Two tests read it (the shell took most of each one's time)."""
+    tmp = tmp_path_factory.mktemp("drained")
+    rep = export_packing(_apart(tmp), tmp / "d.stl",
+                         ExportOptions(mode="union", shell=2.0, drain=4.0))
+    return rep, tmp / "d.stl"
 
 
 def _trimesh_bodies_volume(path: Path) -> tuple[int, float]:
@@ -782,9 +796,12 @@ def test_connect_with_opened_shell_is_one_body(apart, tmp_path):
 
 
 @pytest.mark.parametrize("up, axis", [("+z", 2), ("+y", 1), ("-x", 0)])
-def test_drain_goes_through_the_lowest_wall_along_up(apart, tmp_path, up, axis):
-    rep = export_packing(apart, tmp_path / "d.stl",
-                         ExportOptions(mode="union", shell=2.0, drain=4.0, up=up))
+def test_drain_goes_through_the_lowest_wall_along_up(apart, tmp_path, up, axis, request):
+    if up == ExportOptions().up:  # the default: the export apart_drained made already
+        rep = request.getfixturevalue("apart_drained")[0]
+    else:
+        rep = export_packing(apart, tmp_path / "d.stl",
+                             ExportOptions(mode="union", shell=2.0, drain=4.0, up=up))
     assert rep.passed and rep.shell.drain_at is not None
     low = 40.0 if up.startswith("-") else -40.0  # the floor's outer face along up
     inner_floor = low + (2.0 if low < 0 else -2.0)
@@ -801,12 +818,11 @@ def _drain_probe(path: Path, at: np.ndarray, t: float) -> float:
     return (solid ^ probe).volume() / 0.2 ** 3
 
 
-def test_a_drain_under_an_object_opens_beside_it(apart, tmp_path):
+def test_a_drain_under_an_object_opens_beside_it(apart_drained, tmp_path):
     """Objects packed against the floor reach into the shell (it lies inside the container)
     and the union fused one into the drain's mouth: the hole was a dimple. The drain now
     goes under the lowest floor point no object sits on, and the shell's notes say so."""
-    rep = export_packing(apart, tmp_path / "free.stl",
-                         ExportOptions(mode="union", shell=2.0, drain=4.0))
+    rep = apart_drained[0]  # no object on the floor: the drain stays in its middle
     assert rep.passed and rep.shell.drain_at == pytest.approx((0.0, 0.0, -38.0), abs=0.5)
     assert rep.shell.notes == [] and [w for w in rep.warnings if "loose" not in w] == []
     # polytope3 (type 1, bounding radius 9) on the floor, over the floor's middle
