@@ -156,7 +156,7 @@ def test_pack_warns_when_a_type_fits_nowhere(tmp_path):
     rod, ball = tmp_path / "rod.stl", tmp_path / "ball.stl"
     trimesh.creation.box((40.0, 3.0, 3.0)).export(rod)
     trimesh.creation.icosphere(2, radius=2.5).export(ball)
-    # without the last cavity pass (factor 0.4: most of the time, one ball more): the
+    # without the last cavity pass (factor 0.4: the most time, for one ball more): the
     # balls still pack past 50, where they waited for the rod before
     three_passes = PackOptions(cavity=CavityPassOptions(factors=(0.8, 0.6, 0.5)))
     p = pack("box:20x20x20", [str(rod), str(ball)], seed=1, fidelity="low",

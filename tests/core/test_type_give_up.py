@@ -311,8 +311,8 @@ def test_a_type_phase_1_never_tried_and_no_pass_placed_is_given_up(tmp_path):
     grew; where phase 1 tried nothing at all, every type no pass placed counts."""
     plate = tmp_path / "plate.stl"
     trimesh.creation.box((10.0, 10.0, 1.0)).export(plate)
-    # two cavity passes, not four: the first run's passes (most of the time) still place no
-    # star while the mix holds the plates back, and the restart still packs the 10 plates
+    # two cavity passes, not four (the other two took most of the first run's time): they
+    # still place no star while the mix holds the plates back; the restart packs 10 plates
     two_passes = PackOptions(cavity=CavityPassOptions(factors=(0.8, 0.6)))
     p = pack("box:40x40x3.1", [str(plate), _star_prism(tmp_path / "star.stl")], [0.7, 0.3],
              seed=1, clearance=0.5, options=two_passes)
