@@ -207,13 +207,16 @@ def _drain_site(shell: m3.Manifold, cavity_vertices: np.ndarray, thickness: floa
 
 
 def _free_site(inner: m3.Manifold, low: np.ndarray, radius: float, reach: float,
-               covered: Callable[[np.ndarray], bool]) -> np.ndarray | None:
+               covered: Callable[[np.ndarray], bool], level: float = 0.0
+               ) -> np.ndarray | None:
     """The lowest point of the cavity's floor within `reach` of `low` (across, and at most
-    `reach` above it) that no object covers (`covered(point)`), the nearest of equal
-    heights; None where every one is covered. The floor is found under the points of a
-    grid `radius` apart, where rays cast down through the cavity (`inner`, its solid) from
-    above it leave it; a ray from a fixed height missed every floor of a cavity less tall
-    than `reach` (a flat box or dish), and the drain stayed under the object."""
+    `reach` above it) that no object covers (`covered(point)`), the nearest of those within
+    `level` of its height (the inner surface's accuracy: a flat floor simplified to a
+    tolerance is not quite flat); None where every one is covered. The floor is found under
+    the points of a grid `radius` apart, where rays cast down through the cavity (`inner`,
+    its solid) from above it leave it; a ray from a fixed height missed every floor of a
+    cavity less tall than `reach` (a flat box or dish), and the drain stayed under the
+    object."""
     n = max(1, int(reach / radius))
     grid = [(i * i + j * j, i, j) for i in range(-n, n + 1) for j in range(-n, n + 1)
             if 0 < i * i + j * j <= n * n]
@@ -231,10 +234,11 @@ def _free_site(inner: m3.Manifold, low: np.ndarray, radius: float, reach: float,
             floor = start - t * up
             if not entering and floor[2] <= low[2] + reach:  # leaving the cavity: a floor
                 floors.append(floor)
-    for floor in sorted(floors, key=lambda p: p[2]):  # stable: the nearest of equal heights
-        if not covered(floor):
-            return floor
-    return None
+    free = [floor for floor in floors if not covered(floor)]  # nearest first
+    if not free:
+        return None
+    lowest = min(floor[2] for floor in free)
+    return next(floor for floor in free if floor[2] <= lowest + level)
 
 
 def _cavity_at(inner: m3.Manifold, point: np.ndarray) -> m3.Manifold:
@@ -252,7 +256,7 @@ def _cavity_at(inner: m3.Manifold, point: np.ndarray) -> m3.Manifold:
 
 def drill_drain(shell: m3.Manifold, inner: m3.Manifold, diameter: float,
                 thickness: float, covered: Callable[[np.ndarray], bool] | None = None,
-                reach: float = 0.0, notes: list[str] | None = None
+                reach: float = 0.0, notes: list[str] | None = None, level: float = 0.0
                 ) -> tuple[m3.Manifold, tuple[float, float, float]]:
     """Drill a vertical drain hole from the cavity's lowest point down through the wall.
 
@@ -264,7 +268,8 @@ def drill_drain(shell: m3.Manifold, inner: m3.Manifold, diameter: float,
     covered(point): whether objects sit on a drain there (`drain_cover`); where they sit on
     the lowest point, the hole goes under the lowest free point of the floor within `reach`
     of it (`_free_site`), so that it opens beside the object rather than under it, and
-    `notes` says so.
+    `notes` says so. level: how far apart two heights of the floor must be to count as
+    different (the inner surface's accuracy), in container units.
     """
     v, _ = solid_arrays(inner)
     radius = 0.5 * diameter
@@ -272,16 +277,17 @@ def drill_drain(shell: m3.Manifold, inner: m3.Manifold, diameter: float,
     size = float(np.ptp(v[:, 2])) + 4.0 * thickness + diameter + 1.0
     low = _drain_site(shell, v, thickness, size)
     if covered is not None and reach > 0 and covered(low):
-        free = _free_site(inner, low, radius, reach, covered)
+        level = max(level, 1e-9 * size)
+        free = _free_site(inner, low, radius, reach, covered, level)
         if free is not None:
             if notes is not None:
                 rise = float(free[2] - low[2])
-                rise = 0.0 if abs(rise) <= 1e-9 * size else rise  # a flat floor's rounding
                 # the floor's sample can lie a little below the lowest point found
-                height = f"{abs(rise):.3g} {'lower' if rise < 0 else 'higher'}"
+                height = (" on the same level" if abs(rise) <= level else
+                          f" and {abs(rise):.3g} {'lower' if rise < 0 else 'higher'}")
                 notes.append(f"objects sit on the cavity's lowest point: the drain opens "
-                             f"{np.linalg.norm((free - low)[:2]):.3g} away from it and "
-                             f"{height}, at the lowest point of the floor they leave free.")
+                             f"{np.linalg.norm((free - low)[:2]):.3g} away from it{height}, "
+                             "at the lowest point of the floor they leave free.")
             low = free
     # the cavity's floor rises across the disc: start up to radius + T/4 above, short of the
     # ceiling

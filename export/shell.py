@@ -140,7 +140,7 @@ def make_shell(vertices: np.ndarray, faces: np.ndarray, thickness: float, *,
     if drain is not None:
         report_progress(0.7, "shell: drain hole")
         shell, drain_at = drill_drain(shell, inner, drain, thickness, drain_covered,
-                                      drain_reach, notes)
+                                      drain_reach, notes, level=max(used, 0.01 * spacing))
         if cavities > 1:
             notes.append(f"the shell has {cavities} separate cavities; the drain opens only "
                          "the lowest one.")

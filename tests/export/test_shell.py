@@ -303,11 +303,13 @@ def test_drain_through_a_flat_floor_is_in_its_middle():
     validated(shell)
 
 
-@pytest.mark.parametrize("width, height", [(40.0, 16.0), (80.0, 80.0)])
+@pytest.mark.parametrize("width, height", [(40.0, 16.0), (80.0, 80.0), (40.0, 80.0)])
 def test_a_covered_drain_moves_beside_the_object_in_a_cavity_of_any_height(width, height):
     # an object covers a disc of radius 10 around the floor's middle; the floor was searched
     # from 25 (the largest object) above the lowest point, above a 16 mm box: never found.
-    # The flat box is 40 mm across (80 took 4x the time and gave the same drain and note)
+    # The flat box is 40 mm across (80 took 4x the time and gave the same drain and note).
+    # In the tall 40 mm box the simplified floor was 0.000111 lower 23.3 away: the drain
+    # went there, "23.3 away from it and 0.000111 lower", not beside the object
     box = trimesh.creation.box((width, width, height))
 
     def covered(p):
@@ -317,9 +319,11 @@ def test_a_covered_drain_moves_beside_the_object_in_a_cavity_of_any_height(width
                                drain_reach=25.0)
     x, y, z = report.drain_at
     assert not covered(np.array([x, y, z])) and np.hypot(x, y) < 10.0 + 3.0
-    assert z == pytest.approx(-0.5 * height + 1.0 + report.tolerance, abs=1e-6)  # the floor
+    # on the floor, which its simplification leaves flat to within 1e-4 here
+    assert z == pytest.approx(-0.5 * height + 1.0 + report.tolerance, abs=1e-3)
     assert any(n.startswith("objects sit on the cavity's lowest point: the drain opens 10.1 "
-                            "away from it and 0 higher") for n in report.notes), report.notes
+                            "away from it on the same level, at the lowest point")
+               for n in report.notes), report.notes
     hits = ray_hits(shell, (x, y, -height), (x, y, height))  # the floor is open there
     assert len(hits) == 2 and min(hits) > 0  # only the top wall is met
 
@@ -330,13 +334,13 @@ def test_a_drain_moved_lower_than_the_lowest_point_says_lower(monkeypatch):
     from jampacked.export import openings
 
     monkeypatch.setattr(openings, "_free_site",
-                        lambda inner, low, *a: low + np.array([6.0, 0.0, -0.00372]))
+                        lambda inner, low, *a: low + np.array([6.0, 0.0, -0.372]))
     box = trimesh.creation.box((40.0, 40.0, 16.0))  # the free site is given: any floor
     _, report = make_shell(box.vertices, box.faces, 1.0, drain=3.0,
                            drain_covered=lambda p: bool(np.hypot(p[0], p[1]) < 5.0),
                            drain_reach=25.0)
     (note,) = [n for n in report.notes if "the drain opens" in n]
-    assert "opens 6 away from it and 0.00372 lower, at the lowest point" in note, note
+    assert "opens 6 away from it and 0.372 lower, at the lowest point" in note, note
 
 
 def test_a_covered_drain_stays_in_its_own_cavity():
