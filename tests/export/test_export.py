@@ -965,6 +965,9 @@ def test_needle_is_collapsed():
 
 # --------------------------------------------------------------------------- float32 files
 
+# Both recorded packings (slivers, needles) keep their certificate's digest of the placements
+# (`placements_sha256`, as `record_digest` writes it when a packing is made): without it
+# every export certified them again first (~3 s each), which is not what these tests check.
 SLIVERS = DATA / "spot-float32-slivers.json"
 
 
