@@ -131,14 +131,15 @@ def test_export_path_names_a_file_in_the_folders_way(bpy, addon, tmp_path):
 
 
 def test_a_scene_in_metres_exports_in_millimetres(bpy, addon, scene, tmp_path):
-    """Blender's default units (1 BU = 1 m): a 12 cm box modelled as 0.12 BU, filled and
-    exported with a 2 mm shell (typed as 0.002 m), prints 120 mm wide; the panel says so."""
+    """Blender's default units (1 BU = 1 m): a 6 cm box modelled as 0.06 BU, filled and
+    exported with a 2 mm shell (typed as 0.002 m), prints 60 mm wide; the panel says so.
+    (6 cm, not 12: the shell's distance grid, at T/4, has an eighth of the nodes.)"""
     import numpy as np
     import trimesh
 
     units = bpy.context.scene.unit_settings
     assert (units.system, units.scale_length) == ('METRIC', 1.0)
-    k = 0.004  # the fixture's turned box spans 30 units: 0.12 m across
+    k = 0.002  # the fixture's turned box spans 30 units: 0.06 m across
     scene.box.scale = tuple(k * np.array(scene.box.scale))
     scene.box.location = tuple(k * np.array(scene.box.location))
     for obj in scene.types:
@@ -146,7 +147,7 @@ def test_a_scene_in_metres_exports_in_millimetres(bpy, addon, scene, tmp_path):
     bpy.context.view_layer.update()
     depsgraph = bpy.context.evaluated_depsgraph_get()
     box = addon.bridge.object_triangles(scene.box, depsgraph).vertices
-    assert np.ptp(box, axis=0).max() == pytest.approx(0.12, abs=0.005)
+    assert np.ptp(box, axis=0).max() == pytest.approx(0.06, abs=0.0025)
     assert bpy.ops.jampacked.pack() == {'FINISHED'}
     assert scene.settings.result["jampacked_count"] > 5
     s = scene.settings
