@@ -234,11 +234,21 @@ def _free_site(inner: m3.Manifold, low: np.ndarray, radius: float, reach: float,
             floor = start - t * up
             if not entering and floor[2] <= low[2] + reach:  # leaving the cavity: a floor
                 floors.append(floor)
-    free = [floor for floor in floors if not covered(floor)]  # nearest first
-    if not free:
+    # each `covered` call is a boolean against the objects near it: as few as will do, the
+    # lowest first to find the lowest free height, then nearest first within `level` of it
+    free: dict[int, bool] = {}
+
+    def is_free(k: int) -> bool:
+        if k not in free:
+            free[k] = not covered(floors[k])
+        return free[k]
+
+    by_height = sorted(range(len(floors)), key=lambda k: floors[k][2])
+    lowest = next((floors[k][2] for k in by_height if is_free(k)), None)
+    if lowest is None:
         return None
-    lowest = min(floor[2] for floor in free)
-    return next(floor for floor in free if floor[2] <= lowest + level)
+    return next((floors[k] for k in range(len(floors))
+                 if floors[k][2] <= lowest + level and is_free(k)), None)
 
 
 def _cavity_at(inner: m3.Manifold, point: np.ndarray) -> m3.Manifold:
@@ -269,7 +279,8 @@ def drill_drain(shell: m3.Manifold, inner: m3.Manifold, diameter: float,
     the lowest point, the hole goes under the lowest free point of the floor within `reach`
     of it (`_free_site`), so that it opens beside the object rather than under it, and
     `notes` says so. level: how far apart two heights of the floor must be to count as
-    different (the inner surface's accuracy), in container units.
+    different (the inner surface's accuracy), in container units; at most a tenth of the
+    drain's radius.
     """
     v, _ = solid_arrays(inner)
     radius = 0.5 * diameter
@@ -277,7 +288,9 @@ def drill_drain(shell: m3.Manifold, inner: m3.Manifold, diameter: float,
     size = float(np.ptp(v[:, 2])) + 4.0 * thickness + diameter + 1.0
     low = _drain_site(shell, v, thickness, size)
     if covered is not None and reach > 0 and covered(low):
-        level = max(level, 1e-9 * size)
+        # no further than a tenth of the drain's radius, so that on a sloping floor the
+        # drain stays where liquid pools
+        level = min(max(level, 1e-9 * size), 0.1 * radius)
         free = _free_site(inner, low, radius, reach, covered, level)
         if free is not None:
             if notes is not None:

@@ -353,7 +353,7 @@ def test_a_full_small_scene_stops_its_attempts_before_the_budget():
 def test_one_attempt_without_a_budget_or_when_attempts_are_capped(unbudgeted):
     p = unbudgeted
     assert len(p.report.attempts) == 1 and "other_attempts" not in p.timings
-    # a scene whose one attempt ends well before the budget (about 1 s of 8), so that the
+    # a scene whose one attempt ends well before the budget (in a few of its 8 s), so that the
     # cap, not the deadline, is what starts no second attempt
     q = pack("box:22x20x20", POLY, seed=2, fidelity="low", time_budget=8.0,
              options=PackOptions(cavity=CavityPassOptions(patience=4),
