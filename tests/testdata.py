@@ -12,6 +12,8 @@ from types import ModuleType
 
 import numpy as np
 
+from jampacked.core.options import CavityPassOptions, PackOptions
+
 TESTS = Path(__file__).resolve().parent
 REPO = TESTS.parent
 DATA = TESTS / "data"
@@ -93,3 +95,9 @@ class UlpUp:
 
     def __getattr__(self, name):
         return getattr(self.ufunc, name)
+
+
+def cavity_passes(*factors: float) -> PackOptions:
+    """Pack options that run only these late cavity passes (start scales, e.g. 0.8): the
+    default four take most of a small test's time where the path it checks needs fewer."""
+    return PackOptions(cavity=CavityPassOptions(factors=tuple(factors)))

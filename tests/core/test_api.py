@@ -11,7 +11,7 @@ import manifold3d as m3
 import numpy as np
 import pytest
 import trimesh
-from testdata import mesh_path
+from testdata import cavity_passes, mesh_path
 
 from jampacked.core.api import pack
 from jampacked.core.errors import InputError, MeshError, PackingError
@@ -467,7 +467,7 @@ def test_flat_objects_in_a_thin_tray_are_not_refused_up_front():
     # phases 1 and 2 place the coins; the late cavity passes (10 of the 15 s) are not what
     # this is about
     p = pack("box:30x30x2", [mesh], seed=1, fidelity="low",
-             options=PackOptions(cavity=CavityPassOptions(factors=())))
+             options=cavity_passes())
     assert p.n >= 4 and p.certificate["certified"]
     with pytest.raises(PackingError, match="no object fits.*needs at least 0.5 units of depth"):
         pack("box:30x30x0.5", [mesh], seed=1, fidelity="low")

@@ -10,14 +10,14 @@ import distributed
 import numpy as np
 import pytest
 from dask_workers import kill_a_busy_worker, task_starts, transitions
-from testdata import lemon_and_balls, mesh_path, rod_and_balls
+from testdata import cavity_passes, lemon_and_balls, mesh_path, rod_and_balls
 
 from jampacked.core.api import pack
 from jampacked.core.batch import check_done, pack_scene, run_batch, scene_file
 from jampacked.core.batch_file import SceneSpec
 from jampacked.core.errors import InputError
 from jampacked.core.numba_cache import cache_loads_and_compiles
-from jampacked.core.options import CavityPassOptions, FidelityOverrides, PackOptions
+from jampacked.core.options import FidelityOverrides, PackOptions
 from jampacked.core.packing_json import load_packing, save_packing
 
 POLY = [str(mesh_path(f"polyhedra/convex5/polytope{i}.obj")) for i in (1, 3)]
@@ -127,7 +127,7 @@ def _lemon_and_large_balls(folder):
 #: one cavity pass, not four: the types are given up in phase 1, and the attempt starts
 #: again without the lemon after the passes, as with four; the passes were most of the
 #: attempts' seconds (rod: 87 s -> 11 s in one run)
-ONE_PASS = PackOptions(cavity=CavityPassOptions(factors=(0.8,)))
+ONE_PASS = cavity_passes(0.8)
 
 
 @pytest.mark.parametrize("scene, box, seed", [(rod_and_balls, "box:24x24x24", 2),

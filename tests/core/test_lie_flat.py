@@ -5,6 +5,7 @@ from __future__ import annotations
 import numpy as np
 import pytest
 import trimesh
+from testdata import cavity_passes
 
 from jampacked.core import placement
 from jampacked.core.api import pack
@@ -19,7 +20,6 @@ from jampacked.core.lie_flat import (
     principal_frame,
     room_frame,
 )
-from jampacked.core.options import CavityPassOptions, PackOptions
 from jampacked.core.rotations import quat_to_matrix
 
 
@@ -92,7 +92,7 @@ def test_rods_in_a_narrow_tube_are_laid_along_it(tmp_path, monkeypatch, seed):
     tube.export(tmp_path / "tube.stl")
     trimesh.creation.box(extents=(40.0, 2.0, 2.0)).export(tmp_path / "rod.stl")
     p = pack(str(tmp_path / "tube.stl"), [str(tmp_path / "rod.stl")], seed=seed,
-             options=PackOptions(cavity=CavityPassOptions(factors=(0.8, 0.6))))
+             options=cavity_passes(0.8, 0.6))
     assert p.n >= 11 and p.certificate["certified"]
 
 
@@ -122,7 +122,7 @@ def test_plates_that_fit_a_slab_only_lying_flat_are_placed(tmp_path, monkeypatch
     plate = trimesh.creation.box(extents=(20.0, 20.0, 1.0))
     plate.export(tmp_path / "plate.stl")
     p = pack("box:44x23x2", [str(tmp_path / "plate.stl")], seed=1,
-             options=PackOptions(cavity=CavityPassOptions(factors=(0.8,))))
+             options=cavity_passes(0.8))
     assert p.metrics["after_phase1"]["count"] == 0
     assert p.n >= 2 and p.certificate["certified"]
     r = quat_to_matrix(p.rotations)
@@ -141,7 +141,7 @@ def test_the_passes_lattice_does_not_miss_a_thin_slabs_middle(tmp_path, monkeypa
     plate = trimesh.creation.box(extents=(8.0, 8.0, 1.0))
     plate.export(tmp_path / "plate.stl")
     p = pack("box:18x18x1.1", [str(tmp_path / "plate.stl")], seed=seed,
-             options=PackOptions(cavity=CavityPassOptions(factors=(0.8,))))
+             options=cavity_passes(0.8))
     assert p.metrics["after_phase2"]["count"] == 0  # the pass placed them all
     assert p.n >= 3 and p.certificate["certified"]
 

@@ -7,10 +7,10 @@ from dataclasses import replace
 
 import numpy as np
 import pytest
-from testdata import mesh_path, mesh_paths
+from testdata import cavity_passes, mesh_path, mesh_paths
 
 from jampacked.core.api import pack
-from jampacked.core.options import CavityPassOptions, FidelityOverrides, PackOptions
+from jampacked.core.options import FidelityOverrides, PackOptions
 
 FRUIT = [str(mesh_path(f"fruit/ycb_lowpoly/{n}.obj")) for n in ("017_orange", "014_lemon")]
 
@@ -20,7 +20,7 @@ COARSE = FidelityOverrides(surface_points=96)
 
 #: one cavity pass, not four: the repair still has overlaps to push apart, and the passes
 #: (with a budget, rounds of them) took most of these packings' seconds
-ONE_PASS = PackOptions(cavity=CavityPassOptions(factors=(0.8,)))
+ONE_PASS = cavity_passes(0.8)
 
 
 def _pack(options: PackOptions | None = None, seed: int = 1, **kwargs):

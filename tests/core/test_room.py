@@ -9,13 +9,12 @@ from __future__ import annotations
 import numpy as np
 import pytest
 import trimesh
-from testdata import mesh_path
+from testdata import cavity_passes, mesh_path
 
 from jampacked.core.api import pack
 from jampacked.core.container import container_grid
 from jampacked.core.errors import PackingError
 from jampacked.core.metrics import compute_metrics
-from jampacked.core.options import CavityPassOptions, PackOptions
 from jampacked.core.room import has_depth
 
 P1 = str(mesh_path("polyhedra/convex7/polytope1.obj"))
@@ -60,7 +59,7 @@ def test_a_type_the_approximation_cannot_hold_is_left_out_and_the_rest_packed(tm
         trimesh.load(path, force="mesh").apply_scale(1.6).export(types[-1])
     # the last cavity pass (0.4) held most of the time for 5 of the 56 objects
     p = pack("box:40x40x40", [*types, str(ball)], seed=1, fidelity="low",
-             options=PackOptions(cavity=CavityPassOptions(factors=(0.8, 0.6, 0.5))))
+             options=cavity_passes(0.8, 0.6, 0.5))
     counts = np.bincount(p.type_index, minlength=3)
     assert p.certificate["certified"] is True
     assert counts[2] == 0 and counts[0] + counts[1] >= 45, counts
@@ -107,6 +106,6 @@ def test_a_plate_that_fits_a_tray_with_little_to_spare_is_not_left_out(tmp_path)
     trimesh.creation.box((20.0, 20.0, 4.31)).export(plate)
     # no time budget (it ran 5 s of attempts): the first cavity pass places the plate
     p = pack("box:40x40x4.51", [str(ball), str(plate)], seed=0, fidelity="low",
-             options=PackOptions(cavity=CavityPassOptions(factors=(0.8,))))
+             options=cavity_passes(0.8))
     assert not any("left out" in w for w in p.report.warnings), p.report.warnings
     assert np.bincount(p.type_index, minlength=2)[1] >= 1  # and the solver places it

@@ -7,10 +7,10 @@ import time
 import numpy as np
 import pytest
 import trimesh
+from testdata import cavity_passes
 
 from jampacked.core import placement
 from jampacked.core.api import pack
-from jampacked.core.options import CavityPassOptions, PackOptions
 from jampacked.core.report import PhaseStats
 from jampacked.core.run_warnings import run_warnings, slow_certification
 
@@ -158,7 +158,7 @@ def test_pack_warns_when_a_type_fits_nowhere(tmp_path):
     trimesh.creation.icosphere(2, radius=2.5).export(ball)
     # without the last cavity pass (factor 0.4: the most time, for one ball more): the
     # balls still pack past 50, where they waited for the rod before
-    three_passes = PackOptions(cavity=CavityPassOptions(factors=(0.8, 0.6, 0.5)))
+    three_passes = cavity_passes(0.8, 0.6, 0.5)
     p = pack("box:20x20x20", [str(rod), str(ball)], seed=1, fidelity="low",
              options=three_passes)
     assert p.certificate["certified"]

@@ -16,7 +16,7 @@ import manifold3d as m3
 import numpy as np
 import pytest
 import trimesh
-from testdata import MESHES, REPO, mesh_path
+from testdata import MESHES, REPO, cavity_passes, mesh_path
 
 from jampacked.core.api import pack
 from jampacked.core.errors import PackingError
@@ -209,7 +209,7 @@ def test_a_zero_mix_tolerance_keeps_the_best_mix_the_count_allows():
     # the passes at factor 0.4 add nothing here either way: three factors show it
     factors = (0.8, 0.6, 0.5)
     loose = pack(hand, [LEMON, STRAWBERRY, BANANA], **kw,
-                 options=PackOptions(cavity=CavityPassOptions(factors=factors)))
+                 options=cavity_passes(*factors))
     assert loose.metrics["tvd"] > best_tvd(q, loose.n) + 0.03  # the case bites
     strict = pack(hand, [LEMON, STRAWBERRY, BANANA], **kw,
                   options=PackOptions(cavity=CavityPassOptions(factors=factors, max_tvd=0.0)))

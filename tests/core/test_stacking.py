@@ -5,6 +5,7 @@ from __future__ import annotations
 import numpy as np
 import pytest
 import trimesh
+from testdata import cavity_passes
 
 from jampacked.core import placement
 from jampacked.core.api import pack
@@ -343,7 +344,7 @@ def test_without_a_budget_a_stack_that_leaves_room_competes_with_phase_1(tmp_pat
     # follows the stack and the denser is kept. The cavity passes run at their first factor
     # only: the others took 30 of the second attempt's 35 s and decide nothing here
     paths = _two_tiles(tmp_path)
-    opts = PackOptions(cavity=CavityPassOptions(factors=(0.8,)))
+    opts = cavity_passes(0.8)
     p = pack("box:30x26x12", paths, seed=1, options=opts)
     attempts = p.report.attempts
     assert len(attempts) == 2

@@ -8,11 +8,10 @@ from types import SimpleNamespace
 import numpy as np
 import pytest
 import trimesh
-from testdata import lemon_and_balls, rod_and_balls
+from testdata import cavity_passes, lemon_and_balls, rod_and_balls
 
 from jampacked.core.api import pack
 from jampacked.core.metrics import tvd_of_counts
-from jampacked.core.options import CavityPassOptions, PackOptions
 from jampacked.core.packing_json import load_packing, save_packing
 from jampacked.core.placement import RUNNERS_UP, is_denser, never_placed, ranked_with
 from jampacked.core.solver import PackState
@@ -223,7 +222,7 @@ def test_with_several_attempts_none_starves(tmp_path):
     try, so it gave nothing up and packed 7 objects, and was kept (an attempt that gave up
     fewer types was kept first)."""
     # two cavity passes, not four: each attempt still packs its balls past 80
-    two_passes = PackOptions(cavity=CavityPassOptions(factors=(0.8, 0.6)))
+    two_passes = cavity_passes(0.8, 0.6)
     p = pack("box:24x24x24", rod_and_balls(tmp_path), seed=0, attempts=2, options=two_passes)
     assert [a.count for a in p.report.attempts][1] >= 80
     assert p.n >= 80 and p.report.given_up[0]["type"] == 0
@@ -239,7 +238,7 @@ def test_two_types_that_never_grow_are_both_given_up(tmp_path):
     rod, ball = rod_and_balls(tmp_path, rod_radius=2.0)  # no room, even along a diagonal
     # two cavity passes, not four: the mix is refused no hole, and they fill the balls and
     # cubes past 20 each
-    two_passes = PackOptions(cavity=CavityPassOptions(factors=(0.8, 0.6)))
+    two_passes = cavity_passes(0.8, 0.6)
     p = pack("box:24x24x24", [rod, str(plate), ball, str(cube)], seed=0, options=two_passes)
     counts = np.bincount(p.type_index, minlength=4)
     assert counts[:2].tolist() == [0, 0] and counts[2:].min() >= 20
@@ -252,7 +251,7 @@ def test_a_type_no_pass_grows_makes_the_attempt_start_again_without_it(tmp_path)
     orientation: nothing grew it, and the mix held the balls back (3 objects, 2.4%)."""
     # one cavity pass, not four: it still grows no lemon while the mix holds the balls back,
     # and the restart's one pass still packs the balls (62 against 40 asked)
-    one_pass = PackOptions(cavity=CavityPassOptions(factors=(0.8,)))
+    one_pass = cavity_passes(0.8)
     p = pack("box:40x40x40", lemon_and_balls(tmp_path), seed=0, options=one_pass)
     counts = np.bincount(p.type_index, minlength=2)
     assert counts[0] == 0 and counts[1] >= 40
@@ -313,7 +312,7 @@ def test_a_type_phase_1_never_tried_and_no_pass_placed_is_given_up(tmp_path):
     trimesh.creation.box((10.0, 10.0, 1.0)).export(plate)
     # two cavity passes, not four (the other two took most of the first run's time): they
     # still place no star while the mix holds the plates back; the restart packs 10 plates
-    two_passes = PackOptions(cavity=CavityPassOptions(factors=(0.8, 0.6)))
+    two_passes = cavity_passes(0.8, 0.6)
     p = pack("box:40x40x3.1", [str(plate), _star_prism(tmp_path / "star.stl")], [0.7, 0.3],
              seed=1, clearance=0.5, options=two_passes)
     assert np.bincount(p.type_index, minlength=2).tolist() == [10, 0]
