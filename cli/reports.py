@@ -23,7 +23,7 @@ from jampacked.cli.interrupt import CancelOnInterrupt
 from jampacked.core.errors import plural
 from jampacked.core.mesh_files import length_unit
 from jampacked.core.packing import Packing, is_spec
-from jampacked.core.placement import REPEATED, STACK_FULL
+from jampacked.core.placement import BEHIND, REPEATED, STACK_FULL
 from jampacked.core.report import NOTE_PREFIX
 from jampacked.core.summary import summarize
 
@@ -197,7 +197,9 @@ def print_summary(packing: Packing, console: Console, title: str | None = None) 
                             f", {_seconds(a.seconds)}"
                             + ("" if a.certified is None
                                else f", certified {_pct(a.certified)}")
-                            + (" (kept)" if i == s.kept_attempt else ""))
+                            + (" (kept)" if i == s.kept_attempt else "")
+                            + (", no extra passes: too far behind to catch up"
+                               if a.stopped == BEHIND else ""))
     console.print(summary)
 
     if s.phases:

@@ -57,6 +57,13 @@ STACK_PUSH_TESTS = 100_000
 #: from the densest, a runner-up denser before certification than what is left is certified
 #: in turn, and the densest certified packing is kept (`api._certify_ranked`)
 RUNNERS_UP = 2
+#: an attempt whose phase 2 ends below the best attempt's density by both this factor and
+#: these points skips its extra passes, which cannot catch up: across the bench's recorded
+#: attempts the passes multiplied phase 2's density by at most 1.64 and added at most 0.213
+#: (docs/notes-core.md)
+CATCH_UP_FACTOR = 2.0
+CATCH_UP_POINTS = 0.3
+BEHIND = "phase 2 ended too far below the best attempt for the passes to catch up"
 
 
 @dataclass
@@ -75,6 +82,7 @@ class Attempt:
     #: which the attempt started again without them
     given_up: list[dict] = field(default_factory=list)
     index: int = 0  # the attempt's place among the run's attempts (its random stream)
+    behind: bool = False  # its extra passes did not run: they could not catch up (BEHIND)
 
     @property
     def mix_held(self) -> int:
@@ -84,7 +92,8 @@ class Attempt:
     def summary(self, stopped: str | None) -> AttemptSummary:
         return AttemptSummary(
             density=self.density, count=self.after["after_extra"]["count"],
-            seconds=sum(self.timings.values()), stopped=stopped,
+            seconds=sum(self.timings.values()),
+            stopped=stopped or (BEHIND if self.behind else None),
             **{k: self.timings[k] for k in ("phase1", "phase2", "extra")})
 
 
@@ -101,7 +110,7 @@ def place_once(solver: Solver, q: np.ndarray, s1: float, f_min: float,
                c_volume: float, budgeted: bool,
                report: Callable[[float, str], None], *, index: int,
                fresh: Callable[[], Solver] | None = None,
-               given_up: tuple[dict, ...] = ()) -> Attempt:
+               given_up: tuple[dict, ...] = (), beat: float = 0.0) -> Attempt:
     """Phase 1, phase 2 and the extra cavity passes on `solver`'s (empty) state.
 
     q: (T,) target shares; s1: phase 1's lattice spacing; f_min: the smallest type's
@@ -114,7 +123,9 @@ def place_once(solver: Solver, q: np.ndarray, s1: float, f_min: float,
     (`TypeFailures.never_grew`; any type, where phase 1 tried nothing), and the mix held
     the others back from holes they fit (`phase2`'s "mix_held"), the attempt starts again
     without it on `fresh()`, a new solver, and keeps the denser run (its timings then hold
-    both runs, its phase statistics the kept one's).
+    both runs, its phase statistics the kept one's). Where phase 2 ends so far below
+    `beat`, the best attempt's density so far, that the passes cannot catch up
+    (CATCH_UP_FACTOR and CATCH_UP_POINTS), they do not run and `Attempt.behind` says so.
     """
     vol = solver.t.volume
     ph, cav = options.phases, options.cavity
@@ -160,7 +171,9 @@ def place_once(solver: Solver, q: np.ndarray, s1: float, f_min: float,
     if solver.flat.any():  # their holes are as deep as they are thick (`lie_flat`)
         f_min = min(f_min, float(solver.flat_half[solver.flat, 2].min()))
     rounds = cav.rounds if budgeted else 1
-    for rnd in range(rounds):
+    d2 = after2["density"]
+    behind = d2 * CATCH_UP_FACTOR < beat and d2 + CATCH_UP_POINTS < beat
+    for rnd in range(0 if behind else rounds):
         grown = 0
         for i, factor in enumerate(cav.factors):
             if stop():
@@ -186,12 +199,12 @@ def place_once(solver: Solver, q: np.ndarray, s1: float, f_min: float,
         after={"after_phase1": after1, "after_phase2": after2, "after_extra": after3},
         phase1=st1, phase2=st2, extra_passes=extra,
         timings={"phase1": t1 - t0, "phase2": t2 - t1, "extra": t3 - t2},
-        given_up=list(given_up), index=index)
+        given_up=list(given_up), index=index, behind=behind)
     tried = dict(map(tuple, st1.extra.get("never_grew", [])))
     # a phase 1 that tried nothing (a thin tray's lattice may hold no point) says nothing of
     # any type: then each type no pass placed counts
     never = [t for t in never_placed(solver.s, q_packed) if t in tried or not st1.inserted]
-    if (fresh is None or not never or not att.mix_held
+    if (fresh is None or behind or not never or not att.mix_held
             or q_packed[never].sum() <= cav.max_tvd or stop()):
         return att
     # the mix held the others back for a type that grew in no try: again without it
@@ -201,7 +214,8 @@ def place_once(solver: Solver, q: np.ndarray, s1: float, f_min: float,
     q_next = shares_without(q_asked, list(given_up))
     s1 = s1 * (float(q_next @ vol) / float(q @ vol)) ** (1.0 / 3.0)  # their mean volume
     again = place_once(fresh(), q_asked, s1, f_min, rng, stop, margin, options, c_volume,
-                       budgeted, report, index=index, fresh=fresh, given_up=given_up)
+                       budgeted, report, index=index, fresh=fresh, given_up=given_up,
+                       beat=beat)
     kept = again if again.density > att.density else att  # the same types never grew
     kept.timings = {k: v + att.timings[k] for k, v in again.timings.items()}
     return kept
@@ -297,9 +311,11 @@ def place(new_solver: Callable[[], Solver], q: np.ndarray, s1: float, f_min: flo
         rng = attempt_rng(seed, len(done))
         t0 = time.perf_counter()
         current = new_solver()
+        # a fixed count runs every attempt in full, as the cluster does side by side
+        beat = ranked[0].density if ranked and options.attempts.count is None else 0.0
         att = place_once(current, q, s1, f_min, rng, stop, margin, options, c_volume,
                          stop.deadline is not None, monotone, index=len(done),
-                         fresh=restart)
+                         fresh=restart, beat=beat)
         shortest = min(shortest, time.perf_counter() - t0)
         summary = att.summary(stop.reason or None)
         done.append(summary)

@@ -250,6 +250,22 @@ def test_info_says_why_the_attempts_ended_before_the_budget(packed, capsys):
             assert "attempts ended" in so and said.split()[-1] in so
 
 
+def test_info_says_which_attempt_skipped_its_passes(packed, capsys):
+    from jampacked.core.placement import BEHIND
+
+    d, out, *_ = packed
+    doc = json.loads(out.read_text())
+    one = {"density": 0.70, "count": 89, "seconds": 0.9, "phase1": 0.8, "phase2": 0.0,
+           "extra": 0.1, "stopped": None}
+    doc["report"]["attempts"] = [one, {**one, "density": 0.32, "count": 40, "extra": 0.0,
+                                       "stopped": BEHIND}]
+    edited = d / "behind.json"
+    edited.write_text(json.dumps(doc))
+    assert main(["info", str(edited)]) == 0
+    so = " ".join(capsys.readouterr().out.replace("│", " ").split())  # rows may wrap
+    assert ("attempt 1 89 objects, 70.0%, 0.9 s (kept) attempt 2 40 objects, 32.0%, 0.9 s, "
+            "no extra passes: too far behind to catch up └") in so
+
 def test_info_gives_the_least_gaps_or_says_none_came_near(packed, capsys):
     d, out, *_ = packed
     doc = json.loads(out.read_text())

@@ -14,7 +14,7 @@ from jampacked.core.metrics import nni, tvd_of_counts
 from jampacked.core.options import AttemptOptions, CavityPassOptions, PackOptions
 from jampacked.core.packing_json import load_packing, save_packing
 from jampacked.core.phases import _trim_to_mix
-from jampacked.core.placement import STACK_FULL, STACK_KEPT, STACK_PUSH_TESTS
+from jampacked.core.placement import BEHIND, STACK_FULL, STACK_KEPT, STACK_PUSH_TESTS
 from jampacked.core.rotations import quat_to_matrix
 from jampacked.core.solver import PackState, Solver
 from jampacked.core.stacking import BOXY, STACKED, box_frame, round_about, stack_start
@@ -292,6 +292,17 @@ def test_a_stack_that_leaves_room_does_not_end_the_budget(tmp_path):
     assert p.report.phase1.extra["stack_filled"] < STACK_KEPT
     assert all(a.stopped != STACK_FULL for a in p.report.attempts)
 
+
+def test_an_attempt_too_far_behind_the_stack_skips_its_passes(tmp_path):
+    # without a budget a stack that leaves room is followed by one attempt from phase 1;
+    # here that attempt's phase 2 ends at 32% against the stack's 70%, and its passes
+    # spent 13-49 s reaching 39% before they were skipped
+    p = pack("box:30x26x12", _two_tiles(tmp_path), seed=1)
+    stack, behind = p.report.attempts
+    assert stack.kept and stack.density >= 0.69 and stack.stopped is None
+    assert behind.stopped == BEHIND and behind.extra < 0.1
+    assert behind.density * 2.0 < stack.density
+    assert p.certificate["certified"] and p.report.stopped is None
 
 def test_cans_stand_staggered_where_that_holds_more():
     # cans 6 mm across in rows of squares: 360 in a 61 x 61 x 40 box; staggered, each
