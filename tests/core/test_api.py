@@ -99,13 +99,26 @@ def again_with_snapshots():
     return p, seen
 
 
-def test_same_seed_same_packing_and_other_seed_differs(small, again_with_snapshots):
+@pytest.fixture(scope="module")
+def other_seed_with_progress():
+    """The `small` scene (equal shares, as `shares=None` gives) packed with seed 1 instead
+    of 3, watched by a progress callback (which adds no randomness): shared by the test
+    that compares seeds and the one that reads the progress reports: (packing, the reports
+    seen)."""
+    seen = []
+    p = pack(BOX, POLY, [0.5, 0.5], seed=1, fidelity="low",
+             progress=lambda f, m: seen.append((f, m)))
+    return p, seen
+
+
+def test_same_seed_same_packing_and_other_seed_differs(small, again_with_snapshots,
+                                                       other_seed_with_progress):
     again = again_with_snapshots[0]  # the same seed (and a snapshot callback, which adds no
     # randomness: any nondeterminism would show here as well)
     assert np.array_equal(again.type_index, small.type_index)
     assert np.array_equal(again.translations, small.translations)
     assert np.array_equal(again.rotations, small.rotations)
-    other = pack(BOX, POLY, [0.5, 0.5], seed=4, fidelity="low")
+    other = other_seed_with_progress[0]  # the same scene and options, seed 1
     assert other.n != small.n or not np.allclose(other.translations, small.translations)
 
 
@@ -146,9 +159,8 @@ def test_time_budget_stops_early():
     assert p.n == 0
 
 
-def test_progress_reports_monotone_fractions():
-    seen = []
-    pack(BOX, POLY, seed=1, fidelity="low", progress=lambda f, m: seen.append((f, m)))
+def test_progress_reports_monotone_fractions(other_seed_with_progress):
+    seen = other_seed_with_progress[1]
     fr = [f for f, _ in seen]
     assert fr[0] == 0.0 and fr[-1] == 1.0
     assert all(0.0 <= f <= 1.0 for f in fr)
