@@ -88,6 +88,7 @@ def test_rods_in_a_narrow_tube_are_laid_along_it(tmp_path, monkeypatch, seed):
     # random): phase 2 and the passes are what this tests; two passes show it (12 laid
     # along, none placed at random: "no object could be placed")
     monkeypatch.setattr(placement, "stack_start", lambda *args, **kwargs: None)
+    monkeypatch.setattr(placement, "box_grid", lambda *args, **kwargs: None)
     tube = trimesh.creation.cylinder(radius=3.0, height=200.0, sections=64)
     tube.export(tmp_path / "tube.stl")
     trimesh.creation.box(extents=(40.0, 2.0, 2.0)).export(tmp_path / "rod.stl")
@@ -119,6 +120,7 @@ def test_plates_that_fit_a_slab_only_lying_flat_are_placed(tmp_path, monkeypatch
     # a stacked start lays them in a row before phase 2 runs: phase 2 is what this tests
     # (here one pass, factor 0.8, in a slab that holds two: phase 1 places none)
     monkeypatch.setattr(placement, "stack_start", lambda *args, **kwargs: None)
+    monkeypatch.setattr(placement, "box_grid", lambda *args, **kwargs: None)
     plate = trimesh.creation.box(extents=(20.0, 20.0, 1.0))
     plate.export(tmp_path / "plate.stl")
     p = pack("box:44x23x2", [str(tmp_path / "plate.stl")], seed=1,
@@ -138,6 +140,7 @@ def test_the_passes_lattice_does_not_miss_a_thin_slabs_middle(tmp_path, monkeypa
     # pass (factor 0.8) shows it: with the lattice as wide as before, it misses the band on
     # each of these seeds; a slab 18 wide (not 45) keeps the container grid small
     monkeypatch.setattr(placement, "stack_start", lambda *args, **kwargs: None)
+    monkeypatch.setattr(placement, "box_grid", lambda *args, **kwargs: None)
     plate = trimesh.creation.box(extents=(8.0, 8.0, 1.0))
     plate.export(tmp_path / "plate.stl")
     p = pack("box:18x18x1.1", [str(tmp_path / "plate.stl")], seed=seed,

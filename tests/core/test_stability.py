@@ -346,8 +346,10 @@ def test_no_object_placed_names_the_depth_a_type_needs(tmp_path, monkeypatch):
     path = tmp_path / "cube.stl"
     trimesh.creation.box([9.0, 9.0, 9.0]).export(path)
     monkeypatch.setattr(phases, "grow", lambda *args, **kwargs: False)
-    # the cubes would start stacked at full size, never grown (`core/stacking.py`)
+    # the cubes would start stacked at full size, or in a grid, never grown
+    # (`core/stacking.py`, `core/box_grid.py`)
     monkeypatch.setattr(placement, "stack_start", lambda *args, **kwargs: None)
+    monkeypatch.setattr(placement, "box_grid", lambda *args, **kwargs: None)
     with pytest.raises(PackingError, match=r"cube, the type needing the least depth, needs "
                        r"at least 4\.5 \(its inner room\).*--fidelity high"):
         pack("box:9.5x9.5x40", [str(path)], seed=1)
@@ -368,12 +370,19 @@ def test_no_object_placed_names_the_depth_a_type_needs(tmp_path, monkeypatch):
 
 @pytest.mark.parametrize("side,clearance", [(9.03, 0.0), (9.25, 0.1)])
 def test_no_object_placed_says_what_the_approximation_keeps_and_the_size_that_fits(
-        tmp_path, side, clearance):
+        tmp_path, monkeypatch, side, clearance):
     # the depth was enough for the cube's inner room plus the clearance, and the message
     # said only "no object fitted anywhere" and advised --fidelity high, which failed too:
     # the contact margins and the grid's half cell at the depth's peak took the rest
+    import jampacked.core.placement as placement
+
     path = tmp_path / "cube.stl"
     trimesh.creation.box([9.0, 9.0, 9.0]).export(path)
+    # a box of one type now takes the grid of its boxes (`core/box_grid.py`), which needs no
+    # margin: the cube is placed, where a container of another shape ends in the message
+    grid = pack(f"box:{side}x{side}x{side}", [str(path)], seed=1, clearance=clearance)
+    assert grid.n == 1 and grid.certificate["certified"] and grid.report.phase1.extra["grid"]
+    monkeypatch.setattr(placement, "box_grid", lambda *args, **kwargs: None)
     with pytest.raises(PackingError) as err:
         pack(f"box:{side}x{side}x{side}", [str(path)], seed=1, clearance=clearance)
     msg = str(err.value)

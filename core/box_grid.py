@@ -1,0 +1,94 @@
+"""A box-shaped container filled with one type as a grid of its boxes that touch.
+
+A maker sizes a box to hold N x M x K parts exactly. The stacked start (`stacking`) keeps
+rows the solver's contact margins apart, so a box that fits the parts exactly lost a row
+along each axis (240 bricks of 10 x 5 x 5 in a 50 x 30 x 40 box: 157 stacked). A part
+lies inside its box, so boxes that touch (a clearance apart) never overlap, whatever the
+part's shape: the grid needs no margin, and certification checks it on the real meshes
+as any packing. `placement.place_once` keeps it where it holds more than the attempt.
+
+Frames: a type's local frame; the container frame, container units.
+"""
+
+from __future__ import annotations
+
+from collections.abc import Sequence
+from itertools import permutations
+
+import numpy as np
+import trimesh
+
+from .container import Container
+from .rotations import matrix_to_quat
+from .stacking import Stack
+
+#: a container is a box where its volume is its box's in one of the stack's frames, to
+#: this share (a box saved as float32 STL and turned: 5.7e-7); the certification checks
+#: the rest
+BOX_VOLUME = 1e-5
+#: the share of the container's side that rows may overrun through rounding (the boxes of
+#: a float32 STL)
+HAIR = 1e-6
+
+
+def _oriented_box(vertices: np.ndarray, faces: np.ndarray
+                  ) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+    """A mesh's smallest box: axes (3, 3, columns, right-handed), half extents (3,) and
+    centre (3,), in its own frame (trimesh's minimum-volume box, exact for a box, where
+    `stacking.box_frame`'s one-degree sweep reads a 5 x 5 section 5.0001 wide)."""
+    mesh = trimesh.Trimesh(np.asarray(vertices, np.float64), np.asarray(faces, np.int64),
+                           process=False)
+    to_origin, extents = trimesh.bounds.oriented_bounds(mesh)
+    rot = to_origin[:3, :3]
+    axes = rot.T.copy()
+    if np.linalg.det(axes) < 0:  # a box is the same with one axis reversed
+        axes[:, 2] *= -1.0
+    return axes, 0.5 * np.asarray(extents, np.float64), -rot.T @ to_origin[:3, 3]
+
+
+def box_grid(container: Container, types: Sequence, volumes: np.ndarray,
+             shares: np.ndarray, clearance: float) -> Stack | None:
+    """Where the container is a box and one type has a share, the most of that type's boxes
+    in a grid along the container's sides, `clearance` apart and from the walls, the grid
+    centred in the container; else None (and where not one box fits).
+
+    types: each with .vertices and .faces (local frame); volumes (T,); shares (T,) by
+    count; clearance in container units. Stack.room is each type's volume grown by its
+    box's share of the clearance, as `stacking.stack_start` gives it."""
+    live = np.flatnonzero(np.asarray(shares) > 0)
+    if len(live) != 1:
+        return None
+    t = int(live[0])
+    frame, size, middle = _oriented_box(container.vertices, container.faces)
+    box_volume = float(np.prod(2.0 * size))
+    if abs(box_volume - container.volume) > BOX_VOLUME * box_volume:
+        return None
+    size = 2.0 * size
+    lo = frame.T @ middle - 0.5 * size  # frame coordinates
+    axes, half, centre = _oriented_box(types[t].vertices, types[t].faces)
+    if half.min() <= 0:
+        return None
+    best = None
+    for perm in permutations(range(3)):
+        side = 2.0 * half[list(perm)]  # the box's side along each frame axis
+        # n sides and n + 1 clearances fit in the box's size (a hair of rounding allowed)
+        n = np.floor((size - clearance + HAIR * size) / (side + clearance)).astype(np.int64)
+        if np.all(n >= 1) and (best is None or np.prod(n) > np.prod(best[1])):
+            best = (perm, n, side)
+    if best is None:
+        return None
+    perm, n, side = best
+    pitch = side + clearance
+    first = lo + 0.5 * (size - (n * side + (n - 1) * clearance)) + 0.5 * side
+    grid = np.stack(np.meshgrid(*[first[j] + pitch[j] * np.arange(n[j]) for j in range(3)],
+                                indexing="ij"), axis=-1).reshape(-1, 3)
+    swap = np.zeros((3, 3))
+    swap[np.arange(3), list(perm)] = 1.0  # frame axis j <- box axis perm[j]
+    turn = frame @ swap @ axes.T
+    if np.linalg.det(turn) < 0:  # a box is the same with one axis reversed
+        turn = frame @ swap @ np.diag([1.0, 1.0, -1.0]) @ axes.T
+    pos = grid @ frame.T - turn @ centre
+    quat = np.repeat(matrix_to_quat(turn[None]), len(pos), axis=0)
+    room = np.zeros(len(volumes))
+    room[t] = volumes[t] * float(np.prod(2.0 * half + clearance) / np.prod(2.0 * half))
+    return Stack(np.full(len(pos), t), pos, quat, room)
