@@ -135,8 +135,8 @@ def place_once(solver: Solver, q: np.ndarray, s1: float, f_min: float,
                  "stack_filled": float(grid.room[grid.typ].sum() / kept.c.volume)}
     st1.seconds = time.perf_counter() - t0
     after = snapshot_metrics(kept.s, kept.t.volume, q, c_volume)
-    timings = dict(att.timings)
-    timings["phase1"] += st1.seconds  # the attempt it replaces ran too
+    # the stacked start's time holds the attempt the grid replaces, which ran first
+    timings = {"phase1": sum(att.timings.values()) + st1.seconds, "phase2": 0.0, "extra": 0.0}
     return Attempt(solver=kept, density=after["density"],
                    after={"after_phase1": after, "after_phase2": after, "after_extra": after},
                    phase1=st1, timings=timings, index=index)

@@ -107,3 +107,6 @@ def test_packing_a_box_sized_for_the_bricks_gives_all_of_them(tmp_path):
     assert abs(p.metrics["density"] - 1.0) < 1e-6  # the brick read from float32
     assert p.report.phase1.extra["lattice"] == "stacked" and p.report.phase1.extra["grid"]
     assert len(p.report.attempts) == 1 and p.report.attempts[0].stopped == STACK_FULL
+    # the attempt the grid replaced ran first: its time is the stacked start's, no pass's
+    assert p.report.attempts[0].extra == 0.0 and p.timings["extra"] == 0.0
+    assert p.timings["phase1"] == p.report.attempts[0].seconds > 0.0
