@@ -13,6 +13,7 @@ Frames: a type's local frame; the container frame, container units.
 from __future__ import annotations
 
 from collections.abc import Sequence
+from dataclasses import dataclass
 from itertools import permutations
 
 import numpy as np
@@ -22,13 +23,24 @@ from .container import Container
 from .rotations import matrix_to_quat
 from .stacking import Stack
 
-#: a container is a box where its volume is its box's in one of the stack's frames, to
-#: this share (a box saved as float32 STL and turned: 5.7e-7); the certification checks
-#: the rest
+#: a container is a box where its volume is its minimum-volume box's to this share (a box
+#: saved as float32 STL and turned: 5.7e-7) and each face's corners lie, to HAIR of its
+#: size, on the side its normal points to: a dent, a bevel or a moved corner, which each
+#: put grid objects through the wall, make it no box
 BOX_VOLUME = 1e-5
 #: the share of the container's side that rows may overrun through rounding (the boxes of
-#: a float32 STL)
+#: a float32 STL), and that a vertex may lie off the box's sides
 HAIR = 1e-6
+
+
+@dataclass(frozen=True)
+class Grid:
+    """A grid of one type's boxes (`box_grid`): its objects (`stacking.Stack`), and whether
+    it is closed: no slab it leaves along a side is as thick as the type's thinnest side
+    and a clearance, so no object fits beside it in any turn."""
+
+    stack: Stack
+    closed: bool
 
 
 def _oriented_box(vertices: np.ndarray, faces: np.ndarray
@@ -46,11 +58,29 @@ def _oriented_box(vertices: np.ndarray, faces: np.ndarray
     return axes, 0.5 * np.asarray(extents, np.float64), -rot.T @ to_origin[:3, 3]
 
 
+def _is_box(container: Container, frame: np.ndarray, middle: np.ndarray,
+            size: np.ndarray) -> bool:
+    """The container is the box of `frame` (its axes, columns), `middle` (its centre) and
+    `size` (its sides), all in the container frame (BOX_VOLUME, HAIR)."""
+    if abs(float(np.prod(size)) - container.volume) > BOX_VOLUME * float(np.prod(size)):
+        return False
+    # every face lies in the side its normal points to: its three corners on that side
+    tri = (container.vertices[container.faces] - middle) @ frame  # (F, 3 corners, 3 axes)
+    normal = np.cross(tri[:, 1] - tri[:, 0], tri[:, 2] - tri[:, 0])
+    keep = np.any(normal != 0.0, axis=1)  # a face of no area points nowhere
+    tri, normal = tri[keep], normal[keep]
+    axis = np.argmax(np.abs(normal), axis=1)
+    rows = np.arange(len(tri))
+    side = 0.5 * size[axis] * np.sign(normal[rows, axis])
+    off = np.abs(tri[rows, :, axis] - side[:, None])
+    return bool(off.max() <= HAIR * float(size.max()))
+
+
 def box_grid(container: Container, types: Sequence, volumes: np.ndarray,
-             shares: np.ndarray, clearance: float) -> Stack | None:
-    """Where the container is a box and one type has a share, the most of that type's boxes
-    in a grid along the container's sides, `clearance` apart and from the walls, the grid
-    centred in the container; else None (and where not one box fits).
+             shares: np.ndarray, clearance: float) -> Grid | None:
+    """Where the container is a box (`_is_box`) and one type has a share, the most of that
+    type's boxes in a grid along the container's sides, `clearance` apart and from the
+    walls, the grid centred in the container; else None (and where not one box fits).
 
     types: each with .vertices and .faces (local frame); volumes (T,); shares (T,) by
     count; clearance in container units. Stack.room is each type's volume grown by its
@@ -60,10 +90,9 @@ def box_grid(container: Container, types: Sequence, volumes: np.ndarray,
         return None
     t = int(live[0])
     frame, size, middle = _oriented_box(container.vertices, container.faces)
-    box_volume = float(np.prod(2.0 * size))
-    if abs(box_volume - container.volume) > BOX_VOLUME * box_volume:
-        return None
     size = 2.0 * size
+    if not _is_box(container, frame, middle, size):
+        return None
     lo = frame.T @ middle - 0.5 * size  # frame coordinates
     axes, half, centre = _oriented_box(types[t].vertices, types[t].faces)
     if half.min() <= 0:
@@ -91,4 +120,6 @@ def box_grid(container: Container, types: Sequence, volumes: np.ndarray,
     quat = np.repeat(matrix_to_quat(turn[None]), len(pos), axis=0)
     room = np.zeros(len(volumes))
     room[t] = volumes[t] * float(np.prod(2.0 * half + clearance) / np.prod(2.0 * half))
-    return Stack(np.full(len(pos), t), pos, quat, room)
+    slab = size - n * side - (n + 1) * clearance
+    closed = bool(np.all(slab < 2.0 * half.min() + clearance))
+    return Grid(Stack(np.full(len(pos), t), pos, quat, room), closed)

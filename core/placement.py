@@ -31,7 +31,7 @@ from .options import PackOptions
 from .phases import Stop, phase1, phase2, stacked_phase1
 from .report import AttemptSummary, ExtraPassStats, PhaseStats
 from .solver import PackState, Solver
-from .stacking import stack_start
+from .stacking import Stack, stack_start
 from .type_give_up import shares_without
 
 #: attempts that ran to their end and repeated the best attempt's count and density (to
@@ -58,6 +58,9 @@ STACK_PUSH_TESTS = 100_000
 #: from the densest, a runner-up denser before certification than what is left is certified
 #: in turn, and the densest certified packing is kept (`api._certify_ranked`)
 RUNNERS_UP = 2
+#: after the deadline a grid of one type's boxes (`box_grid`) replaces the attempt only
+#: where it holds at most this many times the attempt's objects
+GRID_LATE = 2.0
 #: an attempt whose phase 2 ends below the best attempt's density by both this factor and
 #: these points skips its extra passes, which cannot catch up: across the bench's recorded
 #: attempts the passes multiplied phase 2's density by at most 1.64 and added at most 0.213
@@ -112,34 +115,54 @@ def place_once(solver: Solver, q: np.ndarray, s1: float, f_min: float,
                report: Callable[[float, str], None], *, index: int,
                fresh: Callable[[], Solver] | None = None,
                given_up: tuple[dict, ...] = (), beat: float = 0.0) -> Attempt:
-    """`_place_once`; attempt 0 then keeps, on `fresh()`, the grid of one type's boxes
-    that fills a box-shaped container (`box_grid`) where that holds more. Not after a
-    cancel or the deadline: a grid of many more objects than the attempt placed would
-    take its certification past the budget."""
+    """`_place_once`, but for attempt 0 where one type fills a box-shaped container as a
+    grid of its boxes (`box_grid`): a closed grid that fills STACK_KEPT of it is kept
+    without the attempt, which could add nothing beside it; another is kept, on `fresh()`,
+    where it holds more than the attempt, and after the deadline only where it holds at
+    most GRID_LATE times as many (its certification then takes about as long)."""
+    t0 = time.perf_counter()
+    grid = None
+    if index == 0 and fresh is not None and not given_up:
+        grid = box_grid(solver.c, solver.t.types, solver.t.volume, q, solver.p.clearance)
+    if grid is not None and grid.closed and _filled(grid.stack, solver) >= STACK_KEPT:
+        return _grid_attempt(grid.stack, solver, q, c_volume, report, index,
+                             time.perf_counter() - t0)
     att = _place_once(solver, q, s1, f_min, rng, stop, margin, options, c_volume, budgeted,
                       report, index=index, fresh=fresh, given_up=given_up, beat=beat)
+    if grid is None or fresh is None or stop.reason == "cancelled":
+        return att
     late = stop.deadline is not None and time.perf_counter() > stop.deadline
-    if index != 0 or fresh is None or given_up or stop.reason or late:
+    n, count = len(grid.stack.typ), att.after["after_extra"]["count"]
+    if n <= count or (late and n > GRID_LATE * count):
         return att
-    t0 = time.perf_counter()
-    grid = box_grid(solver.c, solver.t.types, solver.t.volume, q, solver.p.clearance)
-    if grid is None or len(grid.typ) <= att.after["after_extra"]["count"]:
-        return att
-    report(0.95, f"a grid of {len(grid.typ)} along the container's sides holds more")
-    kept = fresh()
-    for t, p, quat in zip(grid.typ, grid.pos, grid.quat, strict=True):
-        kept.s.add(int(t), p, quat, 1.0, 0.0)  # apart by construction: no margin to keep
-    st1 = PhaseStats(inserted=len(grid.typ), grown=len(grid.typ), stopped="")
-    st1.extra = {"lattice": "stacked", "grid": True,
-                 "stack_density": float(kept.t.volume[grid.typ].sum() / kept.c.volume),
-                 "stack_filled": float(grid.room[grid.typ].sum() / kept.c.volume)}
-    st1.seconds = time.perf_counter() - t0
-    after = snapshot_metrics(kept.s, kept.t.volume, q, c_volume)
     # the stacked start's time holds the attempt the grid replaces, which ran first
-    timings = {"phase1": sum(att.timings.values()) + st1.seconds, "phase2": 0.0, "extra": 0.0}
-    return Attempt(solver=kept, density=after["density"],
+    return _grid_attempt(grid.stack, fresh(), q, c_volume, report, index,
+                         time.perf_counter() - t0)
+
+
+def _filled(stack: Stack, solver: Solver) -> float:
+    """The share of the container the stack's objects take, each type's volume grown by
+    its box's share of the clearance (`stacking.Stack.room`)."""
+    return float(stack.room[stack.typ].sum() / solver.c.volume)
+
+
+def _grid_attempt(grid: Stack, solver: Solver, q: np.ndarray, c_volume: float,
+                  report: Callable[[float, str], None], index: int,
+                  seconds: float) -> Attempt:
+    """An attempt of `grid`'s objects on the empty `solver`, at full size and without a
+    contact margin (the boxes keep them apart); `seconds` is all its time."""
+    for t, p, quat in zip(grid.typ, grid.pos, grid.quat, strict=True):
+        solver.s.add(int(t), p, quat, 1.0, 0.0)
+    report(0.95, f"a grid of {len(grid.typ)} along the container's sides")
+    st1 = PhaseStats(inserted=len(grid.typ), grown=len(grid.typ), seconds=seconds)
+    st1.extra = {"lattice": "stacked", "grid": True,
+                 "stack_density": float(solver.t.volume[grid.typ].sum() / solver.c.volume),
+                 "stack_filled": _filled(grid, solver)}
+    after = snapshot_metrics(solver.s, solver.t.volume, q, c_volume)
+    return Attempt(solver=solver, density=after["density"],
                    after={"after_phase1": after, "after_phase2": after, "after_extra": after},
-                   phase1=st1, timings=timings, index=index)
+                   phase1=st1, timings={"phase1": seconds, "phase2": 0.0, "extra": 0.0},
+                   index=index)
 
 
 def _place_once(solver: Solver, q: np.ndarray, s1: float, f_min: float,
@@ -241,7 +264,7 @@ def _place_once(solver: Solver, q: np.ndarray, s1: float, f_min: float,
     # a phase 1 that tried nothing (a thin tray's lattice may hold no point) says nothing of
     # any type: then each type no pass placed counts
     never = [t for t in never_placed(solver.s, q_packed) if t in tried or not st1.inserted]
-    if (fresh is None or behind or not never or not att.mix_held
+    if (fresh is None or not never or not att.mix_held
             or q_packed[never].sum() <= cav.max_tvd or stop()):
         return att
     # the mix held the others back for a type that grew in no try: again without it

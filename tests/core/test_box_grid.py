@@ -3,16 +3,21 @@
 
 from __future__ import annotations
 
+import time
 from itertools import combinations
 
 import numpy as np
 import trimesh
+from testdata import cavity_passes
 
+from jampacked.core import placement
 from jampacked.core.api import pack
 from jampacked.core.box_grid import box_grid
 from jampacked.core.container import build_container
 from jampacked.core.placement import STACK_FULL
 from jampacked.core.rotations import quat_to_matrix
+
+ONE_PASS = cavity_passes(0.8)
 
 
 class _Type:
@@ -41,8 +46,10 @@ def _placed(grid, mesh: trimesh.Trimesh) -> np.ndarray:
 def test_a_box_that_fits_the_bricks_exactly_holds_all_of_them():
     brick = trimesh.creation.box(extents=(10.0, 5.0, 5.0))
     crate = trimesh.creation.box(extents=(50.0, 30.0, 40.0))
-    grid = box_grid(_container(crate), [_Type(brick)], np.array([brick.volume]),
-                    np.array([1.0]), 0.0)
+    found = box_grid(_container(crate), [_Type(brick)], np.array([brick.volume]),
+                     np.array([1.0]), 0.0)
+    assert found.closed
+    grid = found.stack
     assert len(grid.typ) == 5 * 6 * 8 == 240
     v = _placed(grid, brick)
     assert np.all(np.abs(v) <= np.array([25.0, 15.0, 20.0]) + 1e-9)
@@ -56,7 +63,7 @@ def test_a_turned_box_and_a_turned_brick_give_the_same_grid():
     brick = _turned(trimesh.creation.box(extents=(10.0, 5.0, 5.0)), 0.4, (3.0, 1.0, -2.0))
     crate = _turned(trimesh.creation.box(extents=(50.0, 30.0, 40.0)), 1.1, (100.0, -20.0, 7.0))
     grid = box_grid(_container(crate), [_Type(brick)], np.array([brick.volume]),
-                    np.array([1.0]), 0.0)
+                    np.array([1.0]), 0.0).stack
     assert len(grid.typ) == 240
     # every brick's vertices lie in the crate (its own frame: within its half sides)
     straight = trimesh.creation.box(extents=(50.0, 30.0, 40.0))
@@ -71,7 +78,7 @@ def test_with_a_clearance_the_boxes_stand_that_far_apart_and_from_the_walls():
     # 4 x 3 x 2 bricks and the clearance five, four and three times
     crate = trimesh.creation.box(extents=(4 * 10 + 5 * c, 3 * 5 + 4 * c, 2 * 5 + 3 * c))
     grid = box_grid(_container(crate), [_Type(brick)], np.array([brick.volume]),
-                    np.array([1.0]), c)
+                    np.array([1.0]), c).stack
     assert len(grid.typ) == 24
     v = _placed(grid, brick)
     lo, hi = v.min(axis=1), v.max(axis=1)
@@ -96,6 +103,72 @@ def test_no_grid_where_the_container_is_no_box_or_more_than_one_type_has_a_share
     assert box_grid(small, types, vol, np.array([1.0, 0.0]), 0.0) is not None  # turned
     tiny = _container(trimesh.creation.box(extents=(4.0, 30.0, 40.0)))
     assert box_grid(tiny, types, vol, np.array([1.0, 0.0]), 0.0) is None  # none fits
+
+
+def _dented(mesh: trimesh.Trimesh, depth: float) -> trimesh.Trimesh:
+    """`mesh` with a shallow pyramid pressed into the middle of its first +x face."""
+    m = mesh.subdivide()  # a vertex in the middle of each face's edges
+    v = m.vertices.copy()
+    side = np.flatnonzero(np.isclose(v[:, 0], v[:, 0].max()))
+    middle = side[np.argmin(np.linalg.norm(v[side, 1:] - v[side, 1:].mean(axis=0), axis=1))]
+    v[middle, 0] -= depth
+    return trimesh.Trimesh(v, m.faces)
+
+
+def test_a_box_dented_bevelled_or_with_a_corner_moved_is_no_box():
+    # each lost 0.25-0.4 of 60,000 mm^3 (within the volume test) and put grid objects
+    # through the wall: certification removed 2-6 of the 240 bricks after 13-39 s of pushes
+    brick = trimesh.creation.box(extents=(10.0, 5.0, 5.0))
+    args = ([_Type(brick)], np.array([brick.volume]), np.array([1.0]), 0.0)
+    crate = trimesh.creation.box(extents=(50.0, 30.0, 40.0))
+    assert box_grid(_container(crate), *args) is not None
+    dent = _dented(crate, 0.001)
+    assert 0 < crate.volume - dent.volume < 1e-5 * crate.volume
+    assert box_grid(_container(dent), *args) is None
+    moved = crate.copy()
+    moved.vertices[0] += 0.002  # a corner off the sides
+    assert box_grid(_container(moved), *args) is None
+    moved = crate.copy()  # a corner moved in along one side: on the other two still
+    corner = int(np.argmax(moved.vertices.sum(axis=1)))
+    moved.vertices[corner, 0] -= 0.002
+    assert 0 < crate.volume - moved.volume < 1e-5 * crate.volume
+    assert box_grid(_container(moved), *args) is None
+    # the edge at +x +y cut 0.1 deep at 45 degrees: every vertex on the box's sides
+    corners = crate.vertices[~((crate.vertices[:, 0] > 0) & (crate.vertices[:, 1] > 0))]
+    cut = [[24.9, 15.0, -20.0], [24.9, 15.0, 20.0], [25.0, 14.9, -20.0], [25.0, 14.9, 20.0]]
+    bevel = trimesh.convex.convex_hull(np.vstack([corners, cut]))
+    assert 0 < crate.volume - bevel.volume < 1e-5 * crate.volume
+    assert box_grid(_container(bevel), *args) is None
+
+
+def test_a_closed_grid_that_fills_the_box_needs_no_attempt(tmp_path, monkeypatch):
+    def no_attempt(*args, **kwargs):
+        raise AssertionError("the attempt ran")
+
+    trimesh.creation.box(extents=(2.5, 2.5, 2.5)).export(tmp_path / "cube.stl")
+    monkeypatch.setattr(placement, "_place_once", no_attempt)
+    # 2.5 mm cubes, 20 x 12 x 16: the stacked attempt took 89 s before the grid replaced it
+    p = pack("box:50x30x40", [str(tmp_path / "cube.stl")], seed=1)
+    assert p.n == 3840 and p.certificate["certified"] and p.report.phase1.extra["grid"]
+
+
+def test_after_the_deadline_a_grid_replaces_the_attempt_only_if_not_far_larger(
+        tmp_path, monkeypatch):
+    # the grid of 3 x 3 bricks leaves a slab 7 mm thick, where turned bricks fit: it is not
+    # closed, and the attempt runs
+    trimesh.creation.box(extents=(10.0, 5.0, 5.0)).export(tmp_path / "brick.stl")
+    real = placement._place_once
+    for count, kept in ((5, "grid"), (4, "attempt")):
+        def ends_late(*args, count=count, **kwargs):
+            att = real(*args, **kwargs)
+            args[5].deadline = time.perf_counter() - 1.0  # the attempt ran to the deadline
+            att.after["after_extra"]["count"] = count  # and placed this many
+            return att
+
+        monkeypatch.setattr(placement, "_place_once", ends_late)
+        p = pack("box:17x17x17", [str(tmp_path / "brick.stl")], seed=1, options=ONE_PASS)
+        assert bool(p.report.phase1.extra.get("grid")) == (kept == "grid"), count
+        assert p.n == 9 or kept == "attempt"  # the grid's 9; at most twice 5, not 4
 
 
 def test_packing_a_box_sized_for_the_bricks_gives_all_of_them(tmp_path):
