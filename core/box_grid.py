@@ -5,7 +5,8 @@ rows the solver's contact margins apart, so a box that fits the parts exactly lo
 along each axis (240 bricks of 10 x 5 x 5 in a 50 x 30 x 40 box: 157 stacked). A part
 lies inside its box, so boxes that touch (a clearance apart) never overlap, whatever the
 part's shape: the grid needs no margin, and certification checks it on the real meshes
-as any packing. `placement.place_once` keeps it where it holds more than the attempt.
+as any packing. `placement.place_once` lays it first: a closed grid that fills the box
+is kept without an attempt, another where it holds more than the attempt did.
 
 Frames: a type's local frame; the container frame, container units.
 """

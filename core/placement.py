@@ -117,9 +117,10 @@ def place_once(solver: Solver, q: np.ndarray, s1: float, f_min: float,
                given_up: tuple[dict, ...] = (), beat: float = 0.0) -> Attempt:
     """`_place_once`, but for attempt 0 where one type fills a box-shaped container as a
     grid of its boxes (`box_grid`): a closed grid that fills STACK_KEPT of it is kept
-    without the attempt, which could add nothing beside it; another is kept, on `fresh()`,
-    where it holds more than the attempt, and after the deadline only where it holds at
-    most GRID_LATE times as many (its certification then takes about as long)."""
+    without the attempt (no slab beside it takes another row, and random starts jam below
+    STACK_KEPT); another is kept, on `fresh()`, where it holds more than the attempt, and
+    after the deadline only where it holds at most GRID_LATE times as many (its
+    certification then takes about as long)."""
     t0 = time.perf_counter()
     grid = None
     if index == 0 and fresh is not None and not given_up:
@@ -129,7 +130,7 @@ def place_once(solver: Solver, q: np.ndarray, s1: float, f_min: float,
                              time.perf_counter() - t0)
     att = _place_once(solver, q, s1, f_min, rng, stop, margin, options, c_volume, budgeted,
                       report, index=index, fresh=fresh, given_up=given_up, beat=beat)
-    if grid is None or fresh is None or stop.reason == "cancelled":
+    if grid is None or stop.reason == "cancelled":
         return att
     late = stop.deadline is not None and time.perf_counter() > stop.deadline
     n, count = len(grid.stack.typ), att.after["after_extra"]["count"]
