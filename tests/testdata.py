@@ -101,3 +101,23 @@ def cavity_passes(*factors: float) -> PackOptions:
     """Pack options that run only these late cavity passes (start scales, e.g. 0.8): the
     default four take most of a small test's time where the path it checks needs fewer."""
     return PackOptions(cavity=CavityPassOptions(factors=tuple(factors)))
+
+
+class MeshType:
+    """An object type as `stacking` and `box_grid` read one: a mesh's float64 vertices and
+    int64 faces."""
+
+    def __init__(self, mesh) -> None:
+        self.vertices = np.asarray(mesh.vertices, np.float64)
+        self.faces = np.asarray(mesh.faces, np.int64)
+
+
+def turned(mesh, angle: float = 0.7, shift=(0.0, 0.0, 0.0)):
+    """A copy of the trimesh `mesh` turned by `angle` (radians) about the axis (1, 2, 3)
+    through the origin, then moved by `shift`."""
+    import trimesh
+
+    m = mesh.copy()
+    m.apply_transform(trimesh.transformations.rotation_matrix(angle, [1, 2, 3]))
+    m.apply_translation(shift)
+    return m

@@ -8,7 +8,7 @@ from itertools import combinations
 
 import numpy as np
 import trimesh
-from testdata import cavity_passes
+from testdata import MeshType, cavity_passes, turned
 
 from jampacked.core import placement
 from jampacked.core.api import pack
@@ -20,21 +20,8 @@ from jampacked.core.rotations import quat_to_matrix
 ONE_PASS = cavity_passes(0.8)
 
 
-class _Type:
-    def __init__(self, mesh: trimesh.Trimesh):
-        self.vertices = np.asarray(mesh.vertices, np.float64)
-        self.faces = np.asarray(mesh.faces, np.int64)
-
-
 def _container(mesh: trimesh.Trimesh):
     return build_container(mesh.vertices, mesh.faces, float(mesh.volume), 1.0)
-
-
-def _turned(mesh: trimesh.Trimesh, angle: float, shift=(0.0, 0.0, 0.0)) -> trimesh.Trimesh:
-    m = mesh.copy()
-    m.apply_transform(trimesh.transformations.rotation_matrix(angle, [1, 2, 3]))
-    m.apply_translation(shift)
-    return m
 
 
 def _placed(grid, mesh: trimesh.Trimesh) -> np.ndarray:
@@ -46,7 +33,7 @@ def _placed(grid, mesh: trimesh.Trimesh) -> np.ndarray:
 def test_a_box_that_fits_the_bricks_exactly_holds_all_of_them():
     brick = trimesh.creation.box(extents=(10.0, 5.0, 5.0))
     crate = trimesh.creation.box(extents=(50.0, 30.0, 40.0))
-    found = box_grid(_container(crate), [_Type(brick)], np.array([brick.volume]),
+    found = box_grid(_container(crate), [MeshType(brick)], np.array([brick.volume]),
                      np.array([1.0]), 0.0)
     assert found.closed
     grid = found.stack
@@ -60,9 +47,9 @@ def test_a_box_that_fits_the_bricks_exactly_holds_all_of_them():
 
 
 def test_a_turned_box_and_a_turned_brick_give_the_same_grid():
-    brick = _turned(trimesh.creation.box(extents=(10.0, 5.0, 5.0)), 0.4, (3.0, 1.0, -2.0))
-    crate = _turned(trimesh.creation.box(extents=(50.0, 30.0, 40.0)), 1.1, (100.0, -20.0, 7.0))
-    grid = box_grid(_container(crate), [_Type(brick)], np.array([brick.volume]),
+    brick = turned(trimesh.creation.box(extents=(10.0, 5.0, 5.0)), 0.4, (3.0, 1.0, -2.0))
+    crate = turned(trimesh.creation.box(extents=(50.0, 30.0, 40.0)), 1.1, (100.0, -20.0, 7.0))
+    grid = box_grid(_container(crate), [MeshType(brick)], np.array([brick.volume]),
                     np.array([1.0]), 0.0).stack
     assert len(grid.typ) == 240
     # every brick's vertices lie in the crate (its own frame: within its half sides)
@@ -77,7 +64,7 @@ def test_with_a_clearance_the_boxes_stand_that_far_apart_and_from_the_walls():
     brick = trimesh.creation.box(extents=(10.0, 5.0, 5.0))
     # 4 x 3 x 2 bricks and the clearance five, four and three times
     crate = trimesh.creation.box(extents=(4 * 10 + 5 * c, 3 * 5 + 4 * c, 2 * 5 + 3 * c))
-    grid = box_grid(_container(crate), [_Type(brick)], np.array([brick.volume]),
+    grid = box_grid(_container(crate), [MeshType(brick)], np.array([brick.volume]),
                     np.array([1.0]), c).stack
     assert len(grid.typ) == 24
     v = _placed(grid, brick)
@@ -94,7 +81,7 @@ def test_no_grid_where_the_container_is_no_box_or_more_than_one_type_has_a_share
     brick = trimesh.creation.box(extents=(10.0, 5.0, 5.0))
     tin = trimesh.creation.cylinder(radius=20.0, height=40.0, sections=64)
     vol = np.array([brick.volume, brick.volume])
-    types = [_Type(brick), _Type(brick)]
+    types = [MeshType(brick), MeshType(brick)]
     assert box_grid(_container(tin), types, vol, np.array([1.0, 0.0]), 0.0) is None
     crate = _container(trimesh.creation.box(extents=(50.0, 30.0, 40.0)))
     assert box_grid(crate, types, vol, np.array([0.5, 0.5]), 0.0) is None
@@ -119,7 +106,7 @@ def test_a_box_dented_bevelled_or_with_a_corner_moved_is_no_box():
     # each lost 0.25-0.4 of 60,000 mm^3 (within the volume test) and put grid objects
     # through the wall: certification removed 2-6 of the 240 bricks after 13-39 s of pushes
     brick = trimesh.creation.box(extents=(10.0, 5.0, 5.0))
-    args = ([_Type(brick)], np.array([brick.volume]), np.array([1.0]), 0.0)
+    args = ([MeshType(brick)], np.array([brick.volume]), np.array([1.0]), 0.0)
     crate = trimesh.creation.box(extents=(50.0, 30.0, 40.0))
     assert box_grid(_container(crate), *args) is not None
     dent = _dented(crate, 0.001)

@@ -5,7 +5,7 @@ from __future__ import annotations
 import numpy as np
 import pytest
 import trimesh
-from testdata import cavity_passes
+from testdata import MeshType, cavity_passes, turned
 
 from jampacked.core import placement
 from jampacked.core.api import pack
@@ -21,26 +21,13 @@ from jampacked.core.stacking import BOXY, STACKED, box_frame, round_about, stack
 from jampacked.core.summary import STACKED_LABEL, summarize
 
 
-class _Type:
-    def __init__(self, mesh: trimesh.Trimesh):
-        self.vertices = np.asarray(mesh.vertices, np.float64)
-        self.faces = np.asarray(mesh.faces, np.int64)
-
-
 def _box_container(extents, spacing: float = 0.5):
     b = trimesh.creation.box(extents=extents)
     return build_container(b.vertices, b.faces, float(b.volume), spacing)
 
 
-def _turned(mesh: trimesh.Trimesh, angle: float = 0.7, shift=(0.0, 0.0, 0.0)):
-    m = mesh.copy()
-    m.apply_transform(trimesh.transformations.rotation_matrix(angle, [1, 2, 3]))
-    m.apply_translation(shift)
-    return m
-
-
 def test_a_turned_plate_is_measured_along_its_own_sides():
-    tile = _turned(trimesh.creation.box(extents=(12.0, 8.0, 1.0)), shift=(3.0, -2.0, 1.0))
+    tile = turned(trimesh.creation.box(extents=(12.0, 8.0, 1.0)), shift=(3.0, -2.0, 1.0))
     axes, half, centre = box_frame(tile.vertices, tile.faces)
     np.testing.assert_allclose(half, [6.0, 4.0, 0.5], atol=1e-9)
     assert np.linalg.det(axes) == pytest.approx(1.0)
@@ -57,7 +44,7 @@ def test_a_square_tile_or_a_cube_turned_in_its_file_is_measured_along_its_sides(
     tile.apply_transform(trimesh.transformations.rotation_matrix(0.52, [0, 0, 1]))
     np.testing.assert_allclose(box_frame(tile.vertices, tile.faces)[1], [5.0, 5.0, 0.5],
                                atol=1e-3)
-    cube = _turned(trimesh.creation.box(extents=(8.0, 8.0, 8.0)))
+    cube = turned(trimesh.creation.box(extents=(8.0, 8.0, 8.0)))
     np.testing.assert_allclose(box_frame(cube.vertices, cube.faces)[1], 4.0, atol=1e-6)
 
 
@@ -66,7 +53,7 @@ def test_bricks_stack_in_a_square_crate_turned_in_its_file():
     crate.apply_transform(trimesh.transformations.rotation_matrix(0.52, [0, 0, 1]))
     cont = build_container(crate.vertices, crate.faces, float(crate.volume), 0.5)
     brick = trimesh.creation.box(extents=(20.0, 10.0, 5.0))
-    st = stack_start(cont, [_Type(brick)], np.array([brick.volume]), np.array([1.0]),
+    st = stack_start(cont, [MeshType(brick)], np.array([brick.volume]), np.array([1.0]),
                      np.array([0.01]), 0.0, 0.0, np.random.default_rng(0))
     assert st is not None and len(st.typ) >= 3 * 6 * 7
 
@@ -92,7 +79,7 @@ def _placed_boxes(stack, types):
 def test_plates_stack_in_rows_inside_the_box_and_apart():
     plate = trimesh.creation.box(extents=(10.0, 10.0, 0.5))
     cont = _box_container((31.0, 31.0, 30.0))
-    types = [_Type(plate)]
+    types = [MeshType(plate)]
     margin = np.array([0.01])
     st = stack_start(cont, types, np.array([plate.volume]), np.array([1.0]), margin, 0.0,
                      0.0, np.random.default_rng(0))
@@ -127,7 +114,7 @@ def test_the_strip_beside_the_rows_takes_rows_of_its_own():
     # edge fill it (435 in the rows alone)
     tile = trimesh.creation.box(extents=(12.0, 8.0, 1.0))
     cont = _box_container((42.0, 40.0, 30.0))
-    types = [_Type(tile)]
+    types = [MeshType(tile)]
     st = stack_start(cont, types, np.array([tile.volume]), np.array([1.0]),
                      np.array([0.01]), 0.0, 0.0, np.random.default_rng(0))
     assert st is not None and len(st.typ) > 435
@@ -177,7 +164,7 @@ def test_plates_stack_with_a_printing_clearance_between_them():
     # the plates grown by it
     plate = trimesh.creation.box(extents=(10.0, 10.0, 0.5))
     cont = _box_container((32.0, 32.0, 30.0))
-    st = stack_start(cont, [_Type(plate)], np.array([plate.volume]), np.array([1.0]),
+    st = stack_start(cont, [MeshType(plate)], np.array([plate.volume]), np.array([1.0]),
                      np.array([0.01]), 0.3, 0.0, np.random.default_rng(0))
     assert st is not None and len(st.typ) == 3 * 3 * 36
     grown = 10.3 * 10.3 * 0.8 / (10.0 * 10.0 * 0.5)
@@ -190,7 +177,7 @@ def test_a_ball_or_a_clearance_too_wide_gives_no_stack():
     ball = trimesh.creation.icosphere(subdivisions=3, radius=5.0)
     cont = _box_container((41.0, 41.0, 41.0))
     # a ball fills 52% of its box: fruit and dice of many faces keep phase 1's start
-    assert stack_start(cont, [_Type(ball)], np.array([ball.volume]), np.array([1.0]),
+    assert stack_start(cont, [MeshType(ball)], np.array([ball.volume]), np.array([1.0]),
                        np.array([0.01]), 0.0, 0.0, np.random.default_rng(0)) is None
     assert ball.volume / 1000.0 < BOXY
     # a capsule fills 65% of its box (the YCB apple scan 61%): rows of them would fill
@@ -201,11 +188,11 @@ def test_a_ball_or_a_clearance_too_wide_gives_no_stack():
     # BOXY refuses them; its grid is 2 mm (0.5 built 227^3 cells for a search never made)
     rows = np.floor(120.5 / (capsule.extents + 0.02))
     assert np.prod(rows) * capsule.volume / 120.5 ** 3 > STACKED
-    assert stack_start(_box_container((120.5, 120.5, 120.5), spacing=2.0), [_Type(capsule)],
+    assert stack_start(_box_container((120.5, 120.5, 120.5), spacing=2.0), [MeshType(capsule)],
                        np.array([capsule.volume]), np.array([1.0]), np.array([0.01]), 0.0,
                        0.0, np.random.default_rng(0)) is None
     cube = trimesh.creation.box(extents=(10.0, 10.0, 10.0))
-    args = ([_Type(cube)], np.array([cube.volume]), np.array([1.0]), np.array([0.01]))
+    args = ([MeshType(cube)], np.array([cube.volume]), np.array([1.0]), np.array([0.01]))
     assert stack_start(cont, *args, 0.0, 0.0, np.random.default_rng(0)) is not None
     # 3 mm between cubes leaves three to a row in 41 mm: 27 cubes hold 39%
     assert stack_start(cont, *args, 3.0, 0.0, np.random.default_rng(0)) is None
@@ -215,7 +202,7 @@ def test_two_tile_types_keep_their_shares_and_do_not_clump():
     a = trimesh.creation.box(extents=(10.0, 6.0, 1.0))
     b = trimesh.creation.box(extents=(9.0, 6.0, 1.0))
     cont = _box_container((42.0, 40.0, 30.0))
-    types = [_Type(a), _Type(b)]
+    types = [MeshType(a), MeshType(b)]
     shares = np.array([0.5, 0.5])
     st = stack_start(cont, types, np.array([a.volume, b.volume]), shares,
                      np.array([0.01, 0.01]), 0.0, 0.0, np.random.default_rng(3))
@@ -241,9 +228,9 @@ def test_plates_in_a_box_pack_stacked_and_certified(tmp_path):
 
 def test_a_turned_tile_stacks_in_a_box_drawn_at_an_angle(tmp_path):
     # neither the tile nor the box lies along its file's axes
-    tile = _turned(trimesh.creation.box(extents=(12.0, 8.0, 1.0)), angle=0.4)
+    tile = turned(trimesh.creation.box(extents=(12.0, 8.0, 1.0)), angle=0.4)
     tile.export(tmp_path / "tile.stl")
-    crate = _turned(trimesh.creation.box(extents=(37.0, 34.0, 26.0)), angle=1.1)
+    crate = turned(trimesh.creation.box(extents=(37.0, 34.0, 26.0)), angle=1.1)
     crate.export(tmp_path / "crate.stl")
     p = pack(str(tmp_path / "crate.stl"), [str(tmp_path / "tile.stl")], seed=2)
     assert p.certificate["certified"]
@@ -315,7 +302,7 @@ def test_cans_stand_staggered_where_that_holds_more():
         trimesh.creation.box(extents=(6.0, 6.0, 10.0)))) is None
     # a 1 mm grid: the same 402 sites as 0.5 mm's (to 1e-6 of the spacing), in half the time
     cont = _box_container((61.0, 61.0, 40.0), spacing=1.0)
-    st = stack_start(cont, [_Type(can)], np.array([can.volume]), np.array([1.0]),
+    st = stack_start(cont, [MeshType(can)], np.array([can.volume]), np.array([1.0]),
                      np.array([0.01]), 0.0, 0.0, np.random.default_rng(0))
     assert st is not None and len(st.typ) > 360
     # the cans' axes (world) are parallel; across them no two are nearer than 6.02
@@ -328,7 +315,7 @@ def test_cans_stand_staggered_where_that_holds_more():
         d = np.linalg.norm(pts[:, None] - pts[None], axis=2)
         np.fill_diagonal(d, np.inf)
         assert d.min() >= 6.02 - 1e-9
-    corners = np.concatenate(_placed_boxes(st, [_Type(can)]))
+    corners = np.concatenate(_placed_boxes(st, [MeshType(can)]))
     assert np.all(np.abs(corners) <= np.array([30.5, 30.5, 20.0]) - 0.01 + 1e-9)
 
 
@@ -375,16 +362,16 @@ def test_a_type_whose_box_is_off_its_origin_stays_inside():
     plate = trimesh.boolean.union([a, b], engine="manifold")
     plate.apply_translation([4.0, -2.0, 1.0])
     cont = _box_container((31.0, 31.0, 30.0))
-    st = stack_start(cont, [_Type(plate)], np.array([plate.volume]), np.array([1.0]),
+    st = stack_start(cont, [MeshType(plate)], np.array([plate.volume]), np.array([1.0]),
                      np.array([0.01]), 0.0, 0.0, np.random.default_rng(0))
     assert st is not None
-    corners = np.concatenate(_placed_boxes(st, [_Type(plate)]))
+    corners = np.concatenate(_placed_boxes(st, [MeshType(plate)]))
     assert np.all(np.abs(corners) <= np.array([15.5, 15.5, 15.0]) - 0.01 + 1e-9)
 
 
 def test_the_search_stops_when_asked():
     plate = trimesh.creation.box(extents=(10.0, 10.0, 0.5))
-    args = (_box_container((31.0, 31.0, 30.0)), [_Type(plate)], np.array([plate.volume]),
+    args = (_box_container((31.0, 31.0, 30.0)), [MeshType(plate)], np.array([plate.volume]),
             np.array([1.0]), np.array([0.01]), 0.0, 0.0, np.random.default_rng(0))
     assert stack_start(*args, lambda: True) is None
     assert stack_start(*args, lambda: False) is not None
@@ -402,7 +389,7 @@ def _stacked(meshes, shares, container: trimesh.Trimesh, wall_margin: float = 0.
              spacing: float = 0.5, **kwargs):
     """stack_start for `meshes` in `container` (its grid at `spacing`), margins 0.01, no
     clearance, seed 1."""
-    types = [_Type(m) for m in meshes]
+    types = [MeshType(m) for m in meshes]
     cont = build_container(container.vertices, container.faces, float(container.volume),
                            spacing)
     st = stack_start(cont, types, np.array([m.volume for m in meshes]), np.array(shares),
