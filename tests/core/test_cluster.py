@@ -253,8 +253,11 @@ def test_a_ctrl_c_held_while_the_cluster_starts_closes_the_cluster_when_it_raise
     import subprocess
     import sys
 
+    # distributed is imported first, so that the Ctrl-C comes while the cluster starts, not
+    # while client_for imports it (one run of a clean clone's suite printed "lost")
     code = """
 import os, signal, subprocess, threading, time
+import distributed
 from jampacked.core.cluster import client_for
 threading.Timer(0.5, os.kill, (os.getpid(), signal.SIGINT)).start()
 try:
