@@ -27,6 +27,7 @@ from .cleanup import (
 )
 from .intersect import _morton_order, intersecting_pairs, ray_winding_numbers, winding_numbers
 from .validate import merge_identical
+from .weld import weld_touching
 
 __all__ = ["SPECK_REL", "Cleaned", "UnionVolumeError", "clean_bodies", "clean_arrays",
            "crossing_pairs", "drop_specks", "loose_bodies", "union_arrays"]
@@ -67,14 +68,17 @@ def union_arrays(pieces: list[m3.Manifold], shell: m3.Manifold | None, float32: 
                  check_cancel: Callable[[], None] | None = None
                  ) -> tuple[np.ndarray, np.ndarray, int]:
     """Union of the pieces and the shell: (vertices, faces, bad faces left); see
-    :func:`clean_arrays` for the bad faces. The union is not simplified again (a printer's
-    resolution simplifies each type before it, `scene.make_type_solids`): simplifying it
-    folded faces where objects meet, and each simplification adds to how far the surface
-    moves. ``check_cancel`` (which raises to cancel) is called between the union's chunks.
+    :func:`clean_arrays` for the bad faces. Pieces whose corners almost coincide are first
+    made to touch exactly (`weld_touching`), so that faces they share fuse. The union is
+    not simplified again (a printer's resolution simplifies each type before it,
+    `scene.make_type_solids`): simplifying it folded faces where objects meet, and each
+    simplification adds to how far the surface moves. ``check_cancel`` (which raises to
+    cancel) is called between the union's chunks.
 
     Raises MeshError when manifold3d fails, UnionVolumeError (a MeshError) when it returns
     a wrong result (more volume than its parts); nothing is written then.
     """
+    pieces, _ = weld_touching(pieces)
     result = _chunked_union(pieces, check_cancel or (lambda: None))
     if shell is not None:
         # a separate boolean: batch_boolean with a hollow shell among hundreds of pieces
@@ -134,6 +138,11 @@ def clean_arrays(result: m3.Manifold, float32: bool = False,
 
     def cleaned(m: m3.Manifold) -> tuple[np.ndarray, np.ndarray, int]:
         v, f = solid_arrays(m)
+        if len(f):
+            # components of no volume first (tetrahedra where faces that coincide were
+            # split differently): the repairs below would push them apart into thin voids
+            # that a closed shell keeps
+            v, f = drop_specks(v, f, SPECK_REL * float(np.prod(np.ptp(v, axis=0))))[:2]
         size = float(np.linalg.norm(np.ptp(v, axis=0))) if len(v) else 0.0
         v, f, left = remove_degenerate_faces(v, f, float32=float32,
                                              max_collapse=CROSSING_SLIVER_LEN_REL * size)
