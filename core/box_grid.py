@@ -1,4 +1,5 @@
-"""A box-shaped container filled with one type as a grid of its boxes that touch.
+"""A box-shaped container filled as a grid of boxes that touch: one type, or types of one
+box (the same part in colours) spread through the grid by their shares.
 
 A maker sizes a box to hold N x M x K parts exactly. The stacked start (`stacking`) keeps
 rows the solver's contact margins apart, so a box that fits the parts exactly lost a row
@@ -32,13 +33,19 @@ BOX_VOLUME = 1e-5
 #: the share of the container's side that rows may overrun through rounding (the boxes of
 #: a float32 STL), and that a vertex may lie off the box's sides
 HAIR = 1e-6
+#: types share one grid where each side of their boxes (smallest to largest) is within this
+#: share of the largest type's; each cell is as large as the largest along each side
+SAME_BOX = 0.01
+#: the order in which a 2 x 2 x 2 block's cells take types (`_spread`): the first four
+#: are a checkerboard's one colour, so two types in equal shares alternate in every row
+BLOCK_ORDER = np.array([[[0, 5], [6, 3]], [[7, 2], [1, 4]]])
 
 
 @dataclass(frozen=True)
 class Grid:
-    """A grid of one type's boxes (`box_grid`): its objects (`stacking.Stack`), and whether
-    it is closed: no slab it leaves along a side is as thick as the type's thinnest side
-    and a clearance, so no object fits beside it in any turn."""
+    """A grid of boxes (`box_grid`): its objects (`stacking.Stack`), and whether it is
+    closed: no slab it leaves along a side is as thick as the box's thinnest side and a
+    clearance, so no object fits beside it in any turn."""
 
     stack: Stack
     closed: bool
@@ -48,15 +55,42 @@ def _oriented_box(vertices: np.ndarray, faces: np.ndarray
                   ) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
     """A mesh's smallest box: axes (3, 3, columns, right-handed), half extents (3,) and
     centre (3,), in its own frame (trimesh's minimum-volume box, exact for a box, where
-    `stacking.box_frame`'s one-degree sweep reads a 5 x 5 section 5.0001 wide)."""
+    `stacking.box_frame`'s one-degree sweep reads a 5 x 5 section 5.0001 wide). The axes
+    go from the box's shortest side to its longest."""
     mesh = trimesh.Trimesh(np.asarray(vertices, np.float64), np.asarray(faces, np.int64),
                            process=False)
     to_origin, extents = trimesh.bounds.oriented_bounds(mesh)
     rot = to_origin[:3, :3]
-    axes = rot.T.copy()
+    order = np.argsort(np.asarray(extents, np.float64), kind="stable")
+    axes = rot.T[:, order]
     if np.linalg.det(axes) < 0:  # a box is the same with one axis reversed
         axes[:, 2] *= -1.0
-    return axes, 0.5 * np.asarray(extents, np.float64), -rot.T @ to_origin[:3, 3]
+    return axes, 0.5 * np.asarray(extents, np.float64)[order], -rot.T @ to_origin[:3, 3]
+
+
+def _counts(shares: np.ndarray, n: int) -> np.ndarray:
+    """(T,) how many of `n` objects each type gets: its share of n, rounded so that they
+    add up to n (the largest remainders round up)."""
+    want = n * shares / shares.sum()
+    count = np.floor(want).astype(np.int64)
+    count[np.argsort(count - want, kind="stable")[: n - int(count.sum())]] += 1
+    return count
+
+
+def _spread(index: np.ndarray, count: np.ndarray) -> np.ndarray:
+    """(N,) the type of each grid cell ((N, 3) integer indices) for `count` (T,) objects of
+    each type, spread as an ordered dither does: the cells ranked by their place in the
+    2 x 2 x 2 blocks at the finest scale first (BLOCK_ORDER), then the next, and each type
+    given the next run of ranks. Each run is spread evenly through the grid, so no type
+    clumps; two types in equal shares make a checkerboard."""
+    bits = max(1, int(index.max()).bit_length())
+    rank = np.zeros(len(index), np.int64)
+    for b in range(bits):
+        cell = (index >> b) & 1
+        rank += BLOCK_ORDER[cell[:, 0], cell[:, 1], cell[:, 2]] * 8 ** (bits - 1 - b)
+    typ = np.empty(len(index), np.int64)
+    typ[np.argsort(rank, kind="stable")] = np.repeat(np.arange(len(count)), count)
+    return typ
 
 
 def _is_box(container: Container, frame: np.ndarray, middle: np.ndarray,
@@ -79,24 +113,27 @@ def _is_box(container: Container, frame: np.ndarray, middle: np.ndarray,
 
 def box_grid(container: Container, types: Sequence, volumes: np.ndarray,
              shares: np.ndarray, clearance: float) -> Grid | None:
-    """Where the container is a box (`_is_box`) and one type has a share, the most of that
-    type's boxes in a grid along the container's sides, `clearance` apart and from the
-    walls, the grid centred in the container; else None (and where not one box fits).
+    """Where the container is a box (`_is_box`) and the types with a share have boxes of
+    one size (SAME_BOX), the most such boxes in a grid along the container's sides,
+    `clearance` apart and from the walls, the grid centred in the container, the types
+    spread through it by their shares (`_spread`); else None (and where not one box fits).
 
     types: each with .vertices and .faces (local frame); volumes (T,); shares (T,) by
     count; clearance in container units. Stack.room is each type's volume grown by its
     box's share of the clearance, as `stacking.stack_start` gives it."""
-    live = np.flatnonzero(np.asarray(shares) > 0)
-    if len(live) != 1:
+    shares = np.asarray(shares, np.float64)
+    live = np.flatnonzero(shares > 0)
+    if len(live) == 0:
         return None
-    t = int(live[0])
     frame, size, middle = _oriented_box(container.vertices, container.faces)
     size = 2.0 * size
     if not _is_box(container, frame, middle, size):
         return None
     lo = frame.T @ middle - 0.5 * size  # frame coordinates
-    axes, half, centre = _oriented_box(types[t].vertices, types[t].faces)
-    if half.min() <= 0:
+    boxes = [_oriented_box(types[t].vertices, types[t].faces) for t in live]
+    halves = np.array([b[1] for b in boxes])
+    half = halves.max(axis=0)  # a cell holds each type's box
+    if halves.min() <= 0 or np.any(halves.min(axis=0) < (1.0 - SAME_BOX) * half):
         return None
     best = None
     for perm in permutations(range(3)):
@@ -110,17 +147,23 @@ def box_grid(container: Container, types: Sequence, volumes: np.ndarray,
     perm, n, side = best
     pitch = side + clearance
     first = lo + 0.5 * (size - (n * side + (n - 1) * clearance)) + 0.5 * side
-    grid = np.stack(np.meshgrid(*[first[j] + pitch[j] * np.arange(n[j]) for j in range(3)],
-                                indexing="ij"), axis=-1).reshape(-1, 3)
+    index = np.stack(np.meshgrid(*[np.arange(k) for k in n], indexing="ij"),
+                     axis=-1).reshape(-1, 3)
+    grid = first + pitch * index
+    which = _spread(index, _counts(shares[live], len(index)))
     swap = np.zeros((3, 3))
     swap[np.arange(3), list(perm)] = 1.0  # frame axis j <- box axis perm[j]
-    turn = frame @ swap @ axes.T
-    if np.linalg.det(turn) < 0:  # a box is the same with one axis reversed
-        turn = frame @ swap @ np.diag([1.0, 1.0, -1.0]) @ axes.T
-    pos = grid @ frame.T - turn @ centre
-    quat = np.repeat(matrix_to_quat(turn[None]), len(pos), axis=0)
+    pos = np.empty((len(index), 3))
+    quat = np.empty((len(index), 4))
     room = np.zeros(len(volumes))
-    room[t] = volumes[t] * float(np.prod(2.0 * half + clearance) / np.prod(2.0 * half))
+    for k, (t, (axes, own, centre)) in enumerate(zip(live, boxes, strict=True)):
+        turn = frame @ swap @ axes.T
+        if np.linalg.det(turn) < 0:  # a box is the same with one axis reversed
+            turn = frame @ swap @ np.diag([1.0, 1.0, -1.0]) @ axes.T
+        mine = which == k
+        pos[mine] = grid[mine] @ frame.T - turn @ centre
+        quat[mine] = matrix_to_quat(turn[None])
+        room[t] = volumes[t] * float(np.prod(2.0 * own + clearance) / np.prod(2.0 * own))
     slab = size - n * side - (n + 1) * clearance
     closed = bool(np.all(slab < 2.0 * half.min() + clearance))
-    return Grid(Stack(np.full(len(pos), t), pos, quat, room), closed)
+    return Grid(Stack(live[which], pos, quat, room), closed)

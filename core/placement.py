@@ -58,8 +58,8 @@ STACK_PUSH_TESTS = 100_000
 #: from the densest, a runner-up denser before certification than what is left is certified
 #: in turn, and the densest certified packing is kept (`api._certify_ranked`)
 RUNNERS_UP = 2
-#: after the deadline a grid of one type's boxes (`box_grid`) replaces the attempt only
-#: where it holds at most this many times the attempt's objects
+#: after the deadline a grid of boxes (`box_grid`) replaces the attempt only where it
+#: holds at most this many times the attempt's objects
 GRID_LATE = 2.0
 #: an attempt whose phase 2 ends below the best attempt's density by both this factor and
 #: these points skips its extra passes, which cannot catch up: across the bench's recorded
@@ -115,12 +115,12 @@ def place_once(solver: Solver, q: np.ndarray, s1: float, f_min: float,
                report: Callable[[float, str], None], *, index: int,
                fresh: Callable[[], Solver] | None = None,
                given_up: tuple[dict, ...] = (), beat: float = 0.0) -> Attempt:
-    """`_place_once`, but for attempt 0 where one type fills a box-shaped container as a
-    grid of its boxes (`box_grid`): a closed grid that fills STACK_KEPT of it is kept
-    without the attempt (no slab beside it takes another row, and random starts jam below
-    STACK_KEPT); another is kept, on `fresh()`, where it holds more than the attempt, and
-    after the deadline only where it holds at most GRID_LATE times as many (its
-    certification then takes about as long)."""
+    """`_place_once`, but for attempt 0 where the types (one, or several of one box) fill
+    a box-shaped container as a grid of their boxes (`box_grid`): a closed grid that fills
+    STACK_KEPT of it is kept without the attempt (no slab beside it takes another row, and
+    random starts jam below STACK_KEPT); another is kept, on `fresh()`, where it holds
+    more than the attempt, and after the deadline only where it holds at most GRID_LATE
+    times as many (its certification then takes about as long)."""
     t0 = time.perf_counter()
     grid = None
     if index == 0 and fresh is not None and not given_up:
