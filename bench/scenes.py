@@ -129,6 +129,13 @@ SCENES: dict[str, dict] = {
         "reference": "20 x 10 x 5 and 10 x 10 x 5 mm bricks, equal shares: rows of both in "
                      "turn",
     },
+    "bricks-two-colours": {
+        "container": "box:100x60x50",
+        "types": [str(BOXY / "brick_20x10x5.stl"), str(BOXY / "brick_20x10x5.stl")],
+        "kwargs": {"time_budget": 60.0},
+        "reference": "one 20 x 10 x 5 mm brick as two types (two colours), equal shares, in "
+                     "a box sized for 5 x 6 x 10 of it: 300 hold 100%",
+    },
     "two-tiles": {
         "container": "box:42x40x30",
         "types": [str(BOXY / "tile_12x8x1.stl"), str(BOXY / "tile_9x6x1.stl")],
