@@ -1,5 +1,5 @@
 """A box-shaped container filled as a grid of boxes that touch: one type, or types of one
-box (the same part in colours) spread through the grid by their shares.
+part (the same part in colours) spread through the grid by their shares.
 
 A maker sizes a box to hold N x M x K parts exactly. The stacked start (`stacking`) keeps
 rows the solver's contact margins apart, so a box that fits the parts exactly lost a row
@@ -33,9 +33,6 @@ BOX_VOLUME = 1e-5
 #: the share of the container's side that rows may overrun through rounding (the boxes of
 #: a float32 STL), and that a vertex may lie off the box's sides
 HAIR = 1e-6
-#: types share one grid where each side of their boxes (smallest to largest) is within this
-#: share of the largest type's; each cell is as large as the largest along each side
-SAME_BOX = 0.01
 #: the order in which a 2 x 2 x 2 block's cells take types (`_spread`): the first four
 #: are a checkerboard's one colour, so two types in equal shares alternate in every row
 BLOCK_ORDER = np.array([[[0, 5], [6, 3]], [[7, 2], [1, 4]]])
@@ -66,6 +63,14 @@ def _oriented_box(vertices: np.ndarray, faces: np.ndarray
     if np.linalg.det(axes) < 0:  # a box is the same with one axis reversed
         axes[:, 2] *= -1.0
     return axes, 0.5 * np.asarray(extents, np.float64)[order], -rot.T @ to_origin[:3, 3]
+
+
+def _one_part(types: Sequence, live: np.ndarray) -> bool:
+    """Whether the types `live` are one part (colours of it): as many vertices and faces
+    each. Parts that differ only in how their faces are split touch where no corner meets a
+    corner, which the union of an export cannot fuse (`export/weld.py`)."""
+    shapes = {(len(types[t].vertices), len(types[t].faces)) for t in live}
+    return len(shapes) == 1
 
 
 def _counts(shares: np.ndarray, n: int) -> np.ndarray:
@@ -113,10 +118,11 @@ def _is_box(container: Container, frame: np.ndarray, middle: np.ndarray,
 
 def box_grid(container: Container, types: Sequence, volumes: np.ndarray,
              shares: np.ndarray, clearance: float) -> Grid | None:
-    """Where the container is a box (`_is_box`) and the types with a share have boxes of
-    one size (SAME_BOX), the most such boxes in a grid along the container's sides,
-    `clearance` apart and from the walls, the grid centred in the container, the types
-    spread through it by their shares (`_spread`); else None (and where not one box fits).
+    """Where the container is a box (`_is_box`) and the types with a share are one part
+    (`_one_part`, with boxes of one size to a HAIR), the most such boxes in a grid along
+    the container's sides, `clearance` apart and from the walls, the grid centred in the
+    container, the types spread through it by their shares (`_spread`); else None (and
+    where not one box fits).
 
     types: each with .vertices and .faces (local frame); volumes (T,); shares (T,) by
     count; clearance in container units. Stack.room is each type's volume grown by its
@@ -130,10 +136,12 @@ def box_grid(container: Container, types: Sequence, volumes: np.ndarray,
     if not _is_box(container, frame, middle, size):
         return None
     lo = frame.T @ middle - 0.5 * size  # frame coordinates
+    if not _one_part(types, live):
+        return None
     boxes = [_oriented_box(types[t].vertices, types[t].faces) for t in live]
     halves = np.array([b[1] for b in boxes])
-    half = halves.max(axis=0)  # a cell holds each type's box
-    if halves.min() <= 0 or np.any(halves.min(axis=0) < (1.0 - SAME_BOX) * half):
+    half = halves.max(axis=0)  # a cell holds each type's box (they differ by a HAIR)
+    if halves.min() <= 0 or np.any(halves.min(axis=0) < (1.0 - HAIR) * half):
         return None
     best = None
     for perm in permutations(range(3)):

@@ -40,6 +40,8 @@ def weld_touching(pieces: list[m3.Manifold]) -> tuple[list[m3.Manifold], int]:
     arrays = [solid_arrays(p) for p in pieces]
     sizes = np.array([len(v) for v, _ in arrays])
     v = np.concatenate([a[0] for a in arrays])
+    if len(v) == 0:
+        return pieces, 0
     owner = np.repeat(np.arange(len(pieces)), sizes)
     reach = WELD_REL * float(np.linalg.norm(np.ptp(v, axis=0)))
     pairs = cKDTree(v).query_pairs(reach, output_type="ndarray")

@@ -86,12 +86,13 @@ def test_no_grid_where_the_container_is_no_box_or_the_types_boxes_differ():
     assert box_grid(_container(tin), types, vol, np.array([1.0, 0.0]), 0.0) is None
     crate = _container(trimesh.creation.box(extents=(50.0, 30.0, 40.0)))
     assert box_grid(crate, types, vol, np.array([0.0, 1.0]), 0.0) is not None
-    # a brick 2% longer than the other shares no grid with it (SAME_BOX), 0.5% does
-    for longer, shared in ((1.02, False), (1.005, True)):
-        other = trimesh.creation.box(extents=(10.0 * longer, 5.0, 5.0))
-        mixed = [MeshType(brick), MeshType(other)]
-        found = box_grid(crate, mixed, np.array([brick.volume, other.volume]),
-                         np.array([0.5, 0.5]), 0.0)
+    # one part only (the union of an export fuses touching faces where corners meet):
+    # a brick 0.4% longer, or split into more faces, shares no grid with it; one saved
+    # turned (its box read from other rounding) does
+    for other, shared in ((trimesh.creation.box(extents=(10.04, 5.0, 5.0)), False),
+                          (brick.subdivide(), False), (turned(brick, 0.3), True)):
+        found = box_grid(crate, [MeshType(brick), MeshType(other)],
+                         np.array([brick.volume, other.volume]), np.array([0.5, 0.5]), 0.0)
         assert (found is not None) == shared
     small = _container(trimesh.creation.box(extents=(9.0, 30.0, 40.0)))
     assert box_grid(small, types, vol, np.array([1.0, 0.0]), 0.0) is not None  # turned

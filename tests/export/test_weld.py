@@ -3,6 +3,7 @@ a rounding error apart, are given one position before the union."""
 
 from __future__ import annotations
 
+import manifold3d as m3
 import numpy as np
 import pytest
 import trimesh
@@ -46,6 +47,14 @@ def test_solids_apart_or_touching_exactly_are_returned_as_they_were():
         pieces, moved = weld_touching(given)
         assert moved == 0
         assert all(p is q for p, q in zip(pieces, given, strict=True))
+
+
+def test_empty_solids_have_nothing_to_weld():
+    empty = m3.Manifold()
+    pieces, moved = weld_touching([empty, empty])
+    assert moved == 0 and all(p is empty for p in pieces)
+    v, f, left = union_arrays([empty, empty], _cube((0.0, 0.0, 0.0)))
+    assert len(f) == 12 and left == 0
 
 
 @pytest.mark.parametrize("float32", [False, True])
