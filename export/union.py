@@ -78,8 +78,9 @@ def union_arrays(pieces: list[m3.Manifold], shell: m3.Manifold | None, float32: 
     Raises MeshError when manifold3d fails, UnionVolumeError (a MeshError) when it returns
     a wrong result (more volume than its parts); nothing is written then.
     """
-    pieces, _ = weld_touching(pieces)
-    result = _chunked_union(pieces, check_cancel or (lambda: None))
+    check = check_cancel or (lambda: None)
+    pieces, _ = weld_touching(pieces, check)
+    result = _chunked_union(pieces, check)
     if shell is not None:
         # a separate boolean: batch_boolean with a hollow shell among hundreds of pieces
         # returned the solid container (cavity filled) in manifold3d 3.x

@@ -11,6 +11,8 @@ Frames: the caller's (the packing's container frame, container units).
 
 from __future__ import annotations
 
+from collections.abc import Callable
+
 import manifold3d as m3
 import numpy as np
 from scipy.sparse import coo_matrix
@@ -27,17 +29,22 @@ __all__ = ["WELD_REL", "weld_touching"]
 WELD_REL = 1e-6
 
 
-def weld_touching(pieces: list[m3.Manifold]) -> tuple[list[m3.Manifold], int]:
+def weld_touching(pieces: list[m3.Manifold],
+                  check_cancel: Callable[[], None] | None = None
+                  ) -> tuple[list[m3.Manifold], int]:
     """The pieces with every vertex that lies within WELD_REL of the scene's diagonal of a
     vertex of another piece moved onto one position shared by all of them (the first such
     vertex in the pieces' order), and how many vertices moved.
 
     A group that holds two vertices of the same piece is left as it is (moving them together
     would fold that piece). Pieces with nothing to weld are returned as they were, so a
-    packing whose objects do not touch at corners unites exactly as before."""
+    packing whose objects do not touch at corners unites exactly as before.
+    ``check_cancel`` (which raises to cancel) runs between the steps."""
     if len(pieces) < 2:
         return pieces, 0
+    check = check_cancel or (lambda: None)
     arrays = [solid_arrays(p) for p in pieces]
+    check()
     sizes = np.array([len(v) for v, _ in arrays])
     v = np.concatenate([a[0] for a in arrays])
     if len(v) == 0:
@@ -48,6 +55,7 @@ def weld_touching(pieces: list[m3.Manifold]) -> tuple[list[m3.Manifold], int]:
     pairs = pairs[owner[pairs[:, 0]] != owner[pairs[:, 1]]]
     if len(pairs) == 0:
         return pieces, 0
+    check()
     n = len(v)
     _, group = connected_components(
         coo_matrix((np.ones(len(pairs)), (pairs[:, 0], pairs[:, 1])), shape=(n, n)),
@@ -67,7 +75,9 @@ def weld_touching(pieces: list[m3.Manifold]) -> tuple[list[m3.Manifold], int]:
     v[members] = target
     starts = np.concatenate([[0], np.cumsum(sizes)])
     out = list(pieces)
-    for i in np.unique(owner[moved]):
+    for k, i in enumerate(np.unique(owner[moved])):
+        if k % 256 == 0:
+            check()
         solid = to_solid(v[starts[i]:starts[i + 1]], arrays[i][1])
         if solid.status() == m3.Error.NoError:
             out[i] = solid

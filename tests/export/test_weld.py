@@ -9,6 +9,7 @@ import pytest
 import trimesh
 
 from jampacked.core.api import pack
+from jampacked.core.errors import Cancelled
 from jampacked.core.packing_json import save_packing
 from jampacked.core.solids import solid_arrays, to_solid
 from jampacked.export import union
@@ -47,6 +48,21 @@ def test_solids_apart_or_touching_exactly_are_returned_as_they_were():
         pieces, moved = weld_touching(given)
         assert moved == 0
         assert all(p is q for p, q in zip(pieces, given, strict=True))
+
+
+def test_a_cancel_stops_the_weld():
+    calls = []
+
+    def cancel():
+        calls.append(1)
+        if len(calls) == 2:  # after the pairs are found, before any solid is rebuilt
+            raise Cancelled("export cancelled")
+
+    with pytest.raises(Cancelled):
+        weld_touching(_pair(3e-9), cancel)
+    calls.clear()
+    with pytest.raises(Cancelled):
+        union_arrays(_pair(3e-9), None, check_cancel=cancel)
 
 
 def test_empty_solids_have_nothing_to_weld():
@@ -97,6 +113,6 @@ def test_a_grid_of_bricks_exports_as_one_solid_block(brick_grid, tmp_path, shell
 
 def test_without_the_weld_the_grid_is_refused(brick_grid, tmp_path, monkeypatch):
     """What the weld mends: the same export without it fails the validation."""
-    monkeypatch.setattr(union, "weld_touching", lambda pieces: (pieces, 0))
+    monkeypatch.setattr(union, "weld_touching", lambda pieces, check=None: (pieces, 0))
     with pytest.raises(Exception, match="self-intersecting|not watertight"):
         export_packing(brick_grid, tmp_path / "block.3mf", ExportOptions(mode="union"))
