@@ -22,6 +22,7 @@ import numpy as np
 import trimesh
 
 from .container import Container
+from .metrics import rounded_counts
 from .rotations import matrix_to_quat
 from .stacking import Stack
 
@@ -71,15 +72,6 @@ def _one_part(types: Sequence, live: np.ndarray) -> bool:
     corner, which the union of an export cannot fuse (`export/weld.py`)."""
     shapes = {(len(types[t].vertices), len(types[t].faces)) for t in live}
     return len(shapes) == 1
-
-
-def _counts(shares: np.ndarray, n: int) -> np.ndarray:
-    """(T,) how many of `n` objects each type gets: its share of n, rounded so that they
-    add up to n (the largest remainders round up)."""
-    want = n * shares / shares.sum()
-    count = np.floor(want).astype(np.int64)
-    count[np.argsort(count - want, kind="stable")[: n - int(count.sum())]] += 1
-    return count
 
 
 def _spread(index: np.ndarray, count: np.ndarray) -> np.ndarray:
@@ -158,7 +150,7 @@ def box_grid(container: Container, types: Sequence, volumes: np.ndarray,
     index = np.stack(np.meshgrid(*[np.arange(k) for k in n], indexing="ij"),
                      axis=-1).reshape(-1, 3)
     grid = first + pitch * index
-    which = _spread(index, _counts(shares[live], len(index)))
+    which = _spread(index, rounded_counts(shares[live] / shares[live].sum(), len(index)))
     swap = np.zeros((3, 3))
     swap[np.arange(3), list(perm)] = 1.0  # frame axis j <- box axis perm[j]
     pos = np.empty((len(index), 3))

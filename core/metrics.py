@@ -110,15 +110,21 @@ def tvd_of_counts(counts: np.ndarray, shares: np.ndarray) -> float:
     return 0.5 * float(np.abs(counts / n - shares).sum())
 
 
-def best_tvd(shares: np.ndarray, n: int) -> float:
-    """The smallest TVD any n objects can have against target shares (T,): counts rounded
-    by largest remainders."""
+def rounded_counts(shares: np.ndarray, n: int) -> np.ndarray:
+    """(T,) int64 counts of n objects nearest to target shares (T,) summing to 1: each
+    share of n rounded down, and the largest remainders rounded up until they add to n."""
     want = shares * n
-    counts = np.floor(want)
+    counts = np.floor(want).astype(np.int64)
     short = int(n - counts.sum())
     if short > 0:
         counts[np.argsort(-(want - counts), kind="stable")[:short]] += 1
-    return tvd_of_counts(counts, shares)
+    return counts
+
+
+def best_tvd(shares: np.ndarray, n: int) -> float:
+    """The smallest TVD any n objects can have against target shares (T,): counts rounded
+    by largest remainders (`rounded_counts`)."""
+    return tvd_of_counts(rounded_counts(shares, n), shares)
 
 
 def tvd(type_index: np.ndarray, target_shares: np.ndarray) -> float:
