@@ -44,6 +44,7 @@ from .recertify import certify_edited
 from .report import ExportReport
 from .scene import PlacedScene, load_sources, packing_clearance, place, smallest_object
 from .union import UnionVolumeError, clean_bodies, crossing_pairs, loose_bodies, union_arrays
+from .weld import shrunk_apart
 
 __all__ = ["ExportReport", "export_packing"]
 
@@ -368,6 +369,20 @@ def _one_body(packing: Packing, scene: PlacedScene, shell: m3.Manifold | None,
         check_cancel()
         report(0.6, "union, with the shell unsimplified")
         v, f, left = _union(scene.solids + struts, shell, options, float32, check_cancel)
+    if left > 0 and options.mode == "union":
+        # parts that touch face to face where their faces are split differently (a grid
+        # of parts with a hole): a union cannot fuse them, so they are set apart instead
+        report(0.6, "union, the objects set apart")
+        pieces, step = shrunk_apart(scene.solids)
+        v2, f2, left2 = _union(pieces, shell, options, float32, check_cancel)
+        if left2 < left:
+            v, f, left = v2, f2, left2
+            out.warnings.append(
+                "some objects touch face to face where their surfaces are split into "
+                "different triangles, which a union cannot fuse: every object was made "
+                f"{step:.2g} smaller on each side so that they stand apart as separate "
+                "bodies, far closer than a printer resolves. --mode parts (with a "
+                "clearance) or a packing with --clearance keeps them apart on purpose.")
     if left > 0 and options.resolution is not None:
         crossing = crossing_pairs(v, f, float32=False)[1]
         if crossing > 0:  # the validator would refuse the file; say what helps before writing

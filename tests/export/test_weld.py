@@ -16,7 +16,7 @@ from jampacked.export import union
 from jampacked.export.assemble import export_packing
 from jampacked.export.options import ExportOptions
 from jampacked.export.union import clean_bodies, union_arrays
-from jampacked.export.weld import WELD_REL, weld_touching
+from jampacked.export.weld import APART_REL, WELD_REL, weld_touching
 
 
 def _cube(shift, size: float = 1.0):
@@ -104,15 +104,42 @@ def test_a_grid_of_bricks_exports_as_one_solid_block(brick_grid, tmp_path, shell
     assert out.bodies == 1
     assert out.volume == pytest.approx(60000.0, rel=1e-6)
     # the thin wedges where the bricks' shared faces were split differently are no voids
-    assert not any("void" in w for w in out.warnings)
+    assert not any("void" in w or "stand apart" in w for w in out.warnings)
     for name in ("block.3mf", "block.stl"):
         mesh = trimesh.load(tmp_path / name, force="mesh")
         assert mesh.is_watertight and mesh.body_count == 1
         assert mesh.volume == pytest.approx(60000.0, rel=1e-5)
 
 
-def test_without_the_weld_the_grid_is_refused(brick_grid, tmp_path, monkeypatch):
-    """What the weld mends: the same export without it fails the validation."""
+def test_without_the_weld_the_grid_is_no_one_body(brick_grid, tmp_path, monkeypatch):
+    """What the weld mends: without it the bricks' union leaves faces that touch (refused
+    by validation before the objects were set apart), so they are written apart."""
     monkeypatch.setattr(union, "weld_touching", lambda pieces, check=None: (pieces, 0))
-    with pytest.raises(Exception, match="self-intersecting|not watertight"):
-        export_packing(brick_grid, tmp_path / "block.3mf", ExportOptions(mode="union"))
+    out = export_packing(brick_grid, tmp_path / "block.3mf", ExportOptions(mode="union"))
+    assert out.bodies == 240 and any("stand apart" in w for w in out.warnings)
+
+
+def test_parts_whose_touching_faces_are_split_differently_are_set_apart(tmp_path):
+    """A brick with a hole through it: its faces either side of a contact are triangulated
+    differently, no corner meets a corner, and the weld cannot fuse them (refused with 130
+    face pairs before): the objects are made a little smaller and written apart."""
+    part = (m3.Manifold.cube((10.0, 5.0, 5.0), True)
+            - m3.Manifold.cylinder(12.0, 1.2, 1.2, 24, True).rotate((0.0, 90.0, 0.0))
+            - m3.Manifold.cylinder(6.0, 0.8, 0.8, 16, True).rotate((90.0, 0.0, 0.0))
+            .translate((2.0, 0.0, 0.0)))
+    v, f = solid_arrays(part)
+    trimesh.Trimesh(v, f, process=False).export(tmp_path / "holed.stl")
+    packing = pack("box:50x30x40", [str(tmp_path / "holed.stl")], seed=1)
+    assert packing.n == 240
+    save_packing(packing, tmp_path / "packing.json")
+    out = export_packing(tmp_path / "packing.json",
+                         [tmp_path / "block.3mf", tmp_path / "block.stl"],
+                         ExportOptions(mode="union"))
+    assert out.bodies == 240
+    assert any("stand apart" in w for w in out.warnings)
+    step = APART_REL * np.linalg.norm([50.0, 30.0, 40.0])
+    # each object loses at most its surface times the few steps its faces moved in
+    assert 0 < 240 * part.volume() - out.volume < 240 * part.surface_area() * 3 * step
+    for name in ("block.3mf", "block.stl"):
+        mesh = trimesh.load(tmp_path / name, force="mesh")
+        assert mesh.is_watertight and mesh.body_count == 240
