@@ -369,9 +369,10 @@ def _one_body(packing: Packing, scene: PlacedScene, shell: m3.Manifold | None,
         check_cancel()
         report(0.6, "union, with the shell unsimplified")
         v, f, left = _union(scene.solids + struts, shell, options, float32, check_cancel)
-    if left > 0 and options.mode == "union":
+    if left > 0 and options.mode == "union" and options.resolution is None:
         # parts that touch face to face where their faces are split differently (a grid
         # of parts with a hole): a union cannot fuse them, so they are set apart instead
+        # (with a --resolution, the folds of its coarser faces are said below)
         report(0.6, "union, the objects set apart")
         pieces, step = shrunk_apart(scene.solids)
         v2, f2, left2 = _union(pieces, shell, options, float32, check_cancel)

@@ -9,7 +9,7 @@ import pytest
 import trimesh
 
 from jampacked.core.api import pack
-from jampacked.core.errors import Cancelled
+from jampacked.core.errors import Cancelled, MeshError
 from jampacked.core.packing_json import save_packing
 from jampacked.core.solids import solid_arrays, to_solid
 from jampacked.export import union
@@ -119,21 +119,33 @@ def test_without_the_weld_the_grid_is_no_one_body(brick_grid, tmp_path, monkeypa
     assert out.bodies == 240 and any("stand apart" in w for w in out.warnings)
 
 
-def test_parts_whose_touching_faces_are_split_differently_are_set_apart(tmp_path):
-    """A brick with a hole through it: its faces either side of a contact are triangulated
-    differently, no corner meets a corner, and the weld cannot fuse them (refused with 130
-    face pairs before): the objects are made a little smaller and written apart."""
-    part = (m3.Manifold.cube((10.0, 5.0, 5.0), True)
+def _holed() -> m3.Manifold:
+    """A 10 x 5 x 5 brick with two holes through it."""
+    return (m3.Manifold.cube((10.0, 5.0, 5.0), True)
             - m3.Manifold.cylinder(12.0, 1.2, 1.2, 24, True).rotate((0.0, 90.0, 0.0))
             - m3.Manifold.cylinder(6.0, 0.8, 0.8, 16, True).rotate((90.0, 0.0, 0.0))
             .translate((2.0, 0.0, 0.0)))
-    v, f = solid_arrays(part)
-    trimesh.Trimesh(v, f, process=False).export(tmp_path / "holed.stl")
-    packing = pack("box:50x30x40", [str(tmp_path / "holed.stl")], seed=1)
+
+
+@pytest.fixture(scope="module")
+def holed_grid(tmp_path_factory):
+    """240 holed bricks filling a box as a grid."""
+    tmp = tmp_path_factory.mktemp("holed")
+    v, f = solid_arrays(_holed())
+    trimesh.Trimesh(v, f, process=False).export(tmp / "holed.stl")
+    packing = pack("box:50x30x40", [str(tmp / "holed.stl")], seed=1)
     assert packing.n == 240
-    save_packing(packing, tmp_path / "packing.json")
-    out = export_packing(tmp_path / "packing.json",
-                         [tmp_path / "block.3mf", tmp_path / "block.stl"],
+    save_packing(packing, tmp / "packing.json")
+    return tmp / "packing.json"
+
+
+def test_parts_whose_touching_faces_are_split_differently_are_set_apart(holed_grid,
+                                                                         tmp_path):
+    """A brick with a hole through it: its faces either side of a contact are triangulated
+    differently, no corner meets a corner, and the weld cannot fuse them (refused with 130
+    face pairs before): the objects are made a little smaller and written apart."""
+    part = _holed()
+    out = export_packing(holed_grid, [tmp_path / "block.3mf", tmp_path / "block.stl"],
                          ExportOptions(mode="union"))
     assert out.bodies == 240
     assert any("stand apart" in w for w in out.warnings)
@@ -143,3 +155,12 @@ def test_parts_whose_touching_faces_are_split_differently_are_set_apart(tmp_path
     for name in ("block.3mf", "block.stl"):
         mesh = trimesh.load(tmp_path / name, force="mesh")
         assert mesh.is_watertight and mesh.body_count == 240
+
+
+def test_with_a_resolution_the_folds_are_said_as_its_own(holed_grid, tmp_path):
+    # coarser faces fold where objects meet: the advice names the resolution, and setting
+    # the objects apart (which also helps without one) is not tried
+    with pytest.raises(MeshError, match="simplified to --resolution 0.05.*or none"):
+        export_packing(holed_grid, tmp_path / "block.3mf",
+                       ExportOptions(mode="union", resolution=0.05))
+    assert not (tmp_path / "block.3mf").exists()
